@@ -1,0 +1,72 @@
+#pragma once
+// The whole deformation stage of the paper (2.3) on a patient scene:
+//   1. the aorta is deformed by its device handles (skeleton-based ARAP);
+//   2. the iliac carrying the device (found from the geometry) is deformed by its device
+//      handles, its top vertices bound to the nearest deformed aortic vertices (they move
+//      by the displacement of that aortic vertex);
+//   3. aortic vertices below the bound iliac points are erased (faces removed; the vertex
+//      array keeps its order);
+//   4. an iliac without the device keeps its shape and follows the aorta by the mean
+//      displacement of its top, so the junction stays closed;
+//   5. landmarks move with the surface they sit on.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include "evar/deform/arap_solver.hpp"
+#include "evar/deform/control_points.hpp"
+#include "evar/deform/skeleton.hpp"
+#include "evar/geometry/scene.hpp"
+
+namespace evar::deform {
+
+struct DeformOptions {
+  ControlPointOptions control;   ///< device_thickness_mm is taken from the scene
+  SkeletonOptions skeleton;
+  ArapOptions arap;
+  bool use_skeleton = true;      ///< false: plain surface ARAP (for comparison)
+  double bind_length_mm = 3.0;   ///< iliac vertices this close to its proximal end are bound
+};
+
+struct StageTimings {
+  double weights_ms = 0, control_points_ms = 0, skeleton_ms = 0, factor_ms = 0, iterate_ms = 0, total_ms = 0;
+};
+
+struct VesselReport {
+  std::string name;
+  std::string kind;
+  std::string role;              ///< "deformed", "carries the device", "follows the aorta", "unchanged"
+  int vertices = 0, faces = 0;
+  int device_points = 0;         ///< device samples that lie within this vessel's reach
+  int control_points = 0;        ///< handles from the device
+  int bound_vertices = 0;        ///< iliac top vertices bound to the aorta
+  int constrained_vertices = 0;
+  int skeleton_points = 0;       ///< plane centres + wall hits
+  int iterations = 0;
+  bool converged = true;
+  double final_energy = 0.0;
+  double max_displacement_mm = 0.0;
+  int erased_vertices = 0, erased_faces = 0;
+  StageTimings timings;
+};
+
+struct DeformedVessel {
+  geometry::TriangleMesh mesh;        ///< deformed vertices (all, original order); faces minus erased ones
+  std::vector<char> erased;           ///< per vertex: erased (1) or kept (0)
+};
+
+struct SceneDeformation {
+  std::vector<DeformedVessel> vessels;            ///< same order as scene.vessels
+  std::vector<geometry::ControlPoint> landmarks;  ///< moved, labels kept
+  std::vector<std::string> landmark_vessel;       ///< the vessel each landmark follows
+  std::vector<VesselReport> reports;
+  std::string device_iliac;                       ///< empty if the device reaches no iliac
+  double total_ms = 0.0;
+};
+
+/// Throws geometry::InputError when the device is unusable (fewer than 2 points, not
+/// finite, or nowhere near any vessel) and std::runtime_error when a solve fails.
+SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Polyline& device,
+                              const DeformOptions& options = {});
+
+}  // namespace evar::deform

@@ -1,0 +1,40 @@
+#pragma once
+// Sparse Cholesky factorization of the ARAP system, factored once and solved every
+// iteration for the three coordinate columns at once.
+#include <Eigen/Core>
+#include <Eigen/Sparse>
+#include <memory>
+#include <string>
+
+namespace evar::deform {
+
+enum class CholeskyBackend {
+  Default,     ///< the faster one measured on this project's benchmarks (docs/BENCHMARKS.md)
+  EigenLDLT,   ///< Eigen::SimplicialLDLT with AMD ordering
+  Cholmod,     ///< SuiteSparse CHOLMOD supernodal LL^T (when built with it)
+};
+
+CholeskyBackend parse_cholesky_backend(const std::string& name);  ///< "default", "eigen", "cholmod"
+const char* to_string(CholeskyBackend backend);
+bool cholmod_available();
+
+class SparseCholesky {
+ public:
+  /// Factors A (symmetric positive definite; only the lower triangle is read).
+  /// Throws std::runtime_error if A is not positive definite.
+  SparseCholesky(const Eigen::SparseMatrix<double>& A, CholeskyBackend backend = CholeskyBackend::Default);
+  ~SparseCholesky();
+  SparseCholesky(SparseCholesky&&) noexcept;
+  SparseCholesky& operator=(SparseCholesky&&) noexcept;
+
+  /// X = A^{-1} B for an n by k right-hand side.
+  Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
+  CholeskyBackend backend() const { return backend_; }
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+  CholeskyBackend backend_;
+};
+
+}  // namespace evar::deform

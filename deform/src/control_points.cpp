@@ -1,0 +1,107 @@
+#include "evar/deform/control_points.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace evar::deform {
+namespace {
+
+struct Candidate {
+  Handle handle;
+  double penetration_mm;  // |d − h|
+};
+
+// Casts the ray from centerline point c toward device point d; a wall hit before d means
+// the device is outside there.
+void try_ray(const geometry::RayCaster& caster, const Eigen::Vector3d& c, const Eigen::Vector3d& d, double arc,
+             double thickness, std::vector<Candidate>& out) {
+  const Eigen::Vector3d cd = d - c;
+  const double reach = cd.norm();
+  if (!(reach > 1e-9)) return;
+  // t_min skips a wall the ray starts on (a centerline ending on a cap).
+  const auto hit = caster.first_hit(c, cd, reach, 1e-6);
+  if (!hit) return;
+  const Eigen::Vector3d dh = d - hit->point;
+  const double pen = dh.norm();
+  if (!(pen > 1e-9)) return;
+  const Eigen::Vector3d s = dh + thickness * dh / pen;  // eq. 6
+  out.push_back({{hit->point, hit->face, hit->barycentric, d, s, arc}, pen});
+}
+
+}  // namespace
+
+std::vector<Eigen::Vector3d> device_points_in_vessel(const geometry::Polyline& centerline, const RadiusProfile& radius,
+                                                     const geometry::Polyline& device, const ControlPointOptions& options) {
+  std::vector<Eigen::Vector3d> inside;
+  for (const auto& d : geometry::resample(device, options.sample_step_mm)) {
+    const auto foot = geometry::project_onto(centerline, d);
+    if (foot.beyond_start || foot.beyond_end) continue;
+    if (foot.distance_mm > options.reach_radii * radius.at(foot.arc_length_mm)) continue;
+    inside.push_back(d);
+  }
+  return inside;
+}
+
+std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, const geometry::RayCaster& caster,
+                                          const geometry::Polyline& centerline, const RadiusProfile& radius,
+                                          const geometry::Polyline& device, const ControlPointOptions& options) {
+  if (!(options.sample_step_mm > 0.0) || !(options.device_thickness_mm >= 0.0))
+    throw std::invalid_argument("control points: sample step must be > 0 and device thickness >= 0");
+  const double spacing = options.spacing_mm > 0.0 ? options.spacing_mm : 1.5 * geometry::mean_edge_length(mesh);
+  const auto ours = device_points_in_vessel(centerline, radius, device, options);
+  std::vector<Candidate> candidates;
+  if (ours.size() >= 1) {
+    // Device samples -> their foot on the centerline.
+    for (const auto& d : ours) {
+      const auto foot = geometry::project_onto(centerline, d);
+      try_ray(caster, foot.point, d, foot.arc_length_mm, options.device_thickness_mm, candidates);
+    }
+    // Centerline samples -> nearest point of this vessel's part of the device (the
+    // paper's direction: it covers stretches where the device runs beside the vessel).
+    if (ours.size() >= 2) {
+      const auto arc = geometry::arc_lengths(centerline);
+      for (double s = 0.0; s <= arc.back(); s += options.sample_step_mm) {
+        const Eigen::Vector3d c = geometry::point_at(centerline, arc, s);
+        const auto near = geometry::project_onto(ours, c);
+        const double r = radius.at(s);
+        if (near.distance_mm > options.reach_radii * r) continue;
+        // Only rays across the lumen: a device point far along the axis is reached
+        // through an end cap, which says nothing about the wall.
+        if (std::abs(geometry::project_onto(centerline, near.point).arc_length_mm - s) > r) continue;
+        try_ray(caster, c, near.point, s, options.device_thickness_mm, candidates);
+      }
+    }
+  }
+  // Resampling: deepest first, then keep a candidate only if no kept handle is closer
+  // than `spacing` (hit points), so handles are even however the vessel winds.
+  std::stable_sort(candidates.begin(), candidates.end(),
+                   [](const Candidate& a, const Candidate& b) { return a.penetration_mm > b.penetration_mm; });
+  std::vector<Handle> kept;
+  for (const auto& c : candidates) {
+    const bool crowded = std::any_of(kept.begin(), kept.end(), [&](const Handle& h) {
+      return (h.hit - c.handle.hit).norm() < spacing;
+    });
+    if (!crowded) kept.push_back(c.handle);
+  }
+  std::sort(kept.begin(), kept.end(), [](const Handle& a, const Handle& b) { return a.arc_mm < b.arc_mm; });
+  return kept;
+}
+
+std::map<int, Eigen::Vector3d> handle_vertex_targets(const geometry::TriangleMesh& mesh, const std::vector<Handle>& handles) {
+  std::map<int, std::pair<Eigen::Vector3d, double>> acc;  // Σ β s, Σ β
+  for (const auto& h : handles)
+    for (int j = 0; j < 3; ++j) {
+      const int v = mesh.F(h.face, j);
+      // Even a corner with β = 0 moves with the triangle; weight it a little.
+      const double beta = std::max(h.barycentric[j], 0.0) + 1e-3;
+      auto& [sum, wsum] = acc.try_emplace(v, Eigen::Vector3d::Zero(), 0.0).first->second;
+      sum += beta * h.shift;
+      wsum += beta;
+    }
+  std::map<int, Eigen::Vector3d> targets;
+  for (const auto& [v, sw] : acc) targets[v] = mesh.V.row(v).transpose() + sw.first / sw.second;
+  return targets;
+}
+
+}  // namespace evar::deform

@@ -1,0 +1,249 @@
+#include "evar/deform/scene_deformation.hpp"
+
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <map>
+#include <optional>
+#include <stdexcept>
+
+#include "evar/deform/landmark_binding.hpp"
+#include "evar/geometry/closest_point.hpp"
+#include "evar/geometry/input_error.hpp"
+
+namespace evar::deform {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+
+// What is computed once per vessel before any solve.
+struct VesselModel {
+  const geometry::Vessel* vessel = nullptr;
+  std::optional<geometry::RayCaster> caster;
+  Skeleton skeleton;
+  RadiusProfile radius;
+  int device_points = 0;
+  double skeleton_ms = 0.0;
+};
+
+VesselModel make_model(const geometry::Vessel& v, const geometry::Polyline& device, const DeformOptions& options) {
+  VesselModel m;
+  m.vessel = &v;
+  const auto t0 = Clock::now();
+  m.caster.emplace(v.mesh.mesh);
+  m.skeleton = build_skeleton(*m.caster, v.centerline, options.skeleton);
+  m.skeleton_ms = ms_since(t0);
+  if (m.skeleton.centres.empty())
+    throw geometry::InputError(v.centerline_path.string() + ": the centerline of vessel '" + v.name +
+                               "' does not run inside its mesh " + v.mesh_path.string() +
+                               " (no slicing plane hit the wall)");
+  m.radius = radius_profile(m.skeleton);
+  m.device_points = static_cast<int>(device_points_in_vessel(v.centerline, m.radius, device, options.control).size());
+  return m;
+}
+
+// Solves skeleton-based (or plain) ARAP for one vessel with the given vertex targets.
+Positions solve_vessel(const VesselModel& m, const std::map<int, Eigen::Vector3d>& targets, const DeformOptions& options,
+                       VesselReport& report) {
+  const auto& mesh = m.vessel->mesh.mesh;
+  const int n = static_cast<int>(mesh.V.rows());
+  auto t0 = Clock::now();
+  const auto edges = cotangent_weights(mesh);
+  const int centres = options.use_skeleton ? static_cast<int>(m.skeleton.centres.size()) : 0;
+  ArapTerms terms = surface_arap_terms(mesh.V, edges, n + centres);
+  if (centres > 0) append_skeleton_terms(terms, mesh, m.skeleton, n, options.skeleton.weight);
+  report.timings.weights_ms += ms_since(t0);
+
+  std::vector<int> constrained;
+  Positions target_rows(static_cast<Eigen::Index>(targets.size()), 3);
+  for (const auto& [v, p] : targets) {
+    target_rows.row(static_cast<Eigen::Index>(constrained.size())) = p.transpose();
+    constrained.push_back(v);
+  }
+  const ArapSolver solver(std::move(terms), constrained, options.arap);
+  report.timings.factor_ms += solver.assemble_ms() + solver.factor_ms();
+  const ArapResult r = solver.solve(target_rows);
+  report.timings.iterate_ms += r.init_ms + r.iterate_ms;
+  report.iterations = r.iterations;
+  report.converged = r.converged;
+  report.final_energy = r.energy.empty() ? 0.0 : r.energy.back();
+  report.constrained_vertices = static_cast<int>(constrained.size());
+  report.skeleton_points = centres > 0 ? centres + static_cast<int>(m.skeleton.spokes.size()) : 0;
+  if (!r.X.allFinite()) throw std::runtime_error("vessel '" + m.vessel->name + "': the ARAP solve produced non-finite positions");
+  return r.X.topRows(n);
+}
+
+void check_device(const geometry::Polyline& device) {
+  if (device.size() < 2) throw geometry::InputError("device: the curve has " + std::to_string(device.size()) +
+                                                    " point(s); at least 2 are needed");
+  for (std::size_t i = 0; i < device.size(); ++i)
+    if (!device[i].allFinite()) throw geometry::InputError("device: point " + std::to_string(i) + " is not finite");
+  if (geometry::arc_lengths(device).back() <= 0.0) throw geometry::InputError("device: all points coincide");
+}
+
+}  // namespace
+
+SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Polyline& device, const DeformOptions& options_in) {
+  const auto t_total = Clock::now();
+  check_device(device);
+  DeformOptions options = options_in;
+  options.control.device_thickness_mm = scene.device_thickness_mm;
+
+  std::vector<VesselModel> models;
+  models.reserve(scene.vessels.size());
+  for (const auto& v : scene.vessels) models.push_back(make_model(v, device, options));
+
+  SceneDeformation out;
+  out.reports.resize(scene.vessels.size());
+  out.vessels.resize(scene.vessels.size());
+  int aorta = -1, device_iliac = -1;
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    const auto& v = scene.vessels[i];
+    auto& r = out.reports[i];
+    r.name = v.name;
+    r.kind = geometry::to_string(v.kind);
+    r.role = "unchanged";
+    r.vertices = static_cast<int>(v.mesh.mesh.V.rows());
+    r.faces = static_cast<int>(v.mesh.mesh.F.rows());
+    r.device_points = models[i].device_points;
+    r.timings.skeleton_ms = models[i].skeleton_ms;
+    out.vessels[i].mesh = v.mesh.mesh;
+    out.vessels[i].erased.assign(static_cast<std::size_t>(r.vertices), 0);
+    if (v.kind == geometry::VesselKind::Aorta) aorta = static_cast<int>(i);
+    // The iliac carrying the device is the one holding most of it.
+    if (v.kind == geometry::VesselKind::Iliac && models[i].device_points > 0 &&
+        (device_iliac < 0 || models[i].device_points > models[static_cast<std::size_t>(device_iliac)].device_points))
+      device_iliac = static_cast<int>(i);
+  }
+  if (aorta < 0) throw geometry::InputError(scene.file.string() + ": the scene has no vessel of kind \"aorta\"");
+  int total_points = 0;
+  for (const auto& m : models) total_points += m.device_points;
+  if (total_points == 0) {
+    double nearest = std::numeric_limits<double>::infinity();
+    std::string which;
+    for (const auto& m : models)
+      for (const auto& d : device) {
+        const double dist = geometry::project_onto(m.vessel->centerline, d).distance_mm;
+        if (dist < nearest) nearest = dist, which = m.vessel->name;
+      }
+    throw geometry::InputError("device: no part of the device lies in any vessel (closest approach " +
+                               std::to_string(nearest) + " mm to the centerline of '" + which +
+                               "'); check the device file and the CT to C-arm registration");
+  }
+
+  // 1. Aorta.
+  const auto& aorta_mesh = scene.vessels[static_cast<std::size_t>(aorta)].mesh.mesh;
+  auto& aorta_report = out.reports[static_cast<std::size_t>(aorta)];
+  {
+    const auto& m = models[static_cast<std::size_t>(aorta)];
+    const auto t0 = Clock::now();
+    const auto handles = select_control_points(aorta_mesh, *m.caster, m.vessel->centerline, m.radius, device, options.control);
+    aorta_report.control_points = static_cast<int>(handles.size());
+    aorta_report.timings.control_points_ms = ms_since(t0);
+    if (!handles.empty()) {
+      out.vessels[static_cast<std::size_t>(aorta)].mesh.V =
+          solve_vessel(m, handle_vertex_targets(aorta_mesh, handles), options, aorta_report);
+      aorta_report.role = "deformed";
+    }
+  }
+  const auto& aorta_deformed = out.vessels[static_cast<std::size_t>(aorta)].mesh.V;
+
+  // 2-4. Iliacs.
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    const auto& v = scene.vessels[i];
+    if (v.kind != geometry::VesselKind::Iliac) continue;
+    auto& r = out.reports[i];
+    const auto& m = models[i];
+    const auto& mesh = v.mesh.mesh;
+    const auto t0 = Clock::now();
+    // Top vertices: those whose foot on the centerline is within bind_length of its start.
+    std::map<int, Eigen::Vector3d> bound;
+    Eigen::Vector3d top_centroid = Eigen::Vector3d::Zero();
+    Eigen::Vector3d mean_shift = Eigen::Vector3d::Zero();
+    for (Eigen::Index k = 0; k < mesh.V.rows(); ++k) {
+      const Eigen::Vector3d p = mesh.V.row(k).transpose();
+      const auto foot = geometry::project_onto(v.centerline, p);
+      if (foot.arc_length_mm > options.bind_length_mm) continue;
+      const int a = geometry::nearest_vertex(aorta_mesh.V, p);
+      const Eigen::Vector3d shift = (aorta_deformed.row(a) - aorta_mesh.V.row(a)).transpose();
+      bound[static_cast<int>(k)] = p + shift;
+      top_centroid += p;
+      mean_shift += shift;
+    }
+    r.bound_vertices = static_cast<int>(bound.size());
+    if (!bound.empty()) {
+      top_centroid /= static_cast<double>(bound.size());
+      mean_shift /= static_cast<double>(bound.size());
+    }
+    std::vector<Handle> handles;
+    if (static_cast<int>(i) == device_iliac)
+      handles = select_control_points(mesh, *m.caster, v.centerline, m.radius, device, options.control);
+    r.control_points = static_cast<int>(handles.size());
+    r.timings.control_points_ms = ms_since(t0);
+    auto& V_out = out.vessels[i].mesh.V;
+    if (!handles.empty() && !bound.empty()) {
+      auto targets = handle_vertex_targets(mesh, handles);
+      for (const auto& [k, p] : bound) targets[k] = p;  // the junction wins over device handles
+      V_out = solve_vessel(m, targets, options, r);
+      r.role = "carries the device";
+      // 3. Erase the aortic vertices below the bound iliac points: distal of the plane
+      // through their centroid (normal: the iliac's initial direction) and within 1.5
+      // local iliac radii of its axis.
+      const auto arc = geometry::arc_lengths(v.centerline);
+      const Eigen::Vector3d axis = geometry::tangent_at(v.centerline, arc, 0.0);
+      const double cut_radius = 1.5 * m.radius.at(0.0);
+      auto& erased = out.vessels[static_cast<std::size_t>(aorta)].erased;
+      for (Eigen::Index k = 0; k < aorta_mesh.V.rows(); ++k) {
+        const Eigen::Vector3d q = aorta_mesh.V.row(k).transpose() - top_centroid;
+        const double along = q.dot(axis);
+        if (along > 0.0 && (q - along * axis).norm() < cut_radius) erased[static_cast<std::size_t>(k)] = 1;
+      }
+    } else if (!bound.empty() && mean_shift.norm() > 0.0) {
+      V_out = mesh.V.rowwise() + mean_shift.transpose();
+      r.role = "follows the aorta";
+    } else if (!handles.empty()) {
+      throw geometry::InputError(v.mesh_path.string() + ": no vertex of iliac '" + v.name + "' lies within " +
+                                 std::to_string(options.bind_length_mm) +
+                                 " mm of its centerline's proximal end, so it cannot be bound to the aorta");
+    }
+  }
+
+  // Apply erasures: faces touching an erased vertex are removed; vertices keep their order.
+  for (std::size_t i = 0; i < out.vessels.size(); ++i) {
+    auto& dv = out.vessels[i];
+    auto& r = out.reports[i];
+    int kept = 0;
+    geometry::Faces F(dv.mesh.F.rows(), 3);
+    for (Eigen::Index f = 0; f < dv.mesh.F.rows(); ++f) {
+      const bool gone = dv.erased[static_cast<std::size_t>(dv.mesh.F(f, 0))] || dv.erased[static_cast<std::size_t>(dv.mesh.F(f, 1))] ||
+                        dv.erased[static_cast<std::size_t>(dv.mesh.F(f, 2))];
+      if (!gone) F.row(kept++) = dv.mesh.F.row(f);
+    }
+    r.erased_faces = static_cast<int>(dv.mesh.F.rows()) - kept;
+    r.erased_vertices = static_cast<int>(std::count(dv.erased.begin(), dv.erased.end(), 1));
+    dv.mesh.F = F.topRows(kept);
+    r.max_displacement_mm = (dv.mesh.V - scene.vessels[i].mesh.mesh.V).rowwise().norm().maxCoeff();
+  }
+
+  // 5. Landmarks follow the nearest vessel surface.
+  for (const auto& lm : scene.landmarks) {
+    std::size_t best = 0;
+    SurfaceBinding best_binding;
+    best_binding.distance_mm = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+      const auto b = bind_to_surface(scene.vessels[i].mesh.mesh, lm.position_lps);
+      if (b.distance_mm < best_binding.distance_mm) best_binding = b, best = i;
+    }
+    out.landmarks.push_back({lm.label, evaluate_binding(best_binding, scene.vessels[best].mesh.mesh.F, out.vessels[best].mesh.V)});
+    out.landmark_vessel.push_back(scene.vessels[best].name);
+  }
+  if (device_iliac >= 0) out.device_iliac = scene.vessels[static_cast<std::size_t>(device_iliac)].name;
+  for (auto& r : out.reports)
+    r.timings.total_ms = r.timings.weights_ms + r.timings.control_points_ms + r.timings.skeleton_ms + r.timings.factor_ms +
+                         r.timings.iterate_ms;
+  out.total_ms = ms_since(t_total);
+  return out;
+}
+
+}  // namespace evar::deform

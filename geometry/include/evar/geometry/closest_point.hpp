@@ -1,0 +1,27 @@
+#pragma once
+// Closest point on a triangle mesh (exact, per triangle; Ericson's region test).
+#include <Eigen/Core>
+
+#include "evar/geometry/triangle_mesh.hpp"
+
+namespace evar::geometry {
+
+struct SurfacePoint {
+  int face = -1;
+  Eigen::Vector3d barycentric;  ///< weights of F(face, 0..2)
+  Eigen::Vector3d point;        ///< mm
+  double distance_mm = 0.0;
+};
+
+/// Closest point of triangle (a, b, c) to p, as barycentric weights.
+Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
+                                          const Eigen::Vector3d& b, const Eigen::Vector3d& c);
+
+/// Closest point of the whole mesh to p (linear scan over faces; for a handful of queries).
+SurfacePoint closest_point_on_mesh(const TriangleMesh& mesh, const Eigen::Vector3d& p);
+
+/// Index of the vertex nearest to p (linear scan).
+int nearest_vertex(const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& V,
+                   const Eigen::Vector3d& p);
+
+}  // namespace evar::geometry

@@ -1,0 +1,42 @@
+#pragma once
+// Open 3D polylines (centerlines, the device): arc length, resampling, projection and
+// rotation-minimizing frames.
+#include <Eigen/Core>
+#include <vector>
+
+namespace evar::geometry {
+
+using Polyline = std::vector<Eigen::Vector3d>;
+
+/// Cumulative arc length (mm) at each point; size = points.size(), first entry 0.
+std::vector<double> arc_lengths(const Polyline& points);
+
+/// Points every `step_mm` along the curve, first and last point included (the last
+/// interval may be shorter). Consecutive duplicate points are skipped.
+Polyline resample(const Polyline& points, double step_mm);
+
+struct PolylineProjection {
+  Eigen::Vector3d point;   ///< closest point on the polyline
+  double arc_length_mm;    ///< its arc length from the first point
+  double distance_mm;      ///< |query - point|
+  bool beyond_start;       ///< the query lies before the first point (clamped there)
+  bool beyond_end;         ///< the query lies past the last point (clamped there)
+  Eigen::Vector3d tangent; ///< unit tangent of the segment holding `point`
+};
+
+/// Closest point on the polyline (needs >= 2 distinct points).
+PolylineProjection project_onto(const Polyline& points, const Eigen::Vector3d& query);
+
+/// Point and unit tangent at arc length s (clamped to [0, length]).
+Eigen::Vector3d point_at(const Polyline& points, const std::vector<double>& arc, double s);
+Eigen::Vector3d tangent_at(const Polyline& points, const std::vector<double>& arc, double s);
+
+/// Rotation-minimizing frame (double reflection, Wang et al. 2008) along the points:
+/// for each point a unit tangent t and a unit normal n orthogonal to it that does not
+/// twist around the curve. The binormal is t x n.
+struct Frame {
+  Eigen::Vector3d tangent, normal;
+};
+std::vector<Frame> rotation_minimizing_frames(const Polyline& points);
+
+}  // namespace evar::geometry

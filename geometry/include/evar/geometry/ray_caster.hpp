@@ -1,0 +1,46 @@
+#pragma once
+// Ray queries against one triangle mesh, backed by an Embree 3 BVH (single precision
+// inside Embree; hit points are recomputed in double from the barycentric coordinates).
+#include <Eigen/Core>
+#include <memory>
+#include <limits>
+#include <optional>
+
+#include "evar/geometry/triangle_mesh.hpp"
+
+namespace evar::geometry {
+
+struct RayHit {
+  double t_mm;                 ///< distance along the unit direction
+  int face;                    ///< triangle index
+  Eigen::Vector3d barycentric; ///< weights of F(face, 0..2)
+  Eigen::Vector3d point;       ///< mm
+};
+
+class RayCaster {
+ public:
+  /// Builds the BVH over `mesh` (copied into Embree's buffers; the mesh may go away).
+  explicit RayCaster(const TriangleMesh& mesh);
+  ~RayCaster();
+  RayCaster(const RayCaster&) = delete;
+  RayCaster& operator=(const RayCaster&) = delete;
+  RayCaster(RayCaster&&) noexcept;
+  RayCaster& operator=(RayCaster&&) noexcept;
+
+  /// First hit with t in (t_min, t_max] along `direction` (normalized internally).
+  std::optional<RayHit> first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                                  double t_max = std::numeric_limits<double>::infinity(),
+                                  double t_min = 0.0) const;
+
+  /// Number of surface crossings along the whole ray from `origin`.
+  int crossings(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const;
+
+  /// Inside test for a closed mesh by ray parity, voted over three fixed directions.
+  bool contains(const Eigen::Vector3d& point) const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+}  // namespace evar::geometry

@@ -1,0 +1,53 @@
+#pragma once
+// The patient scene (scene.json, format "evarnode-scene" version 1): vessel meshes with
+// their centerlines, the landmarks and the device thickness. Paths inside the file are
+// relative to it.
+#include <Eigen/Core>
+#include <filesystem>
+#include <string>
+#include <vector>
+
+#include "evar/geometry/markups.hpp"
+#include "evar/geometry/mesh_io.hpp"
+
+namespace evar::geometry {
+
+enum class VesselKind { Aorta, Iliac };
+
+struct Vessel {
+  std::string name;
+  VesselKind kind = VesselKind::Aorta;
+  std::filesystem::path mesh_path;        ///< resolved (absolute or relative to cwd)
+  std::filesystem::path centerline_path;  ///< resolved
+  LoadedMesh mesh;                        ///< validated
+  std::vector<Eigen::Vector3d> centerline;  ///< LPS mm, proximal to distal
+};
+
+struct Scene {
+  std::filesystem::path file;
+  std::vector<Vessel> vessels;
+  std::filesystem::path landmarks_path;   ///< empty when the scene has no landmarks
+  std::vector<ControlPoint> landmarks;    ///< LPS mm, labels kept
+  double device_thickness_mm = 0.0;
+};
+
+/// Loads scene.json and everything it names. Throws InputError naming the file and field.
+/// Checks: format/version, coordinate_system "LPS", units "mm", at least one vessel,
+/// exactly one of kind "aorta", unique names, device_thickness_mm finite and >= 0,
+/// centerlines with at least 2 points.
+Scene load_scene(const std::filesystem::path& scene_json);
+
+/// Plain description used to write a scene.json (paths relative to the scene file).
+struct SceneManifest {
+  struct Entry {
+    std::string name, kind, mesh, centerline;
+  };
+  std::vector<Entry> vessels;
+  std::string landmarks;  ///< may be empty
+  double device_thickness_mm = 0.9;
+};
+void write_scene_manifest(const std::filesystem::path& scene_json, const SceneManifest& manifest);
+
+const char* to_string(VesselKind kind);
+
+}  // namespace evar::geometry

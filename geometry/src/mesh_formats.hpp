@@ -1,0 +1,70 @@
+#pragma once
+// Private to evar_geometry: the per-format readers and writers behind mesh_io.hpp, and
+// the few helpers they share (whole-file reading, error messages that name the file).
+#include <algorithm>
+#include <charconv>
+#include <cstddef>
+#include <filesystem>
+#include <string>
+#include <string_view>
+
+#include "evar/geometry/input_error.hpp"
+#include "evar/geometry/mesh_io.hpp"
+#include "evar/geometry/triangle_mesh.hpp"
+
+namespace evar::geometry::detail {
+
+/// Reverses the bytes of one binary value in place (endianness conversion; C++20 has no
+/// std::byteswap yet).
+inline void reverse_bytes(void* value, std::size_t size) {
+  auto* b = static_cast<unsigned char*>(value);
+  std::reverse(b, b + size);
+}
+
+inline bool is_space(char c) {
+  return c == ' ' || c == '\t' || c == '\r' || c == '\n' || c == '\f' || c == '\v';
+}
+
+/// A token quoted for an error message: at most 24 characters, non-printable bytes shown
+/// as '?' so binary junk cannot garble a terminal or a log.
+std::string quoted(std::string_view token);
+
+enum class NumberParse { Ok, NotANumber, OutOfRange };
+
+/// The whole token as one number of type T (from_chars: exact, correctly rounded, locale
+/// independent; "nan" and "inf" are accepted so the caller can name them). A single
+/// leading '+' is allowed.
+template <class T>
+NumberParse parse_number(std::string_view token, T& value) {
+  if (token.size() > 1 && token[0] == '+' && token[1] != '-') token.remove_prefix(1);
+  const auto [ptr, ec] = std::from_chars(token.data(), token.data() + token.size(), value);
+  if (ec == std::errc::result_out_of_range) return NumberParse::OutOfRange;
+  if (ec != std::errc{} || ptr != token.data() + token.size() || token.empty()) {
+    return NumberParse::NotANumber;
+  }
+  return NumberParse::Ok;
+}
+
+/// Throws InputError "<path>: <what>".
+[[noreturn]] void fail(const std::filesystem::path& path, const std::string& what);
+
+/// The whole file as bytes. InputError if it is missing, not a regular file (a FIFO or
+/// /dev/zero would never end) or cannot be read.
+std::string read_file(const std::filesystem::path& path);
+
+/// Writes `bytes` to `path`; std::runtime_error naming the path if that fails.
+void write_file(const std::filesystem::path& path, std::string_view bytes);
+
+/// std::invalid_argument if a face index is outside [0, #V): writers index V with them.
+void check_indices_for_writing(const TriangleMesh& mesh, const std::filesystem::path& path);
+
+/// `bytes` is the whole file; `path` is only used in error messages.
+LoadedMesh read_stl(const std::filesystem::path& path, std::string_view bytes);
+LoadedMesh read_ply(const std::filesystem::path& path, std::string_view bytes);
+TriangleMesh read_obj(const std::filesystem::path& path, std::string_view bytes);
+
+void write_stl(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary);
+void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary);
+void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh);
+
+}  // namespace evar::geometry::detail

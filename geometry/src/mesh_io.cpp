@@ -1,0 +1,120 @@
+// Mesh file dispatch by extension, plus the file helpers the format readers share.
+#include "evar/geometry/mesh_io.hpp"
+
+#include <algorithm>
+#include <cctype>
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <stdexcept>
+#include <system_error>
+
+#include "mesh_formats.hpp"
+
+namespace evar::geometry {
+
+namespace detail {
+
+std::string quoted(std::string_view token) {
+  std::string out = "'";
+  for (std::size_t i = 0; i < token.size() && i < 24; ++i) {
+    const auto c = static_cast<unsigned char>(token[i]);
+    out += (c >= 0x20 && c < 0x7f) ? static_cast<char>(c) : '?';
+  }
+  if (token.size() > 24) out += "...";
+  return out + "'";
+}
+
+void fail(const std::filesystem::path& path, const std::string& what) {
+  throw InputError(path.string() + ": " + what);
+}
+
+std::string read_file(const std::filesystem::path& path) {
+  std::error_code ec;
+  const auto status = std::filesystem::status(path, ec);
+  if (ec || !std::filesystem::exists(status)) fail(path, "file does not exist");
+  if (std::filesystem::is_directory(status)) fail(path, "is a directory, not a file");
+  if (!std::filesystem::is_regular_file(status)) fail(path, "is not a regular file");
+
+  std::ifstream in(path, std::ios::binary);
+  if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
+  // Read in chunks rather than trusting file_size(): the file may change under us.
+  std::string bytes;
+  char chunk[1 << 16];
+  while (in.read(chunk, sizeof chunk) || in.gcount() > 0) {
+    bytes.append(chunk, static_cast<std::size_t>(in.gcount()));
+  }
+  if (in.bad()) fail(path, "read error");
+  return bytes;
+}
+
+void write_file(const std::filesystem::path& path, std::string_view bytes) {
+  std::ofstream out(path, std::ios::binary | std::ios::trunc);
+  if (!out) {
+    throw std::runtime_error(path.string() + ": cannot open for writing: " + std::strerror(errno));
+  }
+  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+  out.close();
+  if (!out) throw std::runtime_error(path.string() + ": write failed");
+}
+
+void check_indices_for_writing(const TriangleMesh& mesh, const std::filesystem::path& path) {
+  const auto n = mesh.V.rows();
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int i = mesh.F(f, k);
+      if (i < 0 || i >= n) {
+        throw std::invalid_argument(path.string() + ": cannot write: face " + std::to_string(f) +
+                                    " has vertex index " + std::to_string(i) +
+                                    " but the mesh has " + std::to_string(n) + " vertices");
+      }
+    }
+  }
+}
+
+}  // namespace detail
+
+namespace {
+
+std::string lower_extension(const std::filesystem::path& path) {
+  std::string ext = path.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(),
+                 [](unsigned char c) { return static_cast<char>(std::tolower(c)); });
+  return ext;
+}
+
+}  // namespace
+
+LoadedMesh read_mesh(const std::filesystem::path& path) {
+  const std::string ext = lower_extension(path);
+  if (ext != ".stl" && ext != ".ply" && ext != ".obj") {
+    detail::fail(path, "unknown mesh extension '" + path.extension().string() +
+                           "' (expected .stl, .ply or .obj)");
+  }
+  const std::string bytes = detail::read_file(path);
+  if (ext == ".stl") return detail::read_stl(path, bytes);
+  if (ext == ".ply") return detail::read_ply(path, bytes);
+  return LoadedMesh{detail::read_obj(path, bytes), MeshFormat::Obj};
+}
+
+void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, MeshFormat format) {
+  switch (format) {
+    case MeshFormat::StlBinary: return detail::write_stl(path, mesh, true);
+    case MeshFormat::StlAscii: return detail::write_stl(path, mesh, false);
+    case MeshFormat::PlyBinary: return detail::write_ply(path, mesh, true);
+    case MeshFormat::PlyAscii: return detail::write_ply(path, mesh, false);
+    case MeshFormat::Obj: return detail::write_obj(path, mesh);
+  }
+  throw std::invalid_argument(path.string() + ": unknown mesh format");
+}
+
+MeshFormat format_for_extension(const std::filesystem::path& path) {
+  const std::string ext = lower_extension(path);
+  if (ext == ".stl") return MeshFormat::StlBinary;
+  if (ext == ".ply") return MeshFormat::PlyBinary;
+  if (ext == ".obj") return MeshFormat::Obj;
+  detail::fail(path, "cannot choose a mesh format for extension '" + path.extension().string() +
+                         "' (expected .stl, .ply or .obj)");
+}
+
+}  // namespace evar::geometry

@@ -1,0 +1,120 @@
+// Mesh checks at the input edge: what the deformation and ray casting rely on.
+#include <algorithm>
+#include <cmath>
+#include <cstdint>
+#include <sstream>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+#include "evar/geometry/input_error.hpp"
+#include "evar/geometry/triangle_mesh.hpp"
+
+namespace evar::geometry {
+
+namespace {
+
+[[noreturn]] void reject(std::string_view source, const std::string& what) {
+  throw InputError(std::string(source) + ": " + what);
+}
+
+std::uint64_t edge_key(int a, int b) {
+  const auto lo = static_cast<std::uint64_t>(static_cast<std::uint32_t>(std::min(a, b)));
+  const auto hi = static_cast<std::uint64_t>(static_cast<std::uint32_t>(std::max(a, b)));
+  return (lo << 32) | hi;
+}
+
+// Only runs when the edge is already known to be bad, so a linear scan is fine.
+std::string faces_using_edge(const Faces& F, int a, int b) {
+  std::ostringstream out;
+  int listed = 0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    bool has_a = false, has_b = false;
+    for (int k = 0; k < 3; ++k) {
+      has_a = has_a || F(f, k) == a;
+      has_b = has_b || F(f, k) == b;
+    }
+    if (!(has_a && has_b)) continue;
+    if (listed == 5) {
+      out << ", ...";
+      break;
+    }
+    out << (listed++ ? ", " : "") << f;
+  }
+  return out.str();
+}
+
+}  // namespace
+
+void validate_mesh(const TriangleMesh& mesh, std::string_view source) {
+  const auto& V = mesh.V;
+  const auto& F = mesh.F;
+  if (F.rows() == 0) reject(source, "mesh has no faces");
+
+  for (Eigen::Index v = 0; v < V.rows(); ++v) {
+    if (!V.row(v).allFinite()) {
+      std::ostringstream out;
+      out << "vertex " << v << " has a non-finite coordinate (" << V(v, 0) << ", " << V(v, 1)
+          << ", " << V(v, 2) << ")";
+      reject(source, out.str());
+    }
+  }
+
+  const auto nv = V.rows();
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int i = F(f, k);
+      if (i < 0 || i >= nv) {
+        reject(source, "face " + std::to_string(f) + " has vertex index " + std::to_string(i) +
+                           " but the mesh has " + std::to_string(nv) + " vertices");
+      }
+    }
+    if (F(f, 0) == F(f, 1) || F(f, 1) == F(f, 2) || F(f, 0) == F(f, 2)) {
+      reject(source, "face " + std::to_string(f) + " repeats a vertex index (" +
+                         std::to_string(F(f, 0)) + ", " + std::to_string(F(f, 1)) + ", " +
+                         std::to_string(F(f, 2)) + ")");
+    }
+  }
+
+  // Sorting one 64-bit key per face edge is O(F log F) and cache friendly; runs of
+  // equal keys are the faces sharing that edge.
+  std::vector<std::uint64_t> keys;
+  keys.reserve(static_cast<std::size_t>(F.rows()) * 3);
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) keys.push_back(edge_key(F(f, k), F(f, (k + 1) % 3)));
+  }
+  std::sort(keys.begin(), keys.end());
+  for (std::size_t i = 0; i < keys.size();) {
+    std::size_t j = i + 1;
+    while (j < keys.size() && keys[j] == keys[i]) ++j;
+    if (j - i > 2) {
+      const int a = static_cast<int>(keys[i] >> 32);
+      const int b = static_cast<int>(keys[i] & 0xffffffffu);
+      reject(source, "non-manifold edge (" + std::to_string(a) + ", " + std::to_string(b) +
+                         ") is shared by " + std::to_string(j - i) + " faces (" +
+                         faces_using_edge(F, a, b) + ")");
+    }
+    i = j;
+  }
+}
+
+double mean_edge_length(const TriangleMesh& mesh) {
+  const auto& V = mesh.V;
+  const auto& F = mesh.F;
+  if (F.rows() == 0) return 0.0;
+  double sum = 0.0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f) {
+    for (int k = 0; k < 3; ++k) {
+      const int a = F(f, k);
+      const int b = F(f, (k + 1) % 3);
+      if (a < 0 || a >= V.rows() || b < 0 || b >= V.rows()) {
+        throw std::out_of_range("mean_edge_length: face " + std::to_string(f) +
+                                " has a vertex index out of range");
+      }
+      sum += (V.row(a) - V.row(b)).norm();
+    }
+  }
+  return sum / (3.0 * static_cast<double>(F.rows()));
+}
+
+}  // namespace evar::geometry

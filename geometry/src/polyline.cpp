@@ -1,0 +1,122 @@
+#include "evar/geometry/polyline.hpp"
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <stdexcept>
+
+namespace evar::geometry {
+
+std::vector<double> arc_lengths(const Polyline& points) {
+  std::vector<double> s(points.size(), 0.0);
+  for (std::size_t i = 1; i < points.size(); ++i) s[i] = s[i - 1] + (points[i] - points[i - 1]).norm();
+  return s;
+}
+
+Eigen::Vector3d point_at(const Polyline& points, const std::vector<double>& arc, double s) {
+  if (points.size() == 1) return points.front();
+  s = std::clamp(s, 0.0, arc.back());
+  const auto it = std::upper_bound(arc.begin(), arc.end(), s);
+  std::size_t i = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - arc.begin()));
+  i = std::min(i, points.size() - 1);
+  const double len = arc[i] - arc[i - 1];
+  const double u = len > 0.0 ? (s - arc[i - 1]) / len : 0.0;
+  return (1.0 - u) * points[i - 1] + u * points[i];
+}
+
+Eigen::Vector3d tangent_at(const Polyline& points, const std::vector<double>& arc, double s) {
+  if (points.size() < 2) throw std::invalid_argument("tangent_at: polyline needs 2 points");
+  s = std::clamp(s, 0.0, arc.back());
+  const auto it = std::upper_bound(arc.begin(), arc.end(), s);
+  std::size_t i = static_cast<std::size_t>(std::max<std::ptrdiff_t>(1, it - arc.begin()));
+  i = std::min(i, points.size() - 1);
+  // Skip zero-length segments in either direction.
+  for (std::size_t j = i; j < points.size(); ++j) {
+    const Eigen::Vector3d d = points[j] - points[j - 1];
+    if (d.norm() > 0.0) return d.normalized();
+  }
+  for (std::size_t j = i; j >= 1; --j) {
+    const Eigen::Vector3d d = points[j] - points[j - 1];
+    if (d.norm() > 0.0) return d.normalized();
+  }
+  throw std::invalid_argument("tangent_at: polyline has no extent");
+}
+
+Polyline resample(const Polyline& points, double step_mm) {
+  if (!(step_mm > 0.0)) throw std::invalid_argument("resample: step must be positive");
+  Polyline unique;
+  for (const auto& p : points)
+    if (unique.empty() || (p - unique.back()).norm() > 0.0) unique.push_back(p);
+  if (unique.size() < 2) return unique;
+  const auto arc = arc_lengths(unique);
+  const double length = arc.back();
+  const auto n = static_cast<std::size_t>(std::floor(length / step_mm));
+  Polyline out;
+  out.reserve(n + 2);
+  for (std::size_t k = 0; k <= n; ++k) out.push_back(point_at(unique, arc, static_cast<double>(k) * step_mm));
+  if (length - static_cast<double>(n) * step_mm > 1e-9 * std::max(1.0, length)) out.push_back(unique.back());
+  return out;
+}
+
+PolylineProjection project_onto(const Polyline& points, const Eigen::Vector3d& query) {
+  if (points.size() < 2) throw std::invalid_argument("project_onto: polyline needs 2 points");
+  PolylineProjection best{};
+  best.distance_mm = std::numeric_limits<double>::infinity();
+  double s0 = 0.0;
+  const std::size_t last = points.size() - 2;
+  for (std::size_t i = 0; i + 1 < points.size(); ++i) {
+    const Eigen::Vector3d a = points[i], d = points[i + 1] - points[i];
+    const double len2 = d.squaredNorm();
+    const double len = std::sqrt(len2);
+    if (len2 == 0.0) continue;
+    const double u_raw = (query - a).dot(d) / len2;
+    const double u = std::clamp(u_raw, 0.0, 1.0);
+    const Eigen::Vector3d p = a + u * d;
+    const double dist = (query - p).norm();
+    if (dist < best.distance_mm) {
+      best.point = p;
+      best.distance_mm = dist;
+      best.arc_length_mm = s0 + u * len;
+      best.tangent = d / len;
+      best.beyond_start = (i == 0 && u_raw < 0.0);
+      best.beyond_end = (i == last && u_raw > 1.0);
+    }
+    s0 += len;
+  }
+  if (!std::isfinite(best.distance_mm)) throw std::invalid_argument("project_onto: polyline has no extent");
+  return best;
+}
+
+std::vector<Frame> rotation_minimizing_frames(const Polyline& points) {
+  const std::size_t n = points.size();
+  if (n < 2) throw std::invalid_argument("rotation_minimizing_frames: polyline needs 2 points");
+  std::vector<Eigen::Vector3d> t(n);
+  for (std::size_t i = 0; i < n; ++i) {
+    const Eigen::Vector3d d = (i + 1 < n ? points[i + 1] : points[i]) - (i > 0 ? points[i - 1] : points[i]);
+    t[i] = d.norm() > 0.0 ? d.normalized() : (i > 0 ? t[i - 1] : Eigen::Vector3d::UnitZ());
+  }
+  std::vector<Frame> frames(n);
+  // Initial normal: any unit vector orthogonal to t0, taken from the least aligned axis.
+  Eigen::Vector3d axis = Eigen::Vector3d::UnitX();
+  if (std::abs(t[0].x()) > 0.9) axis = Eigen::Vector3d::UnitY();
+  frames[0] = {t[0], (axis - axis.dot(t[0]) * t[0]).normalized()};
+  for (std::size_t i = 0; i + 1 < n; ++i) {
+    // Double reflection (Wang, Juettler, Zheng, Liu 2008).
+    const Eigen::Vector3d v1 = points[i + 1] - points[i];
+    const double c1 = v1.squaredNorm();
+    Eigen::Vector3d r = frames[i].normal, ti = frames[i].tangent;
+    if (c1 > 0.0) {
+      r -= (2.0 / c1) * v1.dot(r) * v1;
+      ti -= (2.0 / c1) * v1.dot(ti) * v1;
+    }
+    const Eigen::Vector3d v2 = t[i + 1] - ti;
+    const double c2 = v2.squaredNorm();
+    if (c2 > 0.0) r -= (2.0 / c2) * v2.dot(r) * v2;
+    r -= r.dot(t[i + 1]) * t[i + 1];
+    frames[i + 1] = {t[i + 1], r.normalized()};
+  }
+  return frames;
+}
+
+}  // namespace evar::geometry

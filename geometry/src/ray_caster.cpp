@@ -1,0 +1,136 @@
+#include "evar/geometry/ray_caster.hpp"
+
+#include <embree3/rtcore.h>
+
+#include <cmath>
+#include <stdexcept>
+#include <string>
+
+namespace evar::geometry {
+namespace {
+
+struct DeviceDeleter {
+  void operator()(RTCDeviceTy* d) const { rtcReleaseDevice(d); }
+};
+struct SceneDeleter {
+  void operator()(RTCSceneTy* s) const { rtcReleaseScene(s); }
+};
+using DeviceHandle = std::unique_ptr<RTCDeviceTy, DeviceDeleter>;
+using SceneHandle = std::unique_ptr<RTCSceneTy, SceneDeleter>;
+
+// One Embree device for the process: creating one is costly and it is thread safe.
+// threads=1 keeps BVH builds on the calling thread (the node schedules its own work).
+RTCDevice shared_device() {
+  static const DeviceHandle device = [] {
+    RTCDevice d = rtcNewDevice("threads=1");
+    if (!d) throw std::runtime_error("Embree: cannot create a device (error " +
+                                     std::to_string(static_cast<int>(rtcGetDeviceError(nullptr))) + ")");
+    return DeviceHandle(d);
+  }();
+  return device.get();
+}
+
+RTCRayHit make_ray(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min, double t_max) {
+  RTCRayHit rh{};
+  rh.ray.org_x = static_cast<float>(o.x());
+  rh.ray.org_y = static_cast<float>(o.y());
+  rh.ray.org_z = static_cast<float>(o.z());
+  rh.ray.dir_x = static_cast<float>(d.x());
+  rh.ray.dir_y = static_cast<float>(d.y());
+  rh.ray.dir_z = static_cast<float>(d.z());
+  rh.ray.tnear = static_cast<float>(t_min);
+  rh.ray.tfar = std::isfinite(t_max) ? static_cast<float>(t_max) : std::numeric_limits<float>::infinity();
+  rh.ray.mask = 0xFFFFFFFFu;
+  rh.ray.flags = 0;
+  rh.ray.time = 0.0f;
+  rh.hit.geomID = RTC_INVALID_GEOMETRY_ID;
+  rh.hit.instID[0] = RTC_INVALID_GEOMETRY_ID;
+  return rh;
+}
+
+}  // namespace
+
+struct RayCaster::Impl {
+  SceneHandle scene;
+  TriangleMesh mesh;  // kept in double to recompute hit points exactly
+};
+
+RayCaster::RayCaster(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
+  RTCDevice device = shared_device();
+  impl_->mesh = mesh;
+  impl_->scene.reset(rtcNewScene(device));
+  rtcSetSceneFlags(impl_->scene.get(), RTC_SCENE_FLAG_ROBUST);
+  RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
+                                                         3 * sizeof(float), static_cast<std::size_t>(mesh.V.rows())));
+  auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,
+                                                            3 * sizeof(unsigned), static_cast<std::size_t>(mesh.F.rows())));
+  if (!vb || !ib) {
+    rtcReleaseGeometry(geom);
+    throw std::runtime_error("Embree: cannot allocate geometry buffers");
+  }
+  for (Eigen::Index i = 0; i < mesh.V.rows(); ++i)
+    for (int k = 0; k < 3; ++k) vb[3 * i + k] = static_cast<float>(mesh.V(i, k));
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) ib[3 * f + k] = static_cast<unsigned>(mesh.F(f, k));
+  rtcCommitGeometry(geom);
+  rtcAttachGeometry(impl_->scene.get(), geom);
+  rtcReleaseGeometry(geom);
+  rtcCommitScene(impl_->scene.get());
+  if (const RTCError err = rtcGetDeviceError(device); err != RTC_ERROR_NONE)
+    throw std::runtime_error("Embree: scene build failed (error " + std::to_string(static_cast<int>(err)) + ")");
+}
+
+RayCaster::~RayCaster() = default;
+RayCaster::RayCaster(RayCaster&&) noexcept = default;
+RayCaster& RayCaster::operator=(RayCaster&&) noexcept = default;
+
+std::optional<RayHit> RayCaster::first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
+                                           double t_max, double t_min) const {
+  const double len = direction.norm();
+  if (!(len > 0.0) || !origin.allFinite()) return std::nullopt;
+  const Eigen::Vector3d d = direction / len;
+  RTCIntersectContext ctx;
+  rtcInitIntersectContext(&ctx);
+  RTCRayHit rh = make_ray(origin, d, t_min, t_max);
+  rtcIntersect1(impl_->scene.get(), &ctx, &rh);
+  if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
+  RayHit hit;
+  hit.face = static_cast<int>(rh.hit.primID);
+  const double u = rh.hit.u, v = rh.hit.v;
+  hit.barycentric = {1.0 - u - v, u, v};
+  const auto& F = impl_->mesh.F;
+  const auto& V = impl_->mesh.V;
+  hit.point = hit.barycentric[0] * V.row(F(hit.face, 0)).transpose() +
+              hit.barycentric[1] * V.row(F(hit.face, 1)).transpose() +
+              hit.barycentric[2] * V.row(F(hit.face, 2)).transpose();
+  hit.t_mm = (hit.point - origin).dot(d);
+  return hit;
+}
+
+int RayCaster::crossings(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const {
+  int count = 0;
+  double t = 0.0;
+  // Step past each hit; a hit exactly on a shared edge may count twice, which the
+  // three-direction vote in contains() absorbs.
+  for (int guard = 0; guard < 100000; ++guard) {
+    const auto hit = first_hit(origin, direction, std::numeric_limits<double>::infinity(), t);
+    if (!hit) break;
+    ++count;
+    t = static_cast<double>(std::nextafter(static_cast<float>(hit->t_mm), std::numeric_limits<float>::infinity())) +
+        1e-6 * (1.0 + std::abs(hit->t_mm));
+  }
+  return count;
+}
+
+bool RayCaster::contains(const Eigen::Vector3d& point) const {
+  // Irrational-ish directions avoid grazing axis-aligned mesh features.
+  static const Eigen::Vector3d dirs[3] = {Eigen::Vector3d(0.5773, 0.6137, 0.5385).normalized(),
+                                          Eigen::Vector3d(-0.7071, 0.1013, -0.6999).normalized(),
+                                          Eigen::Vector3d(0.1234, -0.9123, 0.3902).normalized()};
+  int inside_votes = 0;
+  for (const auto& d : dirs) inside_votes += crossings(point, d) % 2;
+  return inside_votes >= 2;
+}
+
+}  // namespace evar::geometry

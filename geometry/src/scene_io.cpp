@@ -1,0 +1,206 @@
+// scene.json ("evarnode-scene" version 1): the patient's vessels, landmarks and device.
+#include "evar/geometry/scene.hpp"
+
+#include <cmath>
+#include <set>
+#include <stdexcept>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "evar/geometry/input_error.hpp"
+#include "mesh_formats.hpp"
+
+namespace evar::geometry {
+
+namespace {
+
+using nlohmann::json;
+namespace fs = std::filesystem;
+
+constexpr const char* kFormat = "evarnode-scene";
+constexpr int kVersion = 1;
+
+[[noreturn]] void bad(const fs::path& file, const std::string& field, const std::string& what) {
+  detail::fail(file, field + ": " + what);
+}
+
+json parse_json_file(const fs::path& file) {
+  const std::string text = detail::read_file(file);
+  try {
+    return json::parse(text);
+  } catch (const json::exception& e) {
+    std::string what = e.what();  // drop nlohmann's "[json.exception.parse_error.101] "
+    if (const auto close = what.find("] "); what.starts_with("[json.") && close != std::string::npos) {
+      what.erase(0, close + 2);
+    }
+    detail::fail(file, "invalid JSON: " + what);
+  }
+}
+
+const json& member(const fs::path& file, const json& object, const char* key, const std::string& field) {
+  const auto it = object.find(key);
+  if (it == object.end()) bad(file, field, "missing");
+  return *it;
+}
+
+std::string string_field(const fs::path& file, const json& object, const char* key,
+                         const std::string& field) {
+  const json& j = member(file, object, key, field);
+  if (!j.is_string()) bad(file, field, std::string("expected a string, found ") + j.type_name());
+  std::string s = j.get<std::string>();
+  if (s.empty()) bad(file, field, "is empty");
+  return s;
+}
+
+void expect_value(const fs::path& file, const json& root, const char* key, const std::string& expected) {
+  const std::string value = string_field(file, root, key, key);
+  if (value != expected) {
+    bad(file, key, "expected \"" + expected + "\", found \"" + value + "\"");
+  }
+}
+
+VesselKind parse_kind(const fs::path& file, const std::string& kind, const std::string& field) {
+  if (kind == "aorta") return VesselKind::Aorta;
+  if (kind == "iliac") return VesselKind::Iliac;
+  bad(file, field, "unknown vessel kind \"" + kind + "\" (expected \"aorta\" or \"iliac\")");
+}
+
+// A nested file's own error already names that file; prefix the scene field that named it.
+template <class F>
+auto loading(const fs::path& scene, const std::string& field, F&& load) {
+  try {
+    return load();
+  } catch (const InputError& e) {
+    bad(scene, field, e.what());
+  }
+}
+
+}  // namespace
+
+const char* to_string(VesselKind kind) {
+  switch (kind) {
+    case VesselKind::Aorta: return "aorta";
+    case VesselKind::Iliac: return "iliac";
+  }
+  return "unknown";
+}
+
+Scene load_scene(const std::filesystem::path& scene_json) {
+  const fs::path& file = scene_json;
+  const json root = parse_json_file(file);
+  if (!root.is_object()) {
+    detail::fail(file, std::string("top level: expected a JSON object, found ") + root.type_name());
+  }
+
+  expect_value(file, root, "format", kFormat);
+  const json& version = member(file, root, "version", "version");
+  if (!version.is_number_integer() || version.get<long long>() != kVersion) {
+    bad(file, "version", "unsupported version " + version.dump() + " (this build reads version 1)");
+  }
+  expect_value(file, root, "coordinate_system", "LPS");
+  expect_value(file, root, "units", "mm");
+
+  Scene scene;
+  scene.file = file;
+  const json& thickness = member(file, root, "device_thickness_mm", "device_thickness_mm");
+  if (!thickness.is_number()) {
+    bad(file, "device_thickness_mm", std::string("expected a number, found ") + thickness.type_name());
+  }
+  scene.device_thickness_mm = thickness.get<double>();
+  if (!std::isfinite(scene.device_thickness_mm) || scene.device_thickness_mm < 0.0) {
+    bad(file, "device_thickness_mm", "must be a finite number >= 0, found " + thickness.dump());
+  }
+
+  const json& vessels = member(file, root, "vessels", "vessels");
+  if (!vessels.is_array()) bad(file, "vessels", std::string("expected an array, found ") + vessels.type_name());
+  if (vessels.empty()) bad(file, "vessels", "the scene has no vessels");
+
+  // Check every field before reading any mesh: cheap mistakes are reported first.
+  const fs::path dir = file.parent_path();
+  std::set<std::string> names;
+  int aortas = 0;
+  for (std::size_t i = 0; i < vessels.size(); ++i) {
+    const std::string field = "vessels[" + std::to_string(i) + "]";
+    const json& v = vessels[i];
+    if (!v.is_object()) bad(file, field, std::string("expected an object, found ") + v.type_name());
+    Vessel vessel{};  // value-initialized: LoadedMesh::format has no default
+    vessel.name = string_field(file, v, "name", field + ".name");
+    if (!names.insert(vessel.name).second) {
+      bad(file, field + ".name", "another vessel is already named \"" + vessel.name + "\"");
+    }
+    vessel.kind = parse_kind(file, string_field(file, v, "kind", field + ".kind"), field + ".kind");
+    if (vessel.kind == VesselKind::Aorta && ++aortas > 1) {
+      bad(file, field + ".kind", "a second vessel of kind \"aorta\"; the scene needs exactly one");
+    }
+    // operator/ keeps an absolute path as it is.
+    vessel.mesh_path = dir / string_field(file, v, "mesh", field + ".mesh");
+    vessel.centerline_path = dir / string_field(file, v, "centerline", field + ".centerline");
+    scene.vessels.push_back(std::move(vessel));
+  }
+  if (aortas == 0) bad(file, "vessels", "no vessel of kind \"aorta\"; the scene needs exactly one");
+
+  const auto landmarks = root.find("landmarks");
+  if (landmarks != root.end() && !landmarks->is_null()) {
+    scene.landmarks_path = dir / string_field(file, root, "landmarks", "landmarks");
+  }
+
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    Vessel& vessel = scene.vessels[i];
+    const std::string field = "vessels[" + std::to_string(i) + "]";
+    vessel.mesh = loading(file, field + ".mesh", [&] {
+      LoadedMesh loaded = read_mesh(vessel.mesh_path);
+      validate_mesh(loaded.mesh, vessel.mesh_path.string());
+      return loaded;
+    });
+    const Markup curve = loading(file, field + ".centerline", [&] {
+      return read_curve(vessel.centerline_path, 2);
+    });
+    vessel.centerline.reserve(curve.points.size());
+    for (const ControlPoint& p : curve.points) vessel.centerline.push_back(p.position_lps);
+  }
+
+  if (!scene.landmarks_path.empty()) {
+    scene.landmarks = loading(file, "landmarks", [&] { return read_fiducials(scene.landmarks_path); });
+    if (scene.landmarks.empty()) {
+      bad(file, "landmarks", scene.landmarks_path.string() + ": no \"Fiducial\" control points in the file");
+    }
+  }
+  return scene;
+}
+
+void write_scene_manifest(const std::filesystem::path& scene_json, const SceneManifest& manifest) {
+  // Refuse to write a scene that load_scene would reject.
+  auto invalid = [&](const std::string& what) {
+    throw std::invalid_argument(scene_json.string() + ": cannot write scene: " + what);
+  };
+  if (manifest.vessels.empty()) invalid("no vessels");
+  if (!std::isfinite(manifest.device_thickness_mm) || manifest.device_thickness_mm < 0.0) {
+    invalid("device_thickness_mm must be finite and >= 0");
+  }
+  std::set<std::string> names;
+  int aortas = 0;
+  using ordered = nlohmann::ordered_json;  // keep the documented field order
+  ordered vessels = ordered::array();
+  for (const auto& v : manifest.vessels) {
+    if (v.name.empty() || v.mesh.empty() || v.centerline.empty()) {
+      invalid("vessel \"" + v.name + "\" has an empty name, mesh or centerline");
+    }
+    if (!names.insert(v.name).second) invalid("two vessels named \"" + v.name + "\"");
+    if (v.kind != "aorta" && v.kind != "iliac") invalid("vessel \"" + v.name + "\" has kind \"" + v.kind + "\"");
+    if (v.kind == "aorta") ++aortas;
+    vessels.push_back({{"name", v.name}, {"kind", v.kind}, {"mesh", v.mesh}, {"centerline", v.centerline}});
+  }
+  if (aortas != 1) invalid("exactly one vessel must be of kind \"aorta\"");
+
+  ordered root = {{"format", kFormat},
+                  {"version", kVersion},
+                  {"coordinate_system", "LPS"},
+                  {"units", "mm"},
+                  {"vessels", std::move(vessels)}};
+  if (!manifest.landmarks.empty()) root["landmarks"] = manifest.landmarks;
+  root["device_thickness_mm"] = manifest.device_thickness_mm;
+  detail::write_file(scene_json, root.dump(2, ' ', false, ordered::error_handler_t::replace) + "\n");
+}
+
+}  // namespace evar::geometry

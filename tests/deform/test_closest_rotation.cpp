@@ -1,0 +1,69 @@
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <random>
+
+#include "evar/deform/closest_rotation.hpp"
+
+using evar::deform::closest_rotation;
+using evar::deform::closest_rotation_svd;
+
+namespace {
+bool is_rotation(const Eigen::Matrix3d& R) {
+  return (R.transpose() * R - Eigen::Matrix3d::Identity()).norm() < 1e-9 && std::abs(R.determinant() - 1.0) < 1e-9;
+}
+// The objective being maximized.
+double objective(const Eigen::Matrix3d& R, const Eigen::Matrix3d& A) { return (R.transpose() * A).trace(); }
+Eigen::Matrix3d random_rotation(std::mt19937_64& rng) {
+  std::normal_distribution<double> n(0.0, 1.0);
+  return Eigen::Quaterniond(n(rng), n(rng), n(rng), n(rng)).normalized().toRotationMatrix();
+}
+}  // namespace
+
+TEST(ClosestRotation, MatchesSvdOnRandomMatricesFromColdAndWarmStarts) {
+  std::mt19937_64 rng(7);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (int trial = 0; trial < 500; ++trial) {
+    Eigen::Matrix3d A;
+    for (int k = 0; k < 9; ++k) A(k / 3, k % 3) = n(rng);
+    const Eigen::Matrix3d ref = closest_rotation_svd(A);
+    for (const Eigen::Matrix3d& warm : {Eigen::Matrix3d::Identity().eval(), random_rotation(rng)}) {
+      const Eigen::Matrix3d R = closest_rotation(A, warm);
+      ASSERT_TRUE(is_rotation(R));
+      EXPECT_NEAR(objective(R, A), objective(ref, A), 1e-9 * A.norm()) << "trial " << trial;
+    }
+  }
+}
+
+TEST(ClosestRotation, RecoversTheRotationOfARotatedStretch) {
+  std::mt19937_64 rng(11);
+  const Eigen::Matrix3d Q = random_rotation(rng);
+  const Eigen::Matrix3d S = Eigen::Vector3d(3.0, 2.0, 0.5).asDiagonal();
+  EXPECT_LT((closest_rotation(Q * S) - Q).norm(), 1e-9);
+}
+
+TEST(ClosestRotation, RankTwoCovarianceOfAPlanarOneRingGivesTheInPlaneRotation) {
+  // Planar one-ring rotated by 40 degrees about z: A = Σ e' eᵀ has rank 2.
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(0.7, Eigen::Vector3d::UnitZ()).toRotationMatrix();
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  for (int k = 0; k < 6; ++k) {
+    const Eigen::Vector3d e(std::cos(k * 1.0472), std::sin(k * 1.0472), 0.0);
+    A += (Q * e) * e.transpose();
+  }
+  const Eigen::Matrix3d R = closest_rotation(A);
+  EXPECT_TRUE(is_rotation(R));
+  EXPECT_LT((R - Q).norm(), 1e-8);
+}
+
+TEST(ClosestRotation, NeverReturnsAReflection) {
+  const Eigen::Matrix3d mirror = Eigen::Vector3d(1.0, 1.0, -1.0).asDiagonal();
+  const Eigen::Matrix3d R = closest_rotation(mirror * Eigen::Vector3d(3.0, 2.0, 1.0).asDiagonal().toDenseMatrix());
+  EXPECT_TRUE(is_rotation(R));
+  EXPECT_LT((R - Eigen::Matrix3d::Identity()).norm(), 1e-9);  // drop the smallest axis' flip
+}
+
+TEST(ClosestRotation, WarmStartHalfATurnAwayStillFindsTheMaximum) {
+  const Eigen::Matrix3d A = Eigen::Vector3d(3.0, 2.0, 1.0).asDiagonal();
+  const Eigen::Matrix3d warm = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
+  EXPECT_LT((closest_rotation(A, warm) - Eigen::Matrix3d::Identity()).norm(), 1e-9);
+}

@@ -1,0 +1,259 @@
+// scene.json: loading a patient scene with its meshes, centerlines and landmarks, paths
+// relative to the scene file, and every rule load_scene enforces.
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <functional>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+#include "evar/geometry/input_error.hpp"
+#include "evar/geometry/markups.hpp"
+#include "evar/geometry/mesh_io.hpp"
+#include "evar/geometry/scene.hpp"
+
+namespace fs = std::filesystem;
+using evar::geometry::InputError;
+using evar::geometry::load_scene;
+using evar::geometry::Markup;
+using evar::geometry::MeshFormat;
+using evar::geometry::Scene;
+using evar::geometry::SceneManifest;
+using evar::geometry::to_string;
+using evar::geometry::TriangleMesh;
+using evar::geometry::VesselKind;
+using evar::geometry::write_markups;
+using evar::geometry::write_mesh;
+using evar::geometry::write_scene_manifest;
+using nlohmann::json;
+using testing::HasSubstr;
+
+namespace {
+
+fs::path test_dir() {
+  const auto* info = testing::UnitTest::GetInstance()->current_test_info();
+  const fs::path dir = fs::path(testing::TempDir()) / "evar_geometry_scene" /
+                       (std::string(info->test_suite_name()) + "." + info->name());
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  return dir;
+}
+
+// A closed tetrahedron, shifted so each vessel's mesh is recognisable.
+TriangleMesh tetrahedron(double shift) {
+  TriangleMesh m;
+  m.V.resize(4, 3);
+  m.V << 0, 0, 0, 1, 0, 0, 0, 1, 0, 0, 0, 1;
+  m.V.col(2).array() += shift;
+  m.F.resize(4, 3);
+  m.F << 0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3;
+  return m;
+}
+
+Markup curve(double z0) {
+  return {"Curve", "centerline", {{"C-1", {0, 0, z0}}, {"C-2", {0, 0, z0 - 10}}, {"C-3", {1, 0, z0 - 20}}}};
+}
+
+// A complete scene in dir/patient (meshes in a sub-folder, to exercise relative paths).
+fs::path make_scene(const fs::path& dir) {
+  const fs::path root = dir / "patient";
+  fs::create_directories(root / "meshes");
+  write_mesh(root / "meshes" / "aorta.stl", tetrahedron(100), MeshFormat::StlBinary);
+  write_mesh(root / "meshes" / "iliac_r.ply", tetrahedron(50), MeshFormat::PlyBinary);
+  write_markups(root / "aorta.centerline.mrk.json", {curve(100)});
+  write_markups(root / "iliac_r.centerline.mrk.json", {curve(50)});
+  write_markups(root / "landmarks.mrk.json",
+                {Markup{"Fiducial", "L", {{"renal_left", {1, 2, 3}}, {"bifurcation", {4, 5, 6}}}}});
+  SceneManifest manifest;
+  manifest.vessels = {{"aorta", "aorta", "meshes/aorta.stl", "aorta.centerline.mrk.json"},
+                      {"iliac_right", "iliac", "meshes/iliac_r.ply", "iliac_r.centerline.mrk.json"}};
+  manifest.landmarks = "landmarks.mrk.json";
+  manifest.device_thickness_mm = 0.9;
+  write_scene_manifest(root / "scene.json", manifest);
+  return root / "scene.json";
+}
+
+json read_json(const fs::path& file) {
+  std::ifstream in(file);
+  return json::parse(in);
+}
+
+void write_json(const fs::path& file, const json& j) { std::ofstream(file) << j.dump(2); }
+
+std::string scene_error(const fs::path& file) {
+  try {
+    load_scene(file);
+  } catch (const InputError& e) {
+    return e.what();
+  }
+  ADD_FAILURE() << "load_scene(" << file << ") did not throw InputError";
+  return {};
+}
+
+// Edits a valid scene.json and returns load_scene's error message.
+std::string error_after_edit(const fs::path& dir, const std::function<void(json&)>& edit) {
+  const fs::path file = make_scene(dir);
+  json j = read_json(file);
+  edit(j);
+  write_json(file, j);
+  return scene_error(file);
+}
+
+}  // namespace
+
+TEST(LoadScene, LoadsVesselsCenterlinesLandmarksAndThickness) {
+  const fs::path file = make_scene(test_dir());
+  const Scene scene = load_scene(file);
+
+  EXPECT_EQ(scene.file, file);
+  EXPECT_DOUBLE_EQ(scene.device_thickness_mm, 0.9);
+  ASSERT_EQ(scene.vessels.size(), 2u);
+
+  const auto& aorta = scene.vessels[0];
+  EXPECT_EQ(aorta.name, "aorta");
+  EXPECT_EQ(aorta.kind, VesselKind::Aorta);
+  EXPECT_EQ(aorta.mesh_path, file.parent_path() / "meshes/aorta.stl");
+  EXPECT_EQ(aorta.mesh.format, MeshFormat::StlBinary);
+  EXPECT_EQ(aorta.mesh.mesh.F.rows(), 4);
+  EXPECT_EQ(aorta.mesh.mesh.V.col(2).minCoeff(), 100.0);
+  ASSERT_EQ(aorta.centerline.size(), 3u);
+  EXPECT_EQ(aorta.centerline[0], Eigen::Vector3d(0, 0, 100));
+  EXPECT_EQ(aorta.centerline[2], Eigen::Vector3d(1, 0, 80));
+
+  const auto& iliac = scene.vessels[1];
+  EXPECT_EQ(iliac.name, "iliac_right");
+  EXPECT_EQ(iliac.kind, VesselKind::Iliac);
+  EXPECT_EQ(iliac.mesh.format, MeshFormat::PlyBinary);
+  EXPECT_EQ(iliac.mesh.mesh.V, tetrahedron(50).V);  // PLY keeps vertex order exactly
+  EXPECT_EQ(iliac.centerline[0], Eigen::Vector3d(0, 0, 50));
+
+  EXPECT_EQ(scene.landmarks_path, file.parent_path() / "landmarks.mrk.json");
+  ASSERT_EQ(scene.landmarks.size(), 2u);
+  EXPECT_EQ(scene.landmarks[1].label, "bifurcation");
+  EXPECT_EQ(scene.landmarks[1].position_lps, Eigen::Vector3d(4, 5, 6));
+}
+
+TEST(LoadScene, WorksFromAnotherWorkingDirectoryAndWithoutLandmarks) {
+  const fs::path dir = test_dir();
+  const fs::path file = make_scene(dir);
+  json j = read_json(file);
+  j.erase("landmarks");
+  write_json(file, j);
+
+  const fs::path previous = fs::current_path();
+  fs::current_path(dir);  // the scene is found through a relative path from elsewhere
+  Scene scene;
+  EXPECT_NO_THROW(scene = load_scene(fs::path("patient") / "scene.json"));
+  fs::current_path(previous);
+  EXPECT_EQ(scene.vessels.size(), 2u);
+  EXPECT_TRUE(scene.landmarks_path.empty());
+  EXPECT_TRUE(scene.landmarks.empty());
+}
+
+TEST(WriteSceneManifest, WritesTheDocumentedFields) {
+  const fs::path file = make_scene(test_dir());
+  const json j = read_json(file);
+  EXPECT_EQ(j["format"], "evarnode-scene");
+  EXPECT_EQ(j["version"], 1);
+  EXPECT_EQ(j["coordinate_system"], "LPS");
+  EXPECT_EQ(j["units"], "mm");
+  EXPECT_EQ(j["vessels"][1]["kind"], "iliac");
+  EXPECT_EQ(j["vessels"][1]["mesh"], "meshes/iliac_r.ply");
+  EXPECT_EQ(j["landmarks"], "landmarks.mrk.json");
+  EXPECT_EQ(j["device_thickness_mm"], 0.9);
+}
+
+TEST(WriteSceneManifest, RefusesAManifestLoadSceneWouldReject) {
+  SceneManifest two_aortas;
+  two_aortas.vessels = {{"a", "aorta", "a.stl", "a.mrk.json"}, {"b", "aorta", "b.stl", "b.mrk.json"}};
+  EXPECT_THROW(write_scene_manifest(test_dir() / "scene.json", two_aortas), std::invalid_argument);
+  SceneManifest bad_kind;
+  bad_kind.vessels = {{"a", "aorta", "a.stl", "a.mrk.json"}, {"b", "vein", "b.stl", "b.mrk.json"}};
+  EXPECT_THROW(write_scene_manifest(test_dir() / "scene.json", bad_kind), std::invalid_argument);
+}
+
+TEST(LoadScene, RefusesSceneFieldsThatBreakTheRules) {
+  struct Case {
+    const char* what;
+    std::function<void(json&)> edit;
+    std::string expected;
+  };
+  const std::vector<Case> cases = {
+      {"format", [](json& j) { j["format"] = "other"; }, "format: expected \"evarnode-scene\""},
+      {"version", [](json& j) { j["version"] = 2; }, "version: unsupported version 2"},
+      {"version type", [](json& j) { j["version"] = "1"; }, "version: unsupported version \"1\""},
+      {"ras", [](json& j) { j["coordinate_system"] = "RAS"; }, "coordinate_system: expected \"LPS\", found \"RAS\""},
+      {"units", [](json& j) { j["units"] = "cm"; }, "units: expected \"mm\""},
+      {"no units", [](json& j) { j.erase("units"); }, "units: missing"},
+      {"no vessels", [](json& j) { j["vessels"] = json::array(); }, "vessels: the scene has no vessels"},
+      {"vessels type", [](json& j) { j["vessels"] = "aorta"; }, "vessels: expected an array, found string"},
+      {"no aorta", [](json& j) { j["vessels"][0]["kind"] = "iliac"; }, "vessels: no vessel of kind \"aorta\""},
+      {"two aortas", [](json& j) { j["vessels"][1]["kind"] = "aorta"; }, "vessels[1].kind: a second vessel of kind \"aorta\""},
+      {"kind", [](json& j) { j["vessels"][1]["kind"] = "renal"; }, "vessels[1].kind: unknown vessel kind \"renal\""},
+      {"duplicate name", [](json& j) { j["vessels"][1]["name"] = "aorta"; }, "vessels[1].name: another vessel is already named \"aorta\""},
+      {"name type", [](json& j) { j["vessels"][0]["name"] = 7; }, "vessels[0].name: expected a string, found number"},
+      {"no mesh", [](json& j) { j["vessels"][1].erase("mesh"); }, "vessels[1].mesh: missing"},
+      {"thickness", [](json& j) { j["device_thickness_mm"] = -0.1; }, "device_thickness_mm: must be a finite number >= 0"},
+      {"thickness type", [](json& j) { j["device_thickness_mm"] = "0.9"; }, "device_thickness_mm: expected a number, found string"},
+      {"missing mesh file", [](json& j) { j["vessels"][1]["mesh"] = "meshes/gone.stl"; },
+       "vessels[1].mesh: "},
+      {"landmarks type", [](json& j) { j["landmarks"] = 3; }, "landmarks: expected a string, found number"},
+  };
+  const fs::path dir = test_dir();
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    SCOPED_TRACE(cases[i].what);
+    const std::string msg = error_after_edit(dir / std::to_string(i), cases[i].edit);
+    EXPECT_THAT(msg, HasSubstr("scene.json: " + cases[i].expected));
+  }
+}
+
+TEST(LoadScene, ErrorsInNamedFilesNameBothTheSceneFieldAndTheFile) {
+  const fs::path dir = test_dir();
+  {
+    const std::string msg = error_after_edit(dir / "a", [](json& j) { j["vessels"][1]["mesh"] = "meshes/gone.stl"; });
+    EXPECT_THAT(msg, HasSubstr("vessels[1].mesh: "));
+    EXPECT_THAT(msg, HasSubstr("gone.stl: file does not exist"));
+  }
+  {
+    // A mesh with a fin (an edge shared by three faces) fails validation by name.
+    const fs::path file = make_scene(dir / "b");
+    TriangleMesh fin = tetrahedron(100);
+    fin.V.conservativeResize(5, 3);
+    fin.V.row(4) << 5, 5, 5;
+    fin.F.conservativeResize(5, 3);
+    fin.F.row(4) << 0, 1, 4;
+    write_mesh(file.parent_path() / "meshes" / "aorta.stl", fin, MeshFormat::StlBinary);
+    const std::string msg = scene_error(file);
+    EXPECT_THAT(msg, HasSubstr("scene.json: vessels[0].mesh: "));
+    EXPECT_THAT(msg, HasSubstr("aorta.stl: non-manifold edge"));
+  }
+  {
+    const fs::path file = make_scene(dir / "c");
+    write_markups(file.parent_path() / "iliac_r.centerline.mrk.json",
+                  {Markup{"Curve", "short", {{"C-1", {0, 0, 0}}}}});
+    const std::string msg = scene_error(file);
+    EXPECT_THAT(msg, HasSubstr("scene.json: vessels[1].centerline: "));
+    EXPECT_THAT(msg, HasSubstr("iliac_r.centerline.mrk.json: markups[0].controlPoints: Curve 'short' has 1"));
+  }
+  {
+    const fs::path file = make_scene(dir / "d");
+    write_markups(file.parent_path() / "landmarks.mrk.json", {curve(0)});
+    const std::string msg = scene_error(file);
+    EXPECT_THAT(msg, HasSubstr("scene.json: landmarks: "));
+    EXPECT_THAT(msg, HasSubstr("no \"Fiducial\" control points"));
+  }
+  {
+    const fs::path file = dir / "garbage" / "scene.json";
+    fs::create_directories(file.parent_path());
+    std::ofstream(file) << "{\"format\": \"evarnode-scene\", ";
+    EXPECT_THAT(scene_error(file), HasSubstr("scene.json: invalid JSON"));
+  }
+}
+
+TEST(VesselKindName, MatchesTheSceneFileSpelling) {
+  EXPECT_STREQ(to_string(VesselKind::Aorta), "aorta");
+  EXPECT_STREQ(to_string(VesselKind::Iliac), "iliac");
+}

@@ -1,0 +1,5 @@
+#include "evar/overlay/mesh_preview.hpp"
+
+#include <gtest/gtest.h>
+
+TEST(MeshPreview, Placeholder) {}
