@@ -43,35 +43,86 @@ VesselModel make_model(const geometry::Vessel& v, const geometry::Polyline& devi
   return m;
 }
 
-// Solves skeleton-based (or plain) ARAP for one vessel with the given vertex targets.
-Positions solve_vessel(const VesselModel& m, const std::map<int, Eigen::Vector3d>& targets, const DeformOptions& options,
-                       VesselReport& report) {
+// The deformed centerline: the mean of each skeleton plane's wall hits, evaluated on the
+// deformed surface (the centres themselves are unknowns only when the skeleton is on).
+geometry::Polyline deformed_centerline(const VesselModel& m, const geometry::Vertices& V) {
+  const auto& F = m.vessel->mesh.mesh.F;
+  std::vector<Eigen::Vector3d> sum(m.skeleton.centres.size(), Eigen::Vector3d::Zero());
+  std::vector<int> count(m.skeleton.centres.size(), 0);
+  for (const auto& s : m.skeleton.spokes) {
+    Eigen::Vector3d p = Eigen::Vector3d::Zero();
+    for (int j = 0; j < 3; ++j) p += s.barycentric[j] * V.row(F(s.face, j)).transpose();
+    sum[static_cast<std::size_t>(s.centre)] += p;
+    ++count[static_cast<std::size_t>(s.centre)];
+  }
+  geometry::Polyline out;
+  for (std::size_t k = 0; k < sum.size(); ++k) out.push_back(sum[k] / count[k]);
+  return out;
+}
+
+// Skeleton-based (or plain) ARAP for one vessel: device handles plus `fixed` vertex
+// targets (the iliac's junction; they win over handles). Without anchors the whole
+// vessel may move and sweep its wall across device points that were inside before, so
+// handles are re-selected on the deformed surface and the solve repeated (warm-started)
+// until no new handle appears or `containment_rounds` is reached.
+geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline& device,
+                                 const std::map<int, Eigen::Vector3d>& fixed, const DeformOptions& options,
+                                 VesselReport& report) {
   const auto& mesh = m.vessel->mesh.mesh;
   const int n = static_cast<int>(mesh.V.rows());
   auto t0 = Clock::now();
+  auto handles = select_control_points(mesh, *m.caster, m.vessel->centerline, m.radius, device, options.control);
+  report.control_points = static_cast<int>(handles.size());
+  report.timings.control_points_ms += ms_since(t0);
+  if (handles.empty()) return mesh.V;
+
+  t0 = Clock::now();
   const auto edges = cotangent_weights(mesh);
   const int centres = options.use_skeleton ? static_cast<int>(m.skeleton.centres.size()) : 0;
   ArapTerms terms = surface_arap_terms(mesh.V, edges, n + centres);
   if (centres > 0) append_skeleton_terms(terms, mesh, m.skeleton, n, options.skeleton.weight);
   report.timings.weights_ms += ms_since(t0);
-
-  std::vector<int> constrained;
-  Positions target_rows(static_cast<Eigen::Index>(targets.size()), 3);
-  for (const auto& [v, p] : targets) {
-    target_rows.row(static_cast<Eigen::Index>(constrained.size())) = p.transpose();
-    constrained.push_back(v);
-  }
-  const ArapSolver solver(std::move(terms), constrained, options.arap);
-  report.timings.factor_ms += solver.assemble_ms() + solver.factor_ms();
-  const ArapResult r = solver.solve(target_rows);
-  report.timings.iterate_ms += r.init_ms + r.iterate_ms;
-  report.iterations = r.iterations;
-  report.converged = r.converged;
-  report.final_energy = r.energy.empty() ? 0.0 : r.energy.back();
-  report.constrained_vertices = static_cast<int>(constrained.size());
   report.skeleton_points = centres > 0 ? centres + static_cast<int>(m.skeleton.spokes.size()) : 0;
-  if (!r.X.allFinite()) throw std::runtime_error("vessel '" + m.vessel->name + "': the ARAP solve produced non-finite positions");
-  return r.X.topRows(n);
+
+  std::map<int, Eigen::Vector3d> targets = handle_vertex_targets(mesh, handles);
+  for (const auto& [v, p] : fixed) targets[v] = p;
+  Positions X;
+  for (int round = 0;; ++round) {
+    std::vector<int> constrained;
+    Positions rows(static_cast<Eigen::Index>(targets.size()), 3);
+    for (const auto& [v, p] : targets) {
+      rows.row(static_cast<Eigen::Index>(constrained.size())) = p.transpose();
+      constrained.push_back(v);
+    }
+    const ArapSolver solver(terms, constrained, options.arap);
+    report.timings.factor_ms += solver.assemble_ms() + solver.factor_ms();
+    if (round > 0)  // warm start: the previous round's shape with the new targets
+      for (std::size_t c = 0; c < constrained.size(); ++c) X.row(constrained[c]) = rows.row(static_cast<Eigen::Index>(c));
+    const ArapResult r = round > 0 ? solver.solve(rows, &X) : solver.solve(rows);
+    report.timings.iterate_ms += r.init_ms + r.iterate_ms;
+    report.iterations += r.iterations;
+    report.converged = r.converged;
+    report.final_energy = r.energy.empty() ? 0.0 : r.energy.back();
+    report.constrained_vertices = static_cast<int>(constrained.size());
+    report.rounds = round + 1;
+    if (!r.X.allFinite())
+      throw std::runtime_error("vessel '" + m.vessel->name + "': the ARAP solve produced non-finite positions");
+    X = r.X;
+    if (round + 1 >= options.containment_rounds) break;
+
+    t0 = Clock::now();
+    const geometry::TriangleMesh deformed{X.topRows(n), mesh.F};
+    const geometry::RayCaster caster(deformed);
+    const auto more = select_control_points(deformed, caster, deformed_centerline(m, deformed.V), m.radius, device,
+                                            options.control);
+    std::size_t added = 0;
+    for (const auto& [v, p] : handle_vertex_targets(deformed, more))
+      if (targets.emplace(v, p).second) ++added;
+    report.control_points += static_cast<int>(more.size());
+    report.timings.control_points_ms += ms_since(t0);
+    if (added == 0) break;
+  }
+  return X.topRows(n);
 }
 
 void check_device(const geometry::Polyline& device) {
@@ -137,15 +188,8 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
   auto& aorta_report = out.reports[static_cast<std::size_t>(aorta)];
   {
     const auto& m = models[static_cast<std::size_t>(aorta)];
-    const auto t0 = Clock::now();
-    const auto handles = select_control_points(aorta_mesh, *m.caster, m.vessel->centerline, m.radius, device, options.control);
-    aorta_report.control_points = static_cast<int>(handles.size());
-    aorta_report.timings.control_points_ms = ms_since(t0);
-    if (!handles.empty()) {
-      out.vessels[static_cast<std::size_t>(aorta)].mesh.V =
-          solve_vessel(m, handle_vertex_targets(aorta_mesh, handles), options, aorta_report);
-      aorta_report.role = "deformed";
-    }
+    out.vessels[static_cast<std::size_t>(aorta)].mesh.V = deform_vessel(m, device, {}, options, aorta_report);
+    if (aorta_report.control_points > 0) aorta_report.role = "deformed";
   }
   const auto& aorta_deformed = out.vessels[static_cast<std::size_t>(aorta)].mesh.V;
 
@@ -176,16 +220,15 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
       top_centroid /= static_cast<double>(bound.size());
       mean_shift /= static_cast<double>(bound.size());
     }
-    std::vector<Handle> handles;
-    if (static_cast<int>(i) == device_iliac)
-      handles = select_control_points(mesh, *m.caster, v.centerline, m.radius, device, options.control);
-    r.control_points = static_cast<int>(handles.size());
     r.timings.control_points_ms = ms_since(t0);
+    const bool carries = static_cast<int>(i) == device_iliac;
+    if (carries && bound.empty())
+      throw geometry::InputError(v.mesh_path.string() + ": no vertex of iliac '" + v.name + "' lies within " +
+                                 std::to_string(options.bind_length_mm) +
+                                 " mm of its centerline's proximal end, so it cannot be bound to the aorta");
     auto& V_out = out.vessels[i].mesh.V;
-    if (!handles.empty() && !bound.empty()) {
-      auto targets = handle_vertex_targets(mesh, handles);
-      for (const auto& [k, p] : bound) targets[k] = p;  // the junction wins over device handles
-      V_out = solve_vessel(m, targets, options, r);
+    if (carries) V_out = deform_vessel(m, device, bound, options, r);
+    if (carries && r.control_points > 0) {
       r.role = "carries the device";
       // 3. Erase the aortic vertices below the bound iliac points: distal of the plane
       // through their centroid (normal: the iliac's initial direction) and within 1.5
@@ -202,10 +245,6 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
     } else if (!bound.empty() && mean_shift.norm() > 0.0) {
       V_out = mesh.V.rowwise() + mean_shift.transpose();
       r.role = "follows the aorta";
-    } else if (!handles.empty()) {
-      throw geometry::InputError(v.mesh_path.string() + ": no vertex of iliac '" + v.name + "' lies within " +
-                                 std::to_string(options.bind_length_mm) +
-                                 " mm of its centerline's proximal end, so it cannot be bound to the aorta");
     }
   }
 

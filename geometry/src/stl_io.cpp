@@ -304,11 +304,14 @@ LoadedMesh read_stl(const std::filesystem::path& path, std::string_view bytes) {
     declared = load_u32_le(bytes.data() + kHeaderBytes);
     binary_size_ok = kPreambleBytes + std::uint64_t{declared} * kTriangleBytes == bytes.size();
   }
+  // ASCII STL never contains a NUL byte; binary headers and counts nearly always do.
+  const bool looks_binary = bytes.substr(0, 1024).find('\0') != std::string_view::npos;
   if (starts_with_solid(bytes)) {
     try {
       return {AsciiStlParser(path, bytes).parse(), MeshFormat::StlAscii};
     } catch (const InputError&) {
-      if (!binary_size_ok) throw;
+      // A damaged binary file whose header says "solid" is better reported as binary.
+      if (!binary_size_ok && !looks_binary) throw;
     }
   }
   if (binary_size_ok) return {read_binary(path, bytes, declared), MeshFormat::StlBinary};

@@ -34,19 +34,12 @@ constexpr int kTitleFont = cv::FONT_HERSHEY_DUPLEX;
 
 cv::Scalar scalar(Bgr c) { return {static_cast<double>(c.b), static_cast<double>(c.g), static_cast<double>(c.r)}; }
 
-// Image coordinates (px) -> fixed-point coordinates of a raster `supersample` times finer.
-// Pixel centres are at integers in both rasters, hence the half-pixel shifts.
-cv::Point fixed(const Eigen::Vector2d& uv, int supersample = 1) {
-  const auto one = [&](double x) {
-    const double fine = (std::clamp(x, -kMaxCoordPx, kMaxCoordPx) + 0.5) * supersample - 0.5;
-    return static_cast<int>(std::lround(fine * kFixedOne));
+// Image coordinates (px) -> OpenCV fixed-point drawing coordinates.
+cv::Point fixed(const Eigen::Vector2d& uv) {
+  const auto one = [](double x) {
+    return static_cast<int>(std::lround(std::clamp(x, -kMaxCoordPx, kMaxCoordPx) * kFixedOne));
   };
   return {one(uv.x()), one(uv.y())};
-}
-
-cv::Point to_pixel(const Eigen::Vector2d& uv) {
-  return {static_cast<int>(std::lround(std::clamp(uv.x(), -kMaxCoordPx, kMaxCoordPx))),
-          static_cast<int>(std::lround(std::clamp(uv.y(), -kMaxCoordPx, kMaxCoordPx)))};
 }
 
 std::string layer_name(std::size_t index, const std::string& legend) {
@@ -104,39 +97,56 @@ void check_options(const DrawOptions& options) {
 // ---------------------------------------------------------------------------------------
 // Mesh silhouettes
 
-// The union of the layer's projected triangles, rasterised `supersample` times finer
-// than `size`.
+// Sets the samples (integer positions of `mask`) inside triangle abc (sample coordinates),
+// half-open like GPU rasterisers: rows a.y <= y < c.y, columns x_left <= x < x_right.
+// Unlike cv::fillConvexPoly, which includes both ends of every span and so grows shapes
+// by about half a sample (biasing area and, measured, position), this covers each sample
+// by its centre: the filled area is unbiased and triangles sharing an edge leave no gap.
+void fill_triangle(cv::Mat1b& mask, std::array<Eigen::Vector2d, 3> t) {
+  std::sort(t.begin(), t.end(), [](const Eigen::Vector2d& p, const Eigen::Vector2d& q) {
+    return p.y() < q.y() || (p.y() == q.y() && p.x() < q.x());
+  });
+  const auto& [a, b, c] = t;
+  // Always evaluated from the lower end point, so a shared edge gives identical x values.
+  const auto x_at = [](const Eigen::Vector2d& p, const Eigen::Vector2d& q, double y) {
+    return p.x() + (y - p.y()) * (q.x() - p.x()) / (q.y() - p.y());
+  };
+  const double cols = mask.cols;
+  const int y0 = static_cast<int>(std::max(0.0, std::ceil(a.y())));
+  const int y1 = static_cast<int>(std::min<double>(mask.rows, std::ceil(c.y())));
+  for (int y = y0; y < y1; ++y) {
+    const double xa = x_at(a, c, y), xb = y < b.y() ? x_at(a, b, y) : x_at(b, c, y);
+    const int x0 = static_cast<int>(std::clamp(std::ceil(std::min(xa, xb)), 0.0, cols));
+    const int x1 = static_cast<int>(std::clamp(std::ceil(std::max(xa, xb)), 0.0, cols));
+    if (x1 > x0) std::memset(mask.ptr<std::uint8_t>(y) + x0, 255, static_cast<std::size_t>(x1 - x0));
+  }
+}
+
+// The union of the layer's projected triangles, sampled `supersample` times finer than
+// `size` along each axis (image pixel centre u = i maps to sample (u + 0.5) k - 0.5).
 cv::Mat1b silhouette(const ViewProjection& view, const MeshLayer& layer, cv::Size size, int supersample) {
   cv::Mat1b mask = cv::Mat1b::zeros(size.height * supersample, size.width * supersample);
   const double near = view.near_depth();
-  std::vector<cv::Point> points;
-  std::vector<char> ok;
+  const double limit = kMaxCoordPx * supersample;
+  std::vector<Eigen::Vector2d> points;
+  std::vector<char> state;  // 0 not projected yet, 1 projected, 2 cannot be projected
   for (const auto& mesh : layer.meshes) {
-    // Project each vertex once; unreferenced (e.g. erased) vertices are never read.
-    points.assign(static_cast<std::size_t>(mesh.V.rows()), cv::Point());
-    ok.assign(static_cast<std::size_t>(mesh.V.rows()), 0);
-    std::vector<char> done(static_cast<std::size_t>(mesh.V.rows()), 0);
-    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
-      for (int c = 0; c < 3; ++c) {
-        const auto i = static_cast<std::size_t>(mesh.F(f, c));
-        if (done[i]) continue;
-        done[i] = 1;
-        const Eigen::Vector3d p = mesh.V.row(static_cast<Eigen::Index>(i)).transpose();
-        ok[i] = view.depth(p) > near;
-        if (ok[i]) points[i] = fixed(view.project(p), supersample);
+    points.assign(static_cast<std::size_t>(mesh.V.rows()), Eigen::Vector2d::Zero());
+    state.assign(static_cast<std::size_t>(mesh.V.rows()), 0);
+    // Only referenced vertices are projected: erased faces may leave any vertex behind.
+    const auto vertex = [&](Eigen::Index f, int corner) -> const Eigen::Vector2d* {
+      const auto i = static_cast<std::size_t>(mesh.F(f, corner));
+      if (state[i] == 0) {
+        const Eigen::Vector3d p = mesh.V.row(mesh.F(f, corner)).transpose();
+        state[i] = view.depth(p) > near ? 1 : 2;
+        if (state[i] == 1)
+          points[i] = ((view.project(p).array() + 0.5) * supersample - 0.5).cwiseMax(-limit).cwiseMin(limit);
       }
-    const int max_x = mask.cols << kShift, max_y = mask.rows << kShift;
+      return state[i] == 1 ? &points[i] : nullptr;
+    };
     for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
-      const auto a = static_cast<std::size_t>(mesh.F(f, 0)), b = static_cast<std::size_t>(mesh.F(f, 1)),
-                 c = static_cast<std::size_t>(mesh.F(f, 2));
-      if (!ok[a] || !ok[b] || !ok[c]) continue;
-      const std::array<cv::Point, 3> tri{points[a], points[b], points[c]};
-      // Skip triangles wholly outside the raster (most of them when zoomed in).
-      const int x0 = std::min({tri[0].x, tri[1].x, tri[2].x}), x1 = std::max({tri[0].x, tri[1].x, tri[2].x});
-      const int y0 = std::min({tri[0].y, tri[1].y, tri[2].y}), y1 = std::max({tri[0].y, tri[1].y, tri[2].y});
-      if (x1 < -static_cast<int>(kFixedOne) || y1 < -static_cast<int>(kFixedOne) || x0 > max_x || y0 > max_y)
-        continue;
-      cv::fillConvexPoly(mask, tri.data(), 3, cv::Scalar(255), cv::LINE_8, kShift);
+      const Eigen::Vector2d *a = vertex(f, 0), *b = vertex(f, 1), *c = vertex(f, 2);
+      if (a && b && c) fill_triangle(mask, {*a, *b, *c});
     }
   }
   return mask;
@@ -233,37 +243,45 @@ cv::Size text_size(const std::string& text, int font, double scale, int thicknes
 }
 
 // Places labels beside their markers, on the side away from the image centre (outside the
-// vessels, usually), moving each down or up until it overlaps no earlier label.
+// vessels, usually): first at the marker's height, pushed sideways past other markers,
+// then a line lower or higher at a time until it overlaps no marker and no earlier label.
 class LabelPlacer {
  public:
   LabelPlacer(cv::Size image, double font_scale) : image_(image), scale_(font_scale) {}
 
+  /// Marks a marker's footprint so that no label covers it.
+  void block(cv::Point2d centre, int radius_px) {
+    const int r = radius_px + 2;
+    taken_.emplace_back(static_cast<int>(std::lround(centre.x)) - r, static_cast<int>(std::lround(centre.y)) - r,
+                        2 * r + 1, 2 * r + 1);
+  }
+
   void place(cv::Mat& image, const std::string& text, cv::Point2d anchor, int radius_px, Bgr colour) {
     int baseline = 0;
     const cv::Size size = text_size(text, kFont, scale_, 1, &baseline);
-    const int gap = radius_px + 5;
     const bool right = anchor.x >= 0.5 * (image_.width - 1);
-    const int x_raw = right ? static_cast<int>(std::lround(anchor.x)) + gap
-                            : static_cast<int>(std::lround(anchor.x)) - gap - size.width;
-    const int x = std::clamp(x_raw, 2, std::max(2, image_.width - size.width - 2));
-    const int y_mid = static_cast<int>(std::lround(anchor.y));
+    const int ax = static_cast<int>(std::lround(anchor.x)), ay = static_cast<int>(std::lround(anchor.y));
     const int step = size.height + baseline + 2;
     cv::Rect box;
-    for (int attempt = 0; attempt < 12; ++attempt) {
-      // 0, +1, -1, +2, -2, ... lines from the marker's height.
-      const int k = (attempt + 1) / 2 * (attempt % 2 == 1 ? 1 : -1);
-      box = cv::Rect(x, y_mid - size.height / 2 + k * step - 1, size.width, size.height + baseline + 2);
-      if (std::none_of(placed_.begin(), placed_.end(), [&](const cv::Rect& r) { return (r & box).area() > 0; }))
-        break;
+    bool free = false;
+    for (int line = 0; line < 13 && !free; ++line) {
+      const int k = (line + 1) / 2 * (line % 2 == 1 ? 1 : -1);  // 0, +1, -1, +2, -2, ... lines
+      for (int push = 0; push < 3 && !free; ++push) {
+        const int gap = radius_px + 4 + push * (2 * radius_px + 4);
+        const int x = std::clamp(right ? ax + gap : ax - gap - size.width, 2,
+                                 std::max(2, image_.width - size.width - 2));
+        box = cv::Rect(x, ay - size.height / 2 + k * step - 1, size.width, size.height + baseline + 2);
+        free = std::none_of(taken_.begin(), taken_.end(), [&](const cv::Rect& r) { return (r & box).area() > 0; });
+      }
     }
-    placed_.push_back(box);
+    taken_.push_back(box);
     draw_text(image, text, {box.x, box.y + 1 + size.height}, kFont, scale_, colour);
   }
 
  private:
   cv::Size image_;
   double scale_;
-  std::vector<cv::Rect> placed_;
+  std::vector<cv::Rect> taken_;
 };
 
 void draw_overlay(cv::Mat& image, const ViewProjection& view, const Overlay& overlay, const DrawOptions& options) {
@@ -289,18 +307,22 @@ void draw_overlay(cv::Mat& image, const ViewProjection& view, const Overlay& ove
 
   struct Visible {
     const Marker* marker;
-    Eigen::Vector2d uv;
+    cv::Point2d uv;  // clamped like every drawn coordinate
   };
   std::vector<Visible> visible;
-  for (const Marker& marker : overlay.markers)
-    if (view.depth(marker.position_lps) > view.near_depth()) visible.push_back({&marker, view.project(marker.position_lps)});
-  for (const Visible& v : visible) draw_marker_shape(image, fixed(v.uv), v.marker->radius_px, v.marker->colour, v.marker->filled);
+  for (const Marker& marker : overlay.markers) {
+    if (!(view.depth(marker.position_lps) > view.near_depth())) continue;
+    const Eigen::Vector2d uv = view.project(marker.position_lps);
+    visible.push_back({&marker, {std::clamp(uv.x(), -kMaxCoordPx, kMaxCoordPx),
+                                 std::clamp(uv.y(), -kMaxCoordPx, kMaxCoordPx)}});
+  }
   LabelPlacer labels(image.size(), options.label_font_scale);
+  for (const Visible& v : visible) {
+    draw_marker_shape(image, fixed({v.uv.x, v.uv.y}), v.marker->radius_px, v.marker->colour, v.marker->filled);
+    labels.block(v.uv, v.marker->radius_px);
+  }
   for (const Visible& v : visible)
-    if (!v.marker->label.empty())
-      labels.place(image, v.marker->label, {std::clamp(v.uv.x(), -kMaxCoordPx, kMaxCoordPx),
-                                            std::clamp(v.uv.y(), -kMaxCoordPx, kMaxCoordPx)},
-                   v.marker->radius_px, v.marker->colour);
+    if (!v.marker->label.empty()) labels.place(image, v.marker->label, v.uv, v.marker->radius_px, v.marker->colour);
 }
 
 cv::Mat wrap(Image& image) {
@@ -430,12 +452,13 @@ const char* direction_letter(const Eigen::Vector3d& d) {
   return kLetters[static_cast<std::size_t>(axis)][d[axis] > 0.0 ? 1 : 0];
 }
 
-const char* panel_caption(StandardView view) {
+// Panel caption: the view's name and, smaller, where the viewer stands.
+std::pair<const char*, const char*> panel_caption(StandardView view) {
   switch (view) {
-    case StandardView::AP: return "AP";
-    case StandardView::Lateral: return "LATERAL  (viewed from patient left)";
+    case StandardView::AP: return {"AP", "frontal, patient's right on the left"};
+    case StandardView::Lateral: return {"LATERAL", "viewed from the patient's left"};
   }
-  return "";
+  return {"", ""};
 }
 
 // Scale bar in the panel's bottom-left corner: a round length of at most a quarter panel.
@@ -456,7 +479,9 @@ void draw_scale_bar(cv::Mat& panel, double mm_per_pixel, int margin) {
 }
 
 void draw_panel_frame(cv::Mat& panel, const PanelLayout& layout, double mm_per_pixel, int margin) {
-  draw_text(panel, panel_caption(layout.view), {16, 28}, kFont, 0.6, kText, 1);
+  const auto [caption, detail] = panel_caption(layout.view);
+  draw_text(panel, caption, {16, 28}, kFont, 0.6, kText, 1);
+  draw_text(panel, detail, {16, 48}, kFont, 0.42, kDimText, 1);
   const ViewAxes& axes = layout.projection.axes();
   const double font = 0.6;
   const auto letter = [&](const Eigen::Vector3d& d, cv::Point centre) {
@@ -525,7 +550,7 @@ Image Image::filled(int width, int height, Bgr colour) {
 
 Bgr Image::at(int x, int y) const {
   assert(x >= 0 && x < width && y >= 0 && y < height);
-  const std::size_t i = (static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)) * 3;
+  const auto i = (static_cast<std::size_t>(y) * static_cast<std::size_t>(width) + static_cast<std::size_t>(x)) * 3;
   return {bgr[i], bgr[i + 1], bgr[i + 2]};
 }
 
@@ -572,9 +597,11 @@ ComparisonLayout comparison_layout(const ComparisonPicture& picture, const Previ
   const int header = header_height(picture);
   layout.width = 2 * panel_w;
   layout.height = header + panel_h + footer_height(picture, layout.width);
-  for (std::size_t i = 0; i < kPanelViews.size(); ++i)
-    layout.panels.push_back({kPanelViews[i], static_cast<int>(i) * panel_w, header,
-                             OrthographicProjection::fit(kPanelViews[i], bounds, layout.mm_per_pixel, panel_w, panel_h)});
+  for (std::size_t i = 0; i < kPanelViews.size(); ++i) {
+    const StandardView view = kPanelViews[i];
+    layout.panels.push_back({view, static_cast<int>(i) * panel_w, header,
+                             OrthographicProjection::fit(view, bounds, layout.mm_per_pixel, panel_w, panel_h)});
+  }
   return layout;
 }
 
@@ -612,17 +639,20 @@ ComparisonPicture deformation_comparison(std::string title, std::vector<geometry
   if (landmarks_before.size() != landmarks_after.size())
     throw std::invalid_argument("deformation_comparison: " + std::to_string(landmarks_before.size()) +
                                 " landmarks before but " + std::to_string(landmarks_after.size()) + " after");
-  const Bgr grey{200, 200, 200}, deformed{40, 110, 255}, wire{80, 255, 120}, landmark{255, 210, 80};
+  const Bgr grey{200, 200, 200}, deformed{50, 100, 255}, wire{80, 255, 120}, landmark{255, 210, 80};
   ComparisonPicture picture;
   picture.title = std::move(title);
   Overlay& o = picture.overlay;
   o.layers.push_back({"preoperative (undeformed)", std::move(before), grey, 0.16, true, 1});
-  o.layers.push_back({"deformed", std::move(after), deformed, 0.30, true, 2});
+  o.layers.push_back({"deformed", std::move(after), deformed, 0.38, true, 2});
   o.polylines.push_back({"device", std::move(device), wire, 2});
   for (std::size_t i = 0; i < landmarks_before.size(); ++i)
     o.polylines.push_back({"", {landmarks_before[i].position_lps, landmarks_after[i].position_lps}, landmark, 1});
-  for (const auto& p : landmarks_before) o.markers.push_back({p.position_lps, "", "landmark before", landmark, false, 5});
-  for (const auto& p : landmarks_after) o.markers.push_back({p.position_lps, p.label, "landmark after", landmark, true, 4});
+  // Only the moved landmark is labelled: two labels a few mm apart would collide.
+  for (const auto& p : landmarks_before)
+    o.markers.push_back({p.position_lps, "", "landmark before", landmark, false, 5});
+  for (const auto& p : landmarks_after)
+    o.markers.push_back({p.position_lps, p.label, "landmark after", landmark, true, 4});
   return picture;
 }
 

@@ -258,6 +258,14 @@ TEST(StlRead, TruncatedBinaryIsRefusedWithTheExpectedSize) {
   EXPECT_THAT(msg, HasSubstr("684 bytes"));
 }
 
+TEST(StlRead, TruncatedBinaryWithSolidHeaderIsReportedAsBinary) {
+  const fs::path file = test_dir() / "truncated_solid.stl";
+  std::string bytes = binary_stl(unit_cube(), "solid cube");
+  bytes.resize(bytes.size() - 50);
+  write_bytes(file, bytes);
+  EXPECT_THAT(read_error(file), HasSubstr("truncated_solid.stl: binary STL is truncated"));
+}
+
 TEST(StlRead, TinyAndEmptyFilesAreRefused) {
   const fs::path dir = test_dir();
   write_bytes(dir / "empty.stl", "");

@@ -26,6 +26,10 @@ struct DeformOptions {
   ArapOptions arap;
   bool use_skeleton = true;      ///< false: plain surface ARAP (for comparison)
   double bind_length_mm = 3.0;   ///< iliac vertices this close to its proximal end are bound
+  /// Solves per vessel: after each, handles are re-selected on the deformed surface (the
+  /// vessel may have moved over device points that were inside) and added; 1 = the
+  /// paper's single pass.
+  int containment_rounds = 3;
 };
 
 struct StageTimings {
@@ -42,7 +46,8 @@ struct VesselReport {
   int bound_vertices = 0;        ///< iliac top vertices bound to the aorta
   int constrained_vertices = 0;
   int skeleton_points = 0;       ///< plane centres + wall hits
-  int iterations = 0;
+  int rounds = 0;                ///< containment rounds solved
+  int iterations = 0;            ///< ARAP iterations, all rounds
   bool converged = true;
   double final_energy = 0.0;
   double max_displacement_mm = 0.0;

@@ -105,7 +105,7 @@ struct ComparisonPicture {
 };
 
 struct PreviewOptions {
-  int width_px = 1400;             ///< whole picture; each panel gets half
+  int width_px = 1400;             ///< whole picture; each panel gets half (rounded down)
   int max_panel_height_px = 1000;  ///< the scale grows (coarser) if the content would be taller
   int margin_px = 56;              ///< free space around the content inside each panel
   double mm_per_pixel = 0.0;       ///< > 0: use this scale (panel height follows); 0 = fit
@@ -125,7 +125,7 @@ struct PanelLayout {
 struct ComparisonLayout {
   int width = 0, height = 0;       ///< whole picture (px)
   double mm_per_pixel = 0.0;       ///< shared by both panels
-  Eigen::AlignedBox3d bounds_lps;  ///< mm, what was fitted (padded to >= 1 mm per side)
+  Eigen::AlignedBox3d bounds_lps;  ///< mm, what was fitted (each extent widened to >= 1 mm)
   std::vector<PanelLayout> panels;  ///< AP, then lateral
 };
 

@@ -87,7 +87,9 @@ struct ExampleScene {
   std::vector<Eigen::Vector3d> device;          ///< tip (in the aorta) first, access point
                                                 ///< (right iliac distal end) last; 1 mm apart
   double device_thickness_mm = 0.9;
-  std::vector<DeviceClearance> device_clearance;  ///< one per vessel, same order
+  std::vector<DeviceClearance> device_clearance;  ///< one per vessel, same order; for a
+                                                  ///< vessel the device does not run in
+                                                  ///< (iliac_left) the figures are large
 
   /// The vessel called `name`; std::out_of_range if there is none.
   const ExampleVessel& vessel(std::string_view name) const;

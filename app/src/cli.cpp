@@ -1,0 +1,106 @@
+#include "evar/app/cli.hpp"
+
+#include <CLI/CLI.hpp>
+#include <exception>
+
+#include "commands.hpp"
+#include "evar/geometry/input_error.hpp"
+#include "logging.hpp"
+
+namespace evar::app {
+
+int run_cli(const std::vector<std::string>& args) {
+  CLI::App app{
+      "evarnode: adapts preoperative CT vessel meshes (aorta, iliacs) to a guidewire seen in\n"
+      "intraoperative fluoroscopy during EVAR, by skeleton-based as-rigid-as-possible\n"
+      "deformation (Toth et al.). Coordinates are patient LPS millimetres throughout.\n",
+      "evarnode"};
+  app.require_subcommand(1);
+  std::string log_level = "info";
+  app.add_option("--log-level", log_level, "error, warn, info or debug")
+      ->check(CLI::IsMember({"error", "warn", "info", "debug"}))
+      ->capture_default_str();
+
+  DeformCommand deform;
+  auto* d = app.add_subcommand("deform",
+                               "Deform a scene's vessel meshes so they contain the device.\n"
+                               "Writes OUT/<mesh file> per vessel (same format, vertex order and count; faces\n"
+                               "of erased aortic vertices removed), OUT/landmarks.mrk.json, OUT/report.json\n"
+                               "and OUT/preview.png.");
+  d->add_option("--scene", deform.scene, "scene.json (format evarnode-scene, version 1)")->required();
+  d->add_option("--device", deform.device, "device as a 3D Slicer Curve markup (.mrk.json), tip first")->required();
+  d->add_option("--out", deform.out, "output directory (created if missing)")->required();
+  d->add_flag("!--no-skeleton", deform.skeleton, "plain surface ARAP, without the skeleton (for comparison)");
+  d->add_flag("!--no-preview", deform.preview, "do not write preview.png");
+  d->add_option("--solver", deform.solver, "sparse Cholesky: default, eigen or cholmod")
+      ->check(CLI::IsMember({"default", "eigen", "cholmod"}))
+      ->capture_default_str();
+  d->add_option("--tolerance-mm", deform.tolerance_mm, "stop when the largest vertex update is below this")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+  d->add_option("--max-iterations", deform.max_iterations, "cap on ARAP iterations per solve")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  d->add_option("--containment-rounds", deform.containment_rounds,
+                "re-select handles on the deformed surface up to this many solves per vessel (1 = single pass)")
+      ->check(CLI::Range(1, 20))
+      ->capture_default_str();
+
+  ArapCommand arap;
+  auto* a = app.add_subcommand("arap",
+                               "Plain surface ARAP for explicit constraints (no skeleton), to compare the\n"
+                               "solver with other ARAP implementations on identical problems.\n"
+                               "constraints JSON: {\"fixed\": [vertex...], \"handles\": [{\"vertex\": i, \"target\": [x,y,z]}]}");
+  a->add_option("--mesh", arap.mesh, "input mesh (.stl, .ply, .obj)")->required();
+  a->add_option("--constraints", arap.constraints, "constraints JSON")->required();
+  a->add_option("--out", arap.out, "output mesh (format from its extension)")->required();
+  auto* it = a->add_option("--iterations", arap.iterations, "run exactly N iterations after the initial guess")
+                 ->check(CLI::NonNegativeNumber);
+  auto* tol = a->add_option("--tolerance-mm", arap.tolerance_mm, "stop when the largest update is below T (default 0.01)")
+                  ->check(CLI::PositiveNumber);
+  it->excludes(tol);
+  a->add_option("--report", arap.report, "write a JSON report (timings, iterations, energy)");
+  a->add_option("--solver", arap.solver, "sparse Cholesky: default, eigen or cholmod")
+      ->check(CLI::IsMember({"default", "eigen", "cholmod"}))
+      ->capture_default_str();
+  a->add_flag("!--no-anderson", arap.anderson, "plain local/global iterations (no Anderson acceleration)");
+
+  ExampleCommand example;
+  auto* e = app.add_subcommand("example",
+                               "Write the bundled synthetic aorto-iliac example scene (meshes, centerlines,\n"
+                               "landmarks, a guidewire that leaves the undeformed right iliac) to a directory.");
+  e->add_option("--out", example.out, "output directory")->required();
+  e->add_option("--format", example.format, "mesh format: stl, ply or obj")
+      ->check(CLI::IsMember({"stl", "ply", "obj"}))
+      ->capture_default_str();
+  e->add_option("--seed", example.seed, "anatomy variation seed")->capture_default_str();
+  e->add_option("--aorta-vertices", example.aorta_vertices, "approximate aortic mesh size")
+      ->check(CLI::Range(500, 2000000))
+      ->capture_default_str();
+  e->add_option("--iliac-vertices", example.iliac_vertices, "approximate size of each iliac mesh")
+      ->check(CLI::Range(300, 2000000))
+      ->capture_default_str();
+
+  std::vector<std::string> reversed(args.rbegin(), args.rend());
+  try {
+    app.parse(reversed);
+  } catch (const CLI::ParseError& err) {
+    // --help and --version exit 0; every usage error exits 2 (CLI11 has its own codes).
+    return app.exit(err) == 0 ? 0 : 2;
+  }
+  set_log_level(log_level);
+  try {
+    if (d->parsed()) return run_deform(deform);
+    if (a->parsed()) return run_arap(arap);
+    if (e->parsed()) return run_example(example);
+  } catch (const geometry::InputError& err) {
+    log().error("{}", err.what());
+    return 1;
+  } catch (const std::exception& err) {
+    log().error("{}", err.what());
+    return 1;
+  }
+  return 2;
+}
+
+}  // namespace evar::app

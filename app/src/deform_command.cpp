@@ -1,0 +1,123 @@
+// `evarnode deform`: the deformation stage on files.
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "commands.hpp"
+#include "evar/deform/scene_deformation.hpp"
+#include "evar/geometry/input_error.hpp"
+#include "evar/geometry/markups.hpp"
+#include "evar/geometry/mesh_io.hpp"
+#include "evar/geometry/scene.hpp"
+#include "logging.hpp"
+#include "preview.hpp"
+
+namespace evar::app {
+namespace {
+
+nlohmann::json vec(const Eigen::Vector3d& p) { return {p.x(), p.y(), p.z()}; }
+
+nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& output) {
+  return {{"name", r.name},
+          {"kind", r.kind},
+          {"role", r.role},
+          {"output", output},
+          {"vertices", r.vertices},
+          {"faces", r.faces},
+          {"device_points", r.device_points},
+          {"control_points", r.control_points},
+          {"bound_vertices", r.bound_vertices},
+          {"constrained_vertices", r.constrained_vertices},
+          {"skeleton_points", r.skeleton_points},
+          {"rounds", r.rounds},
+          {"iterations", r.iterations},
+          {"converged", r.converged},
+          {"final_energy", r.final_energy},
+          {"max_displacement_mm", r.max_displacement_mm},
+          {"erased_vertices", r.erased_vertices},
+          {"erased_faces", r.erased_faces},
+          {"timings_ms",
+           {{"weights", r.timings.weights_ms},
+            {"control_points", r.timings.control_points_ms},
+            {"skeleton", r.timings.skeleton_ms},
+            {"factor", r.timings.factor_ms},
+            {"iterate", r.timings.iterate_ms},
+            {"total", r.timings.total_ms}}}};
+}
+
+void write_json(const std::filesystem::path& path, const nlohmann::json& j) {
+  std::ofstream out(path);
+  out << j.dump(2) << '\n';
+  if (!out) throw std::runtime_error(path.string() + ": cannot write");
+}
+
+}  // namespace
+
+int run_deform(const DeformCommand& cmd) {
+  log().info("loading scene {}", cmd.scene.string());
+  const geometry::Scene scene = geometry::load_scene(cmd.scene);
+  const geometry::Markup curve = geometry::read_curve(cmd.device, 2);
+  geometry::Polyline device;
+  for (const auto& p : curve.points) device.push_back(p.position_lps);
+  log().info("device {}: {} points; {} vessel(s), {} landmark(s), device thickness {} mm", cmd.device.string(),
+             device.size(), scene.vessels.size(), scene.landmarks.size(), scene.device_thickness_mm);
+
+  deform::DeformOptions options;
+  options.use_skeleton = cmd.skeleton;
+  options.arap.backend = deform::parse_cholesky_backend(cmd.solver);
+  options.arap.tolerance_mm = cmd.tolerance_mm;
+  options.arap.max_iterations = cmd.max_iterations;
+  options.containment_rounds = cmd.containment_rounds;
+  deform::SceneDeformation result;
+  try {
+    result = deform::deform_scene(scene, device, options);
+  } catch (const geometry::InputError& e) {
+    const std::string what = e.what();
+    if (what.rfind("device:", 0) == 0) throw geometry::InputError(cmd.device.string() + ": " + what.substr(8));
+    throw;
+  }
+
+  std::filesystem::create_directories(cmd.out);
+  nlohmann::json report = {{"format", "evarnode-deform-report"},
+                           {"version", 1},
+                           {"scene", cmd.scene.string()},
+                           {"device", cmd.device.string()},
+                           {"device_iliac", result.device_iliac},
+                           {"device_thickness_mm", scene.device_thickness_mm},
+                           {"skeleton", cmd.skeleton},
+                           {"solver", deform::to_string(options.arap.backend)},
+                           {"tolerance_mm", cmd.tolerance_mm},
+                           {"vessels", nlohmann::json::array()},
+                           {"landmarks", nlohmann::json::array()}};
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    const auto& v = scene.vessels[i];
+    const auto out_path = cmd.out / v.mesh_path.filename();
+    geometry::write_mesh(out_path, result.vessels[i].mesh, v.mesh.format);
+    const auto& r = result.reports[i];
+    report["vessels"].push_back(vessel_json(r, out_path.string()));
+    log().info("{:<12} {:<19} {:>3} control points, {:>4} constrained, {:>3} iterations in {} round(s), "
+               "max displacement {:.2f} mm, {:.1f} ms{}",
+               r.name, r.role, r.control_points, r.constrained_vertices, r.iterations, r.rounds,
+               r.max_displacement_mm, r.timings.total_ms,
+               r.erased_faces > 0 ? fmt::format(", {} faces erased", r.erased_faces) : "");
+    if (!r.converged) log().warn("{}: ARAP stopped at the iteration cap before reaching {} mm", r.name, cmd.tolerance_mm);
+  }
+  geometry::Markup landmarks{"Fiducial", "landmarks", result.landmarks};
+  geometry::write_markups(cmd.out / "landmarks.mrk.json", {landmarks});
+  for (std::size_t k = 0; k < result.landmarks.size(); ++k) {
+    const auto& before = scene.landmarks[k].position_lps;
+    const auto& after = result.landmarks[k].position_lps;
+    report["landmarks"].push_back({{"label", result.landmarks[k].label},
+                                   {"vessel", result.landmark_vessel[k]},
+                                   {"before_lps_mm", vec(before)},
+                                   {"after_lps_mm", vec(after)},
+                                   {"displacement_mm", (after - before).norm()}});
+  }
+  report["total_ms"] = result.total_ms;
+  write_json(cmd.out / "report.json", report);
+  if (cmd.preview) write_preview(cmd.out / "preview.png", scene, result, device);
+  log().info("done in {:.1f} ms; wrote {} mesh(es), landmarks.mrk.json, report.json{} to {}", result.total_ms,
+             scene.vessels.size(), cmd.preview ? ", preview.png" : "", cmd.out.string());
+  return 0;
+}
+
+}  // namespace evar::app

@@ -1,0 +1,11 @@
+#pragma once
+// The one logger of the executable: human-readable lines on stderr.
+#include <spdlog/spdlog.h>
+
+namespace evar::app {
+
+spdlog::logger& log();
+/// "error", "warn", "info" (default), "debug".
+void set_log_level(const std::string& level);
+
+}  // namespace evar::app

@@ -1,0 +1,158 @@
+#pragma once
+// Shared problems for the benchmarks: a bent tube (surface ARAP) and the example
+// aorto-iliac scene converted in memory to a geometry::Scene. Built once per size and
+// cached, so set-up never counts in a benchmark's time.
+#include <benchmark/benchmark.h>
+
+#include <Eigen/Geometry>
+#include <cmath>
+#include <map>
+#include <memory>
+#include <numbers>
+#include <string>
+#include <vector>
+
+#include "evar/deform/arap_solver.hpp"
+#include "evar/deform/cotangent_weights.hpp"
+#include "evar/deform/sparse_cholesky.hpp"
+#include "evar/geometry/scene.hpp"
+#include "evar/sim/example_scene.hpp"
+#include "evar/sim/tube_mesh.hpp"
+
+namespace evar::bench {
+
+/// Tube sizes (target vertex counts) shared by the benchmarks.
+inline constexpr int kSizes[] = {7500, 30000, 120000};
+
+/// Benchmark argument -> Cholesky backend (0: Eigen SimplicialLDLT, 1: CHOLMOD supernodal).
+inline deform::CholeskyBackend backend_arg(std::int64_t a) {
+  return a == 0 ? deform::CholeskyBackend::EigenLDLT : deform::CholeskyBackend::Cholmod;
+}
+
+/// Returns false (and marks the run skipped) when the backend is not in this build.
+inline bool backend_usable(benchmark::State& state, deform::CholeskyBackend b) {
+  if (b == deform::CholeskyBackend::Cholmod && !deform::cholmod_available()) {
+    state.SkipWithError("this build has no CHOLMOD");
+    return false;
+  }
+  return true;
+}
+
+inline std::string backend_label(deform::CholeskyBackend b) { return deform::to_string(b); }
+
+/// A straight capped tube (length 120 mm, radius 10 mm, along +z) bent by its ends: the
+/// vertices of the bottom 3 mm are fixed where they are; those of the top 3 mm are moved
+/// rigidly to where a 60 degree circular bend of the axis would put them (the top is turned
+/// 60 degrees about x and its centre moved by about 57 mm sideways and 21 mm down). The
+/// middle is free. Every other vertex starts from Laplacian editing in the solver.
+struct TubeProblem {
+  geometry::TriangleMesh mesh;
+  std::vector<int> constrained;  ///< fixed bottom, then moved top (mesh order)
+  deform::Positions targets;     ///< one row per constrained vertex
+  deform::ArapTerms terms;       ///< surface ARAP terms with cotangent weights
+};
+
+inline TubeProblem make_bent_tube(int target_vertices) {
+  constexpr double kLength = 120.0, kRadius = 10.0, kEndBand = 3.0;
+  const double theta = 60.0 * std::numbers::pi / 180.0;
+  const std::vector<Eigen::Vector3d> centerline{{0, 0, 0}, {0, 0, kLength}};
+  const auto options = sim::tube_options_for_vertex_count(kLength, kRadius, target_vertices);
+  TubeProblem p;
+  p.mesh = sim::tube_mesh(centerline, [](double) { return kRadius; }, options);
+  const double rho = kLength / theta;  // bend radius of the axis
+  const Eigen::Vector3d top_centre(0, 0, kLength);
+  const Eigen::Vector3d bent_top(0, rho * (1.0 - std::cos(theta)), rho * std::sin(theta));
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(-theta, Eigen::Vector3d::UnitX()).toRotationMatrix();  // +z -> (0, sin, cos)
+  std::vector<Eigen::Vector3d> rows;
+  for (Eigen::Index i = 0; i < p.mesh.V.rows(); ++i) {
+    const Eigen::Vector3d v = p.mesh.V.row(i).transpose();
+    if (v.z() < kEndBand) {
+      p.constrained.push_back(static_cast<int>(i));
+      rows.push_back(v);
+    } else if (v.z() > kLength - kEndBand) {
+      p.constrained.push_back(static_cast<int>(i));
+      rows.push_back(Q * (v - top_centre) + bent_top);
+    }
+  }
+  p.targets.resize(static_cast<Eigen::Index>(rows.size()), 3);
+  for (std::size_t k = 0; k < rows.size(); ++k) p.targets.row(static_cast<Eigen::Index>(k)) = rows[k].transpose();
+  p.terms = deform::mesh_arap_terms(p.mesh.V, deform::cotangent_weights(p.mesh));
+  return p;
+}
+
+/// Cached per target vertex count.
+inline const TubeProblem& bent_tube(int target_vertices) {
+  static std::map<int, std::unique_ptr<TubeProblem>> cache;
+  auto& slot = cache[target_vertices];
+  if (!slot) slot = std::make_unique<TubeProblem>(make_bent_tube(target_vertices));
+  return *slot;
+}
+
+/// Example scene parameters with the aorta at `aorta_vertices` and the iliacs scaled in
+/// proportion (the default scene is 7500 aorta + 2 x 3500 iliac vertices).
+inline sim::ExampleSceneParams scene_params(int aorta_vertices) {
+  sim::ExampleSceneParams p;
+  const double scale = static_cast<double>(aorta_vertices) / p.aorta_vertices;
+  p.iliac_vertices = static_cast<int>(std::lround(p.iliac_vertices * scale));
+  p.aorta_vertices = aorta_vertices;
+  return p;
+}
+
+/// The example anatomy as a loaded scene (what load_scene gives for its files).
+inline geometry::Scene to_scene(const sim::ExampleScene& ex) {
+  geometry::Scene s;
+  s.file = "example/scene.json";
+  for (const auto& v : ex.vessels) {
+    geometry::Vessel gv;
+    gv.name = v.name;
+    gv.kind = v.kind;
+    gv.mesh_path = v.name + ".stl";
+    gv.centerline_path = v.name + ".centerline.mrk.json";
+    gv.mesh = {v.mesh, geometry::MeshFormat::StlBinary};
+    gv.centerline = v.centerline;
+    s.vessels.push_back(std::move(gv));
+  }
+  s.landmarks = ex.landmarks;
+  s.device_thickness_mm = ex.device_thickness_mm;
+  return s;
+}
+
+struct SceneProblem {
+  sim::ExampleScene example;
+  geometry::Scene scene;
+};
+
+inline const SceneProblem& example_scene(int aorta_vertices) {
+  static std::map<int, std::unique_ptr<SceneProblem>> cache;
+  auto& slot = cache[aorta_vertices];
+  if (!slot) {
+    slot = std::make_unique<SceneProblem>();
+    slot->example = sim::make_example_scene(scene_params(aorta_vertices));
+    slot->scene = to_scene(slot->example);
+  }
+  return *slot;
+}
+
+/// Largest distance (mm) between corresponding rows.
+inline double max_row_distance(const deform::Positions& a, const deform::Positions& b) {
+  return (a - b).rowwise().norm().maxCoeff();
+}
+
+/// A counter averaged over the benchmark's iterations.
+inline benchmark::Counter avg(double sum) { return benchmark::Counter(sum, benchmark::Counter::kAvgIterations); }
+
+}  // namespace evar::bench
+
+#include <ctime>
+
+namespace evar::bench {
+
+/// Process CPU time (ms), all threads: single-threaded work measured this way is not
+/// inflated when other processes compete for the cores (wall time is).
+inline double cpu_ms() {
+  timespec ts{};
+  clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
+  return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+}  // namespace evar::bench

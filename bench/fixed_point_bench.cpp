@@ -1,0 +1,85 @@
+// How close the default stopping rule (largest update < 0.01 mm, Anderson on) gets to the
+// ARAP fixed point, on the ~7.5k-vertex bent tube. The reference fixed point is the same
+// solve run to a 1e-7 mm update (Anderson on, up to 100000 iterations). Also plain
+// local/global (no Anderson) after exactly 100 iterations, the figure the issue quotes
+// for CGAL (still ~0.1 mm away after 100 iterations).
+#include <benchmark/benchmark.h>
+
+#include <chrono>
+#include <stdexcept>
+
+#include "bench_problems.hpp"
+
+using namespace evar;
+using bench::avg;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+constexpr int kVertices = 7500;
+
+struct Reference {
+  deform::Positions X;
+  int iterations = 0;
+  double last_update_mm = 0.0;
+};
+
+const Reference& reference() {
+  static const Reference ref = [] {
+    const auto& p = bench::bent_tube(kVertices);
+    deform::ArapOptions opt;
+    opt.tolerance_mm = 1e-7;
+    opt.max_iterations = 100000;
+    const auto r = deform::ArapSolver(p.terms, p.constrained, opt).solve(p.targets);
+    if (!r.converged) throw std::runtime_error("fixed-point reference did not converge");
+    return Reference{r.X, r.iterations, r.last_update_mm};
+  }();
+  return ref;
+}
+
+// mode 0: defaults (0.01 mm, Anderson); 1: plain, exactly 100 iterations;
+// 2: plain at the default 0.01 mm tolerance (500 iterations at most).
+void BM_FixedPoint(benchmark::State& state, int mode) {
+  const auto& p = bench::bent_tube(kVertices);
+  const auto& ref = reference();
+  deform::ArapOptions opt;
+  if (mode == 1) {
+    opt.anderson = false;
+    opt.max_iterations = 100;
+    opt.tolerance_mm = 1e-12;  // never stops early
+  } else if (mode == 2) {
+    opt.anderson = false;
+  }
+  double ctor = 0, solve = 0, dist = 0, mean = 0, iterations = 0, cpu = 0;
+  for (auto _ : state) {
+    const double c0 = bench::cpu_ms();
+    const auto t0 = Clock::now();
+    const deform::ArapSolver solver(p.terms, p.constrained, opt);  // terms copied: included, ~1 ms
+    const auto t1 = Clock::now();
+    const auto r = solver.solve(p.targets);
+    const auto t2 = Clock::now();
+    cpu += bench::cpu_ms() - c0;
+    state.SetIterationTime(std::chrono::duration<double>(t2 - t0).count());
+    ctor += std::chrono::duration<double, std::milli>(t1 - t0).count();
+    solve += std::chrono::duration<double, std::milli>(t2 - t1).count();
+    const auto d = (r.X - ref.X).rowwise().norm();
+    dist += d.maxCoeff();
+    mean += d.mean();
+    iterations += r.iterations;
+  }
+  state.SetLabel(mode == 0 ? "default (0.01 mm, anderson)" : mode == 1 ? "plain, 100 iterations" : "plain, 0.01 mm");
+  state.counters["vertices"] = static_cast<double>(p.mesh.V.rows());
+  state.counters["max_dist_mm"] = avg(dist);
+  state.counters["mean_dist_mm"] = avg(mean);
+  state.counters["iterations"] = avg(iterations);
+  state.counters["setup_ms"] = avg(ctor);  // ArapSolver constructor (assembly + factorization)
+  state.counters["solve_ms"] = avg(solve);
+  state.counters["cpu_ms"] = avg(cpu);  // constructor + solve
+  state.counters["ref_iterations"] = ref.iterations;
+}
+
+}  // namespace
+
+BENCHMARK_CAPTURE(BM_FixedPoint, 7500/default, 0)->Iterations(5)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_FixedPoint, 7500/plain_100, 1)->Iterations(3)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_FixedPoint, 7500/plain_tol, 2)->Iterations(1)->UseManualTime()->Unit(benchmark::kMillisecond);

@@ -1,0 +1,170 @@
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <fstream>
+#include <nlohmann/json.hpp>
+
+#include "evar/app/cli.hpp"
+#include "evar/geometry/mesh_io.hpp"
+#include "evar/sim/example_scene.hpp"
+
+namespace fs = std::filesystem;
+using evar::app::run_cli;
+
+namespace {
+
+struct Run {
+  int code;
+  std::string err;
+};
+
+Run evarnode(const std::vector<std::string>& args) {
+  testing::internal::CaptureStderr();
+  testing::internal::CaptureStdout();
+  const int code = run_cli(args);
+  testing::internal::GetCapturedStdout();
+  return {code, testing::internal::GetCapturedStderr()};
+}
+
+void write_text(const fs::path& p, const std::string& text) {
+  std::ofstream(p) << text;
+}
+
+// A small example scene, written once for the whole suite.
+class Cli : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::path(testing::TempDir()) / "evar_cli_example";
+    fs::remove_all(dir_);
+    evar::sim::ExampleSceneParams p;
+    p.aorta_vertices = 2500;
+    p.iliac_vertices = 1500;
+    evar::sim::write_example_scene(evar::sim::make_example_scene(p), dir_);
+  }
+  static fs::path dir_;
+  fs::path scene() const { return dir_ / "scene.json"; }
+  fs::path device() const { return dir_ / "device.mrk.json"; }
+  fs::path scratch(const std::string& name) const {
+    const auto p = fs::path(testing::TempDir()) / ("evar_cli_" + name);
+    fs::remove_all(p);
+    fs::create_directories(p);
+    return p;
+  }
+  std::string curve_json(const std::string& points) const {
+    return R"({"markups": [{"type": "Curve", "coordinateSystem": "LPS", "controlPoints": [)" + points + "]}]}";
+  }
+};
+fs::path Cli::dir_;
+
+}  // namespace
+
+TEST_F(Cli, DeformWritesMeshesLandmarksReportAndPreview) {
+  const auto out = scratch("deform_ok");
+  const auto r = evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", out.string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  for (const char* f : {"aorta.stl", "iliac_left.stl", "iliac_right.stl", "landmarks.mrk.json", "report.json", "preview.png"})
+    EXPECT_TRUE(fs::exists(out / f)) << f;
+  std::ifstream in(out / "report.json");
+  const auto report = nlohmann::json::parse(in);
+  EXPECT_EQ(report["device_iliac"], "iliac_right");
+  ASSERT_EQ(report["vessels"].size(), 3u);
+  for (const auto& v : report["vessels"]) {
+    for (const char* key : {"control_points", "skeleton_points", "iterations", "final_energy"}) EXPECT_TRUE(v.contains(key)) << key;
+    for (const char* key : {"weights", "control_points", "skeleton", "factor", "iterate", "total"})
+      EXPECT_TRUE(v["timings_ms"].contains(key)) << key;
+  }
+  // Same vertex count and order in the output (welded STL re-read).
+  const auto before = evar::geometry::read_mesh(dir_ / "iliac_right.stl").mesh;
+  const auto after = evar::geometry::read_mesh(out / "iliac_right.stl").mesh;
+  EXPECT_EQ(before.V.rows(), after.V.rows());
+}
+
+TEST_F(Cli, MissingSceneFileIsNamed) {
+  const auto r = evarnode({"deform", "--scene", "/nonexistent/scene.json", "--device", device().string(), "--out",
+                           scratch("missing").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("/nonexistent/scene.json"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, BadJsonIsNamedWithItsFile) {
+  const auto dir = scratch("badjson");
+  write_text(dir / "scene.json", "{\"format\": \"evarnode-scene\", \"version\": 1,,}");
+  const auto r = evarnode({"deform", "--scene", (dir / "scene.json").string(), "--device", device().string(), "--out",
+                           (dir / "out").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("scene.json"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, EmptyDeviceIsRefused) {
+  const auto dir = scratch("empty_device");
+  write_text(dir / "device.mrk.json", curve_json(""));
+  const auto r = evarnode({"deform", "--scene", scene().string(), "--device", (dir / "device.mrk.json").string(),
+                           "--out", (dir / "out").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("device.mrk.json"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, NonNumericDeviceCoordinateIsRefused) {
+  const auto dir = scratch("nan_device");
+  write_text(dir / "device.mrk.json", curve_json(R"({"position": [0, 0, 0]}, {"position": [null, 0, 10]})"));
+  const auto r = evarnode({"deform", "--scene", scene().string(), "--device", (dir / "device.mrk.json").string(),
+                           "--out", (dir / "out").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("device.mrk.json"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, DeviceFarFromEveryVesselIsRefused) {
+  const auto dir = scratch("far_device");
+  write_text(dir / "device.mrk.json", curve_json(R"({"position": [400, 0, 0]}, {"position": [400, 0, 50]})"));
+  const auto r = evarnode({"deform", "--scene", scene().string(), "--device", (dir / "device.mrk.json").string(),
+                           "--out", (dir / "out").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("no part of the device lies in any vessel"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, NonManifoldMeshIsNamed) {
+  const auto dir = scratch("nonmanifold");
+  // Three triangles on one edge (0-1).
+  write_text(dir / "fan.obj", "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 -1 0\nv 0 0 1\nf 1 2 3\nf 2 1 4\nf 1 2 5\n");
+  write_text(dir / "c.json", R"({"fixed": [0]})");
+  const auto r = evarnode({"arap", "--mesh", (dir / "fan.obj").string(), "--constraints", (dir / "c.json").string(),
+                           "--out", (dir / "o.obj").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("fan.obj"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("non-manifold"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, ArapSolvesExplicitConstraintsAndReports) {
+  const auto dir = scratch("arap");
+  const auto aorta = dir_ / "iliac_left.stl";
+  const auto mesh = evar::geometry::read_mesh(aorta).mesh;
+  nlohmann::json c = {{"fixed", {0, 1, 2}}, {"handles", nlohmann::json::array()}};
+  const int v = static_cast<int>(mesh.V.rows()) - 1;
+  c["handles"].push_back({{"vertex", v}, {"target", {mesh.V(v, 0) + 5.0, mesh.V(v, 1), mesh.V(v, 2)}}});
+  write_text(dir / "c.json", c.dump());
+  const auto r = evarnode({"arap", "--mesh", aorta.string(), "--constraints", (dir / "c.json").string(), "--out",
+                           (dir / "out.ply").string(), "--report", (dir / "r.json").string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto out = evar::geometry::read_mesh(dir / "out.ply").mesh;
+  ASSERT_EQ(out.V.rows(), mesh.V.rows());
+  EXPECT_NEAR(out.V(v, 0), mesh.V(v, 0) + 5.0, 1e-9);  // the handle reached its target
+  std::ifstream in(dir / "r.json");
+  const auto rep = nlohmann::json::parse(in);
+  for (const char* key : {"factor_ms", "iterations", "iterate_ms", "per_iteration_ms", "energy"})
+    EXPECT_TRUE(rep.contains(key)) << key;
+}
+
+TEST_F(Cli, ConstraintIndexOutOfRangeIsNamed) {
+  const auto dir = scratch("arap_bad");
+  write_text(dir / "c.json", R"({"handles": [{"vertex": 99999999, "target": [0, 0, 0]}]})");
+  const auto r = evarnode({"arap", "--mesh", (dir_ / "iliac_left.stl").string(), "--constraints",
+                           (dir / "c.json").string(), "--out", (dir / "o.stl").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("handles[0]"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("out of range"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, UsageErrorsExitWithTwo) {
+  EXPECT_EQ(evarnode({"deform", "--scene", "x.json"}).code, 2);
+  EXPECT_EQ(evarnode({"no-such-command"}).code, 2);
+}
