@@ -16,6 +16,7 @@ int run_cli(const std::vector<std::string>& args) {
       "deformation (Toth et al.). Coordinates are patient LPS millimetres throughout.\n",
       "evarnode"};
   app.require_subcommand(1);
+  app.fallthrough();  // --log-level may follow the subcommand
   std::string log_level = "info";
   app.add_option("--log-level", log_level, "error, warn, info or debug")
       ->check(CLI::IsMember({"error", "warn", "info", "debug"}))
@@ -44,6 +45,11 @@ int run_cli(const std::vector<std::string>& args) {
   d->add_option("--containment-rounds", deform.containment_rounds,
                 "re-select handles on the deformed surface up to this many solves per vessel (1 = single pass)")
       ->check(CLI::Range(1, 20))
+      ->capture_default_str();
+
+  d->add_option("--tether-mm", deform.tether_mm,
+                "length scale of the weak tether to the registered pose; 0 = off (handles only, as in the paper)")
+      ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
 
   ArapCommand arap;

@@ -14,6 +14,7 @@ struct DeformCommand {
   double tolerance_mm = 0.01;
   int max_iterations = 500;
   int containment_rounds = 3;
+  double tether_mm = 50.0;
 };
 int run_deform(const DeformCommand& cmd);
 

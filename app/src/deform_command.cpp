@@ -67,6 +67,7 @@ int run_deform(const DeformCommand& cmd) {
   options.arap.tolerance_mm = cmd.tolerance_mm;
   options.arap.max_iterations = cmd.max_iterations;
   options.containment_rounds = cmd.containment_rounds;
+  options.tether_length_mm = cmd.tether_mm;
   deform::SceneDeformation result;
   try {
     result = deform::deform_scene(scene, device, options);
@@ -86,6 +87,7 @@ int run_deform(const DeformCommand& cmd) {
                            {"skeleton", cmd.skeleton},
                            {"solver", deform::to_string(options.arap.backend)},
                            {"tolerance_mm", cmd.tolerance_mm},
+                           {"tether_mm", cmd.tether_mm},
                            {"vessels", nlohmann::json::array()},
                            {"landmarks", nlohmann::json::array()}};
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {

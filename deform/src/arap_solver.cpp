@@ -43,10 +43,13 @@ void check_components(const ArapTerms& terms, const std::vector<int>& constraine
 
 }  // namespace
 
-ArapSolver::ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOptions options)
-    : terms_(std::move(terms)), constrained_(std::move(constrained)), options_(options) {
+ArapSolver::ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOptions options, ArapTether tether)
+    : terms_(std::move(terms)), constrained_(std::move(constrained)), options_(options), tether_(std::move(tether)) {
   const int n = terms_.num_unknowns;
-  if (constrained_.empty()) throw std::invalid_argument("ARAP needs at least one fixed or handle vertex");
+  const bool tethered = !tether_.weight.empty();
+  if (tethered && (tether_.weight.size() != static_cast<std::size_t>(n) || tether_.anchor.rows() != n))
+    throw std::invalid_argument("ARAP tether: one weight and one anchor per unknown are required");
+  if (constrained_.empty() && !tethered) throw std::invalid_argument("ARAP needs at least one fixed or handle vertex");
   if (options_.max_iterations < 0 || !(options_.tolerance_mm > 0.0) || options_.anderson_window < 1)
     throw std::invalid_argument("ARAP options: iterations >= 0, tolerance > 0 and Anderson window >= 1 are required");
   free_row_.assign(static_cast<std::size_t>(n), -1);
@@ -63,12 +66,20 @@ ArapSolver::ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOption
       free_row_[static_cast<std::size_t>(k)] = static_cast<int>(free_.size());
       free_.push_back(k);
     }
-  check_components(terms_, constrained_);
+  if (!tethered) check_components(terms_, constrained_);
 
   const auto t0 = Clock::now();
   for (int t = 0; t < terms_.num_terms(); ++t)
     rest_energy_ += terms_.weight[static_cast<std::size_t>(t)] * terms_.rest[static_cast<std::size_t>(t)].squaredNorm();
-  const Eigen::SparseMatrix<double> A = assemble_system_matrix(terms_);
+  Eigen::SparseMatrix<double> A = assemble_system_matrix(terms_);
+  if (tethered) {
+    Eigen::SparseMatrix<double> T(n, n);
+    std::vector<Eigen::Triplet<double>> diag;
+    for (int k = 0; k < n; ++k)
+      if (tether_.weight[static_cast<std::size_t>(k)] > 0.0) diag.emplace_back(k, k, tether_.weight[static_cast<std::size_t>(k)]);
+    T.setFromTriplets(diag.begin(), diag.end());
+    A += T;
+  }
   // Split A into the free block and the free-constrained coupling.
   std::vector<Eigen::Triplet<double>> ff, fc;
   ff.reserve(static_cast<std::size_t>(A.nonZeros()));
@@ -88,6 +99,12 @@ ArapSolver::ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOption
   A_FF.setFromTriplets(ff.begin(), ff.end());
   A_FC_.resize(nf, static_cast<Eigen::Index>(constrained_.size()));
   A_FC_.setFromTriplets(fc.begin(), fc.end());
+  tether_rhs_ = Eigen::MatrixXd::Zero(nf, 3);
+  if (tethered)
+    for (Eigen::Index r = 0; r < nf; ++r) {
+      const auto k = static_cast<std::size_t>(free_[static_cast<std::size_t>(r)]);
+      tether_rhs_.row(r) = tether_.weight[k] * tether_.anchor.row(static_cast<Eigen::Index>(k));
+    }
   assemble_ms_ = ms_since(t0);
 
   const auto t1 = Clock::now();
@@ -114,6 +131,9 @@ double ArapSolver::local_step(const Positions& X, std::vector<Eigen::Matrix3d>& 
     Rc = closest_rotation(S, Rc);
     E += deformed_sq - 2.0 * Rc.cwiseProduct(S).sum();  // Σ w |e' − R e|²
   }
+  if (!tether_.weight.empty())
+    for (int k = 0; k < terms_.num_unknowns; ++k)
+      E += tether_.weight[static_cast<std::size_t>(k)] * (X.row(k) - tether_.anchor.row(k)).squaredNorm();
   return std::max(E, 0.0);
 }
 
@@ -133,6 +153,7 @@ Eigen::MatrixXd ArapSolver::global_step(const std::vector<Eigen::Matrix3d>& R, c
   }
   Eigen::MatrixXd rhs = b;
   rhs -= fixed_rhs;
+  rhs += tether_rhs_;
   return cholesky_->solve(rhs);
 }
 
@@ -170,7 +191,7 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
     result.init_ms = ms_since(t_init);
     return result;
   }
-  const Eigen::MatrixXd fixed_rhs = A_FC_ * X_C;
+  const Eigen::MatrixXd fixed_rhs = constrained_.empty() ? Eigen::MatrixXd::Zero(nf, 3) : Eigen::MatrixXd(A_FC_ * X_C);
   Eigen::MatrixXd x(nf, 3);
   if (initial) {
     for (Eigen::Index r = 0; r < nf; ++r) x.row(r) = X.row(free_[static_cast<std::size_t>(r)]);

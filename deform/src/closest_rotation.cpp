@@ -1,6 +1,7 @@
 #include "evar/deform/closest_rotation.hpp"
 
 #include <Eigen/Geometry>
+#include <Eigen/Eigenvalues>
 #include <Eigen/SVD>
 #include <cmath>
 
@@ -17,36 +18,31 @@ Eigen::Matrix3d closest_rotation_svd(const Eigen::Matrix3d& A) {
 Eigen::Matrix3d closest_rotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d& warm) {
   const double scale = A.norm();
   if (!(scale > 0.0) || !A.allFinite()) return warm;  // no information: keep the rotation
-  Eigen::Quaterniond q(warm);
-  q.normalize();
-  // Each step rotates R by the axis-angle ω = Σ_k r_k × a_k / |Σ_k r_k · a_k| (columns),
-  // a damped Newton step on tr(R^T A); it stops when the step is negligible.
-  constexpr int kMaxSteps = 40;
-  for (int step = 0; step < kMaxSteps; ++step) {
-    const Eigen::Matrix3d R = q.toRotationMatrix();
-    const Eigen::Vector3d omega_num = R.col(0).cross(A.col(0)) + R.col(1).cross(A.col(1)) + R.col(2).cross(A.col(2));
-    const double denom = std::abs(R.col(0).dot(A.col(0)) + R.col(1).dot(A.col(1)) + R.col(2).dot(A.col(2))) + 1e-12 * scale;
-    const Eigen::Vector3d omega = omega_num / denom;
-    const double w = omega.norm();
-    if (w < 1e-10) {
-      // A stationary point is the maximum iff H = tr(S) I - S is positive semidefinite,
-      // S = sym(R^T A) (second-order condition on SO(3)); saddles (a warm start about
-      // 180 degrees off) go to the SVD. PSD via all principal minors (cheap, 3x3).
-      const Eigen::Matrix3d M = R.transpose() * A;
-      const Eigen::Matrix3d S = 0.5 * (M + M.transpose());
-      const Eigen::Matrix3d H = S.trace() * Eigen::Matrix3d::Identity() - S;
-      const double tol = 1e-9 * scale;
-      const bool psd = H(0, 0) >= -tol && H(1, 1) >= -tol && H(2, 2) >= -tol &&
-                       H(0, 0) * H(1, 1) - H(0, 1) * H(1, 0) >= -tol * scale &&
-                       H(0, 0) * H(2, 2) - H(0, 2) * H(2, 0) >= -tol * scale &&
-                       H(1, 1) * H(2, 2) - H(1, 2) * H(2, 1) >= -tol * scale &&
-                       H.determinant() >= -tol * scale * scale;
-      return psd ? R : closest_rotation_svd(A);
-    }
-    q = Eigen::Quaterniond(Eigen::AngleAxisd(w, omega / w)) * q;
-    q.normalize();
-  }
-  return closest_rotation_svd(A);
+  // AᵀA = V Σ² Vᵀ in closed form; u_i = A v_i / σ_i for the two largest σ. Then
+  // R = [u1, u2, u1 × u2] Vᵀ (V made proper) is U diag(1, 1, sign det A) Vᵀ, the maximizer
+  // of tr(RᵀA) over SO(3), whether A is full rank, rank 2 (a planar one-ring) or mirrored:
+  // the smallest singular direction never has to be computed.
+  Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
+  eig.computeDirect(A.transpose() * A);  // eigenvalues ascending
+  Eigen::Matrix3d V = eig.eigenvectors();
+  const Eigen::Vector3d v1 = V.col(2), v2 = V.col(1);
+  Eigen::Vector3d u1 = A * v1;
+  const double s1 = u1.norm();
+  if (!(s1 > 1e-12 * scale)) return closest_rotation_svd(A);
+  u1 /= s1;
+  Eigen::Vector3d u2 = A * v2;
+  u2 -= u2.dot(u1) * u1;  // Gram-Schmidt against rounding
+  const double s2 = u2.norm();
+  // Rank 1 (all edges of the cell collinear): the rotation about that line is free;
+  // the SVD picks one, and the warm start would serve as well.
+  if (!(s2 > 1e-9 * scale)) return closest_rotation_svd(A);
+  u2 /= s2;
+  Eigen::Matrix3d U, Vp;
+  U << u1, u2, u1.cross(u2);
+  Vp << v1, v2, v1.cross(v2);
+  const Eigen::Matrix3d R = U * Vp.transpose();
+  if (!R.allFinite()) return closest_rotation_svd(A);
+  return R;
 }
 
 }  // namespace evar::deform

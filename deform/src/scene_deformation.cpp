@@ -1,5 +1,6 @@
 #include "evar/deform/scene_deformation.hpp"
 
+#include <Eigen/Geometry>
 #include <chrono>
 #include <cmath>
 #include <limits>
@@ -84,6 +85,21 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
   report.timings.weights_ms += ms_since(t0);
   report.skeleton_points = centres > 0 ? centres + static_cast<int>(m.skeleton.spokes.size()) : 0;
 
+  ArapTether tether;
+  if (options.tether_length_mm > 0.0) {
+    // Barycentric vertex areas (mm²) over ℓ² (mm²): dimensionless like the cot weights.
+    tether.weight.assign(static_cast<std::size_t>(n + centres), 0.0);
+    tether.anchor = Positions::Zero(n + centres, 3);
+    tether.anchor.topRows(n) = mesh.V;
+    const double inv_l2 = 1.0 / (options.tether_length_mm * options.tether_length_mm);
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+      const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(), b = mesh.V.row(mesh.F(f, 1)).transpose(),
+                            c = mesh.V.row(mesh.F(f, 2)).transpose();
+      const double third = (b - a).cross(c - a).norm() / 6.0;
+      for (int j = 0; j < 3; ++j) tether.weight[static_cast<std::size_t>(mesh.F(f, j))] += third * inv_l2;
+    }
+  }
+
   std::map<int, Eigen::Vector3d> targets = handle_vertex_targets(mesh, handles);
   for (const auto& [v, p] : fixed) targets[v] = p;
   Positions X;
@@ -94,7 +110,7 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
       rows.row(static_cast<Eigen::Index>(constrained.size())) = p.transpose();
       constrained.push_back(v);
     }
-    const ArapSolver solver(terms, constrained, options.arap);
+    const ArapSolver solver(terms, constrained, options.arap, tether);
     report.timings.factor_ms += solver.assemble_ms() + solver.factor_ms();
     if (round > 0)  // warm start: the previous round's shape with the new targets
       for (std::size_t c = 0; c < constrained.size(); ++c) X.row(constrained[c]) = rows.row(static_cast<Eigen::Index>(c));

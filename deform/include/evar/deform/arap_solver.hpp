@@ -26,6 +26,15 @@ struct ArapOptions {
   CholeskyBackend backend = CholeskyBackend::Default;
 };
 
+/// Optional weak tether of unknowns to anchor positions, added to the energy as
+/// Σ_k weight_k |x_k − anchor_k|² (no rotation: it ties the shape to where registration
+/// put it, so a handle cluster cannot swing the whole vessel through its near-free rigid
+/// modes). Empty weight = no tether.
+struct ArapTether {
+  std::vector<double> weight;  ///< per unknown (mm⁻² · mm² = dimensionless, like w)
+  Positions anchor;            ///< per unknown (mm)
+};
+
 struct ArapResult {
   Positions X;                 ///< all unknowns after the solve (constrained rows = targets)
   int iterations = 0;          ///< local/global iterations after the initial guess
@@ -42,7 +51,7 @@ class ArapSolver {
   /// Assembles and factors. `constrained` lists unknown indices held at given targets in
   /// solve(); every connected component of the term graph needs at least one, otherwise
   /// the problem has no unique solution and std::invalid_argument says which component.
-  ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOptions options = {});
+  ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOptions options = {}, ArapTether tether = {});
 
   /// `targets`: one row per constrained unknown, in the order given to the constructor.
   /// `initial`: optional warm start for all unknowns (e.g. the previous frame's result).
@@ -67,6 +76,8 @@ class ArapSolver {
   std::vector<int> free_row_;      ///< free row of each unknown, or -1
   ArapOptions options_;
   Eigen::SparseMatrix<double> A_FC_;
+  ArapTether tether_;
+  Eigen::MatrixXd tether_rhs_;     ///< weight_k · anchor_k for the free rows
   double rest_energy_ = 0.0;       ///< Σ_t w_t |e_t|²
   double assemble_ms_ = 0.0, factor_ms_ = 0.0;
   std::optional<SparseCholesky> cholesky_;

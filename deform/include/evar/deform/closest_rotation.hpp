@@ -5,11 +5,10 @@
 
 namespace evar::deform {
 
-/// Iterative solver of Müller, Bender, Chentanez, Macklin 2016 ("A robust method to
-/// extract the rotational part of deformations"), warm-started from `warm` (the previous
-/// iteration's rotation, so it usually needs 1-3 steps). It converges to the maximizer also
-/// for rank-2 A (planar one-rings), where an SVD needs a careful sign fix. If it has not
-/// converged after its step budget, falls back to an SVD with the determinant fix.
+/// Closed form: the two dominant singular directions from the symmetric 3x3 eigenproblem
+/// of AᵀA, the third by a cross product, so rank-2 A (planar one-rings) and det A < 0 need
+/// no sign fix-ups. `warm` (the previous rotation) is returned when A is zero or not
+/// finite; rank-1 A falls back to the SVD.
 Eigen::Matrix3d closest_rotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d& warm = Eigen::Matrix3d::Identity());
 
 /// Reference: SVD A = U S V^T, R = U diag(1, 1, det(U V^T)) V^T.

@@ -30,6 +30,13 @@ struct DeformOptions {
   /// vessel may have moved over device points that were inside) and added; 1 = the
   /// paper's single pass.
   int containment_rounds = 3;
+  /// Length scale ℓ (mm) of a weak tether of every surface vertex to its registered
+  /// position, energy Σ_i (A_i / ℓ²) |v'_i − v_i|² (A_i the vertex area): the deformation
+  /// fades over about ℓ from the handles instead of the vessel moving rigidly as a whole
+  /// through modes the handles barely fix. Not an anchor: no vertex is held. 50 mm is
+  /// about the spacing of the aorta's tethering branches (renal, mesenteric, lumbar
+  /// arteries) times two. 0 = off (the paper's pure handle-only formulation).
+  double tether_length_mm = 50.0;
 };
 
 struct StageTimings {
