@@ -187,7 +187,7 @@ void BM_TubeSolve(benchmark::State& state, int vertices, int backend_arg, bool a
   }
   set_common(state, p);
   state.SetLabel(bench::backend_label(opt.backend) + (opt.anderson ? " anderson" : " plain"));
-  state.counters["iterations"] = avg(iterations);
+  state.counters["arap_iterations"] = avg(iterations);
   state.counters["iterate_ms"] = avg(iterate);
   state.counters["init_ms"] = avg(init);
   state.counters["per_iter_ms"] = benchmark::Counter(iterations > 0 ? iterate / iterations : 0.0);

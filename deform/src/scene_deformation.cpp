@@ -102,6 +102,13 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
 
   std::map<int, Eigen::Vector3d> targets = handle_vertex_targets(mesh, handles);
   for (const auto& [v, p] : fixed) targets[v] = p;
+  // A vertex no face uses has no shape to keep: it stays where it is (otherwise it
+  // would be a free part with nothing to determine it).
+  std::vector<char> used(static_cast<std::size_t>(n), 0);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    for (int j = 0; j < 3; ++j) used[static_cast<std::size_t>(mesh.F(f, j))] = 1;
+  for (int v = 0; v < n; ++v)
+    if (!used[static_cast<std::size_t>(v)]) targets.emplace(v, mesh.V.row(v).transpose());
   Positions X;
   for (int round = 0;; ++round) {
     std::vector<int> constrained;

@@ -104,7 +104,10 @@ Markup parse_markup(const fs::path& file, const json& root, const json& j, const
   const json* type = find(j, "type");
   if (!type) bad(file, field + ".type", "missing");
   m.type = get_string(file, *type, field + ".type");
-  if (const json* name = find(j, "name")) m.name = get_string(file, *name, field + ".name");
+  // null is read as "" for the free-text fields: some scripts write null placeholders.
+  if (const json* name = find(j, "name"); name && !name->is_null()) {
+    m.name = get_string(file, *name, field + ".name");
+  }
   const bool ras = is_ras(file, j, root, field);
   check_units(file, j, field);
 
@@ -123,7 +126,9 @@ Markup parse_markup(const fs::path& file, const json& root, const json& j, const
       if (get_string(file, *status, cp_field + ".positionStatus") == "undefined") continue;
     }
     ControlPoint point;
-    if (const json* label = find(cp, "label")) point.label = get_string(file, *label, cp_field + ".label");
+    if (const json* label = find(cp, "label"); label && !label->is_null()) {
+      point.label = get_string(file, *label, cp_field + ".label");
+    }
     const json* position = find(cp, "position");
     if (!position) bad(file, cp_field + ".position", "missing");
     point.position_lps = get_position(file, *position, cp_field + ".position");

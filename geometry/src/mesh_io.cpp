@@ -32,7 +32,8 @@ void fail(const std::filesystem::path& path, const std::string& what) {
 std::string read_file(const std::filesystem::path& path) {
   std::error_code ec;
   const auto status = std::filesystem::status(path, ec);
-  if (ec || !std::filesystem::exists(status)) fail(path, "file does not exist");
+  if (status.type() == std::filesystem::file_type::not_found) fail(path, "file does not exist");
+  if (ec) fail(path, "cannot access: " + ec.message());
   if (std::filesystem::is_directory(status)) fail(path, "is a directory, not a file");
   if (!std::filesystem::is_regular_file(status)) fail(path, "is not a regular file");
 

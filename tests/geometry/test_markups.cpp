@@ -5,8 +5,10 @@
 
 #include <filesystem>
 #include <fstream>
-#include <sstream>
+#include <limits>
+#include <stdexcept>
 #include <string>
+#include <vector>
 
 #include <nlohmann/json.hpp>
 
@@ -154,6 +156,16 @@ TEST(ReadMarkups, MissingCoordinateSystemMeansLps) {
       test_dir() / "plain.mrk.json",
       R"({"markups": [{"type": "Curve", "controlPoints": [{"position": [10.0, -20.0, 30.0]}]}]})");
   EXPECT_EQ(read_markups(file)[0].points[0].position_lps, Eigen::Vector3d(10.0, -20.0, 30.0));
+}
+
+TEST(ReadMarkups, NullNameAndLabelReadAsEmpty) {
+  const fs::path file = write_text(
+      test_dir() / "nulls.mrk.json",
+      R"({"markups": [{"type": "Fiducial", "name": null, "controlPoints": [{"label": null, "position": [1, 2, 3]}]}]})");
+  const std::vector<Markup> markups = read_markups(file);
+  EXPECT_EQ(markups[0].name, "");
+  EXPECT_EQ(markups[0].points[0].label, "");
+  EXPECT_EQ(markups[0].points[0].position_lps, Eigen::Vector3d(1, 2, 3));
 }
 
 TEST(ReadMarkups, TopLevelCoordinateSystemIsTheFallback) {

@@ -465,8 +465,9 @@ TEST(PlyRead, IndexOutOfRangeNamesFaceByteAndVertexCount) {
   std::string bytes = small_binary_ply("3");
   const std::size_t header = bytes.find("end_header\n") + 11;
   const std::size_t index_at = header + 36 + 1 + 8;  // third index of face 0
-  const std::int32_t bad = 9001;
-  std::memcpy(bytes.data() + index_at, &bad, 4);  // little-endian host
+  std::string bad;
+  put(bad, std::int32_t{9001});
+  bytes.replace(index_at, 4, bad);
   write_bytes(file, bytes);
   const std::string msg = read_error(file);
   EXPECT_THAT(msg, HasSubstr("aorta.ply: byte " + std::to_string(index_at)));
@@ -717,4 +718,17 @@ TEST(MeanEdgeLength, AveragesEveryFaceEdge) {
   EXPECT_DOUBLE_EQ(mean_edge_length(unit_cube()), (2.0 + std::sqrt(2.0)) / 3.0);
   tri.F.resize(0, 3);
   EXPECT_EQ(mean_edge_length(tri), 0.0);
+}
+
+TEST(StlRead, SliversWhoseCornersWeldTogetherAreDropped) {
+  // The cube plus one zero-area triangle with two bit-identical corners, as segmentation
+  // exports contain: the sliver has no area, so the mesh stays the closed cube.
+  TriangleMesh soup = unit_cube();
+  soup.F.conservativeResize(soup.F.rows() + 1, 3);
+  soup.F.row(soup.F.rows() - 1) << 0, 1, 1;
+  const auto path = test_dir() / "sliver.stl";
+  write_bytes(path, binary_stl(soup, "sliver"));
+  const auto loaded = read_mesh(path);
+  EXPECT_EQ(loaded.mesh.F.rows(), 12);
+  EXPECT_NO_THROW(validate_mesh(loaded.mesh, path.string()));
 }
