@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <unistd.h>
+
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -34,7 +36,8 @@ void write_text(const fs::path& p, const std::string& text) {
 class Cli : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = fs::path(testing::TempDir()) / "evar_cli_example";
+    // Per process: ctest runs each test in its own process, in parallel.
+    dir_ = fs::path(testing::TempDir()) / ("evar_cli_example_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
     evar::sim::ExampleSceneParams p;
     p.aorta_vertices = 2500;
@@ -45,7 +48,7 @@ class Cli : public ::testing::Test {
   fs::path scene() const { return dir_ / "scene.json"; }
   fs::path device() const { return dir_ / "device.mrk.json"; }
   fs::path scratch(const std::string& name) const {
-    const auto p = fs::path(testing::TempDir()) / ("evar_cli_" + name);
+    const auto p = fs::path(testing::TempDir()) / ("evar_cli_" + name + "_" + std::to_string(::getpid()));
     fs::remove_all(p);
     fs::create_directories(p);
     return p;
