@@ -121,8 +121,7 @@ void BM_TubeTriangularSolve(benchmark::State& state, int vertices, int backend_a
   }
 }
 
-// --- the local step: per-cell covariance + closest rotation (via energy(), from R = I;
-// inside solve() the rotations are warm-started from the previous iteration instead) ---
+// --- the local step: per-cell covariance + closest rotation, timed through energy() ---
 void BM_TubeLocalStep(benchmark::State& state, int vertices) {
   const auto& p = bent_tube(vertices);
   const deform::ArapSolver solver(p.terms, p.constrained);

@@ -6,6 +6,7 @@
 
 #include <Eigen/Geometry>
 #include <cmath>
+#include <ctime>
 #include <map>
 #include <memory>
 #include <numbers>
@@ -140,12 +141,6 @@ inline double max_row_distance(const deform::Positions& a, const deform::Positio
 
 /// A counter averaged over the benchmark's iterations.
 inline benchmark::Counter avg(double sum) { return benchmark::Counter(sum, benchmark::Counter::kAvgIterations); }
-
-}  // namespace evar::bench
-
-#include <ctime>
-
-namespace evar::bench {
 
 /// Process CPU time (ms), all threads: single-threaded work measured this way is not
 /// inflated when other processes compete for the cores (wall time is).
