@@ -43,76 +43,39 @@ void check_components(const ArapTerms& terms, const std::vector<int>& constraine
 
 }  // namespace
 
-ArapSolver::ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOptions options, ArapTether tether)
-    : terms_(std::move(terms)), constrained_(std::move(constrained)), options_(options), tether_(std::move(tether)) {
+ArapSystem::ArapSystem(ArapTerms terms, ArapOptions options, ArapTether tether)
+    : terms_(std::move(terms)), options_(options), tether_(std::move(tether)) {
   const int n = terms_.num_unknowns;
-  const bool tethered = !tether_.weight.empty();
-  if (tethered && (tether_.weight.size() != static_cast<std::size_t>(n) || tether_.anchor.rows() != n))
-    throw std::invalid_argument("ARAP tether: one weight and one anchor per unknown are required");
-  if (constrained_.empty() && !tethered) throw std::invalid_argument("ARAP needs at least one fixed or handle vertex");
   if (options_.max_iterations < 0 || !(options_.tolerance_mm > 0.0) || options_.anderson_window < 1)
     throw std::invalid_argument("ARAP options: iterations >= 0, tolerance > 0 and Anderson window >= 1 are required");
-  free_row_.assign(static_cast<std::size_t>(n), -1);
-  std::vector<int> constrained_row(static_cast<std::size_t>(n), -1);
-  for (std::size_t c = 0; c < constrained_.size(); ++c) {
-    const int k = constrained_[c];
-    if (k < 0 || k >= n) throw std::invalid_argument("constrained index " + std::to_string(k) + " is out of range");
-    if (constrained_row[static_cast<std::size_t>(k)] >= 0)
-      throw std::invalid_argument("vertex " + std::to_string(k) + " is constrained twice");
-    constrained_row[static_cast<std::size_t>(k)] = static_cast<int>(c);
-  }
-  for (int k = 0; k < n; ++k)
-    if (constrained_row[static_cast<std::size_t>(k)] < 0) {
-      free_row_[static_cast<std::size_t>(k)] = static_cast<int>(free_.size());
-      free_.push_back(k);
-    }
-  if (!tethered) check_components(terms_, constrained_);
-
+  if (!tether_.weight.empty() && (tether_.weight.size() != static_cast<std::size_t>(n) || tether_.anchor.rows() != n))
+    throw std::invalid_argument("ARAP tether: one weight and one anchor per unknown are required");
   const auto t0 = Clock::now();
   for (int t = 0; t < terms_.num_terms(); ++t)
     rest_energy_ += terms_.weight[static_cast<std::size_t>(t)] * terms_.rest[static_cast<std::size_t>(t)].squaredNorm();
-  Eigen::SparseMatrix<double> A = assemble_system_matrix(terms_);
-  if (tethered) {
-    Eigen::SparseMatrix<double> T(n, n);
+  A_ = assemble_system_matrix(terms_);
+  if (!tether_.weight.empty()) {
     std::vector<Eigen::Triplet<double>> diag;
     for (int k = 0; k < n; ++k)
       if (tether_.weight[static_cast<std::size_t>(k)] > 0.0) diag.emplace_back(k, k, tether_.weight[static_cast<std::size_t>(k)]);
+    Eigen::SparseMatrix<double> T(n, n);
     T.setFromTriplets(diag.begin(), diag.end());
-    A += T;
+    A_ += T;
   }
-  // Split A into the free block and the free-constrained coupling.
-  std::vector<Eigen::Triplet<double>> ff, fc;
-  ff.reserve(static_cast<std::size_t>(A.nonZeros()));
-  for (int col = 0; col < A.outerSize(); ++col)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it) {
-      const int r = free_row_[static_cast<std::size_t>(it.row())];
-      if (r < 0) continue;
-      const int fcol = free_row_[static_cast<std::size_t>(col)];
-      if (fcol >= 0) {
-        if (r >= fcol) ff.emplace_back(r, fcol, it.value());  // lower triangle suffices
-      } else {
-        fc.emplace_back(r, constrained_row[static_cast<std::size_t>(col)], it.value());
-      }
-    }
-  const auto nf = static_cast<Eigen::Index>(free_.size());
-  Eigen::SparseMatrix<double> A_FF(nf, nf);
-  A_FF.setFromTriplets(ff.begin(), ff.end());
-  A_FC_.resize(nf, static_cast<Eigen::Index>(constrained_.size()));
-  A_FC_.setFromTriplets(fc.begin(), fc.end());
-  tether_rhs_ = Eigen::MatrixXd::Zero(nf, 3);
-  if (tethered)
-    for (Eigen::Index r = 0; r < nf; ++r) {
-      const auto k = static_cast<std::size_t>(free_[static_cast<std::size_t>(r)]);
-      tether_rhs_.row(r) = tether_.weight[k] * tether_.anchor.row(static_cast<Eigen::Index>(k));
-    }
+  // Every diagonal entry present, so masking a row to identity never changes the pattern.
+  {
+    Eigen::SparseMatrix<double> I(n, n);
+    I.setIdentity();
+    A_ += 0.0 * I;
+  }
+  A_.makeCompressed();
   assemble_ms_ = ms_since(t0);
-
   const auto t1 = Clock::now();
-  if (nf > 0) cholesky_.emplace(A_FF, options_.backend);
-  factor_ms_ = ms_since(t1);
+  if (n > 0) ordering_ = fill_reducing_ordering(A_);
+  ordering_ms_ = ms_since(t1);
 }
 
-double ArapSolver::local_step(const Positions& X, std::vector<Eigen::Matrix3d>& R) const {
+double ArapSystem::local_step(const Positions& X, std::vector<Eigen::Matrix3d>& R) const {
   double E = rest_energy_;
   const auto* idx = terms_.coeff_index.data();
   const auto* val = terms_.coeff_value.data();
@@ -137,33 +100,70 @@ double ArapSolver::local_step(const Positions& X, std::vector<Eigen::Matrix3d>& 
   return std::max(E, 0.0);
 }
 
-Eigen::MatrixXd ArapSolver::global_step(const std::vector<Eigen::Matrix3d>& R, const Eigen::MatrixXd& fixed_rhs) const {
-  Positions b = Positions::Zero(static_cast<Eigen::Index>(free_.size()), 3);
+void ArapSystem::right_hand_side(const std::vector<Eigen::Matrix3d>& R, Eigen::MatrixXd& b_out) const {
+  Positions b = Positions::Zero(terms_.num_unknowns, 3);
   const auto* idx = terms_.coeff_index.data();
   const auto* val = terms_.coeff_value.data();
   for (int c = 0; c < terms_.num_cells; ++c) {
     const Eigen::Matrix3d& Rc = R[static_cast<std::size_t>(c)];
     for (int t = terms_.cell_begin[static_cast<std::size_t>(c)]; t < terms_.cell_begin[static_cast<std::size_t>(c) + 1]; ++t) {
-      const Eigen::Vector3d r = terms_.weight[static_cast<std::size_t>(t)] * (Rc * terms_.rest[static_cast<std::size_t>(t)]);
-      for (int p = terms_.coeff_begin[static_cast<std::size_t>(t)]; p < terms_.coeff_begin[static_cast<std::size_t>(t) + 1]; ++p) {
-        const int row = free_row_[static_cast<std::size_t>(idx[p])];
-        if (row >= 0) b.row(row) += val[p] * r.transpose();
-      }
+      const Eigen::RowVector3d r = terms_.weight[static_cast<std::size_t>(t)] * (Rc * terms_.rest[static_cast<std::size_t>(t)]).transpose();
+      for (int p = terms_.coeff_begin[static_cast<std::size_t>(t)]; p < terms_.coeff_begin[static_cast<std::size_t>(t) + 1]; ++p)
+        b.row(idx[p]) += val[p] * r;
     }
   }
-  Eigen::MatrixXd rhs = b;
-  rhs -= fixed_rhs;
-  rhs += tether_rhs_;
-  return cholesky_->solve(rhs);
+  if (!tether_.weight.empty())
+    for (int k = 0; k < terms_.num_unknowns; ++k) b.row(k) += tether_.weight[static_cast<std::size_t>(k)] * tether_.anchor.row(k);
+  b_out = b;
 }
 
-double ArapSolver::energy(const Positions& X) const {
+double ArapSystem::energy(const Positions& X) const {
   std::vector<Eigen::Matrix3d> R(static_cast<std::size_t>(terms_.num_cells), Eigen::Matrix3d::Identity());
   return local_step(X, R);
 }
 
+ArapSolver::ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOptions options, ArapTether tether)
+    : ArapSolver(std::make_shared<const ArapSystem>(std::move(terms), options, std::move(tether)), std::move(constrained)) {}
+
+ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int> constrained)
+    : system_(std::move(system)), constrained_(std::move(constrained)) {
+  const int n = system_->num_unknowns();
+  const bool tethered = !system_->tether().weight.empty();
+  if (constrained_.empty() && !tethered) throw std::invalid_argument("ARAP needs at least one fixed or handle vertex");
+  is_constrained_.assign(static_cast<std::size_t>(n), 0);
+  for (const int k : constrained_) {
+    if (k < 0 || k >= n) throw std::invalid_argument("constrained index " + std::to_string(k) + " is out of range");
+    if (is_constrained_[static_cast<std::size_t>(k)])
+      throw std::invalid_argument("vertex " + std::to_string(k) + " is constrained twice");
+    is_constrained_[static_cast<std::size_t>(k)] = 1;
+  }
+  if (!tethered) check_components(system_->terms(), constrained_);
+
+  // Constrained rows and columns become identity: same pattern, so the ordering holds.
+  const auto t0 = Clock::now();
+  Eigen::SparseMatrix<double> M = system_->matrix();
+  for (int col = 0; col < M.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(M, col); it; ++it)
+      if (is_constrained_[static_cast<std::size_t>(it.row())] || is_constrained_[static_cast<std::size_t>(col)])
+        it.valueRef() = (it.row() == col) ? 1.0 : 0.0;
+  masking_ms_ = ms_since(t0);
+  const auto t1 = Clock::now();
+  if (n > 0) cholesky_.emplace(M, system_->ordering(), system_->options().backend);
+  factor_ms_ = ms_since(t1);
+}
+
+Eigen::MatrixXd ArapSolver::global_step(const std::vector<Eigen::Matrix3d>& R, const Eigen::MatrixXd& coupling,
+                                        const Eigen::MatrixXd& X_C_full) const {
+  Eigen::MatrixXd rhs;
+  system_->right_hand_side(R, rhs);
+  rhs -= coupling;  // free rows: b_F − A_FC x_C
+  for (const int k : constrained_) rhs.row(k) = X_C_full.row(k);
+  return cholesky_->solve(rhs);
+}
+
 ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial) const {
-  const int n = terms_.num_unknowns;
+  const int n = system_->num_unknowns();
+  const auto& options = system_->options();
   if (targets.rows() != static_cast<Eigen::Index>(constrained_.size()))
     throw std::invalid_argument("ARAP solve: " + std::to_string(targets.rows()) + " targets for " +
                                 std::to_string(constrained_.size()) + " constrained vertices");
@@ -172,62 +172,50 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
     throw std::invalid_argument("ARAP solve: the initial guess must have one finite row per unknown");
 
   ArapResult result;
+  result.factor_ms = factor_ms_;
   const auto t_init = Clock::now();
+  Eigen::MatrixXd X_C_full = Eigen::MatrixXd::Zero(n, 3);
+  for (std::size_t c = 0; c < constrained_.size(); ++c) X_C_full.row(constrained_[c]) = targets.row(static_cast<Eigen::Index>(c));
+  const Eigen::MatrixXd coupling = system_->matrix() * X_C_full;
   Positions& X = result.X;
-  X = initial ? *initial : Positions::Zero(n, 3);
-  Eigen::MatrixXd X_C(static_cast<Eigen::Index>(constrained_.size()), 3);
-  for (std::size_t c = 0; c < constrained_.size(); ++c) {
-    X.row(constrained_[c]) = targets.row(static_cast<Eigen::Index>(c));
-    X_C.row(static_cast<Eigen::Index>(c)) = targets.row(static_cast<Eigen::Index>(c));
-  }
-  const auto nf = static_cast<Eigen::Index>(free_.size());
-  auto scatter = [&](const Eigen::MatrixXd& xf) {
-    for (Eigen::Index r = 0; r < nf; ++r) X.row(free_[static_cast<std::size_t>(r)]) = xf.row(r);
-  };
-  std::vector<Eigen::Matrix3d> R(static_cast<std::size_t>(terms_.num_cells), Eigen::Matrix3d::Identity());
-  if (nf == 0) {
-    result.energy.push_back(local_step(X, R));
-    result.converged = true;
-    result.init_ms = ms_since(t_init);
-    return result;
-  }
-  const Eigen::MatrixXd fixed_rhs = constrained_.empty() ? Eigen::MatrixXd::Zero(nf, 3) : Eigen::MatrixXd(A_FC_ * X_C);
-  Eigen::MatrixXd x(nf, 3);
+  std::vector<Eigen::Matrix3d> R(static_cast<std::size_t>(system_->terms().num_cells), Eigen::Matrix3d::Identity());
+  Eigen::MatrixXd x(n, 3);
   if (initial) {
-    for (Eigen::Index r = 0; r < nf; ++r) x.row(r) = X.row(free_[static_cast<std::size_t>(r)]);
+    x = *initial;
+    for (const int k : constrained_) x.row(k) = X_C_full.row(k);
   } else {
-    x = global_step(R, fixed_rhs);  // Laplacian editing: all rotations identity
-    scatter(x);
+    x = global_step(R, coupling, X_C_full);  // Laplacian editing: all rotations identity
   }
-  double E = local_step(X, R);
+  X = x;
+  double E = system_->local_step(X, R);
   result.energy.push_back(E);
   result.init_ms = ms_since(t_init);
 
   const auto t_iter = Clock::now();
   // Anderson history: differences of successive g = G(x) and f = G(x) − x (flattened).
-  const int m = options_.anderson_window;
-  const Eigen::Index N = nf * 3;
+  const int m = options.anderson_window;
+  const Eigen::Index N = static_cast<Eigen::Index>(n) * 3;
   Eigen::MatrixXd dG(N, m), dF(N, m);
   Eigen::VectorXd prev_g(N), prev_f(N);
   int history = 0, next_col = 0;
   bool have_prev = false;
 
-  Eigen::MatrixXd g = global_step(R, fixed_rhs);
-  for (int it = 1; it <= options_.max_iterations; ++it) {
+  Eigen::MatrixXd g = global_step(R, coupling, X_C_full);
+  for (int it = 1; it <= options.max_iterations; ++it) {
     const Eigen::MatrixXd f = g - x;
-    result.last_update_mm = f.rowwise().norm().maxCoeff();
+    result.last_update_mm = n > 0 ? f.rowwise().norm().maxCoeff() : 0.0;
     result.iterations = it;
-    if (result.last_update_mm < options_.tolerance_mm) {
+    if (result.last_update_mm < options.tolerance_mm) {
       x = g;
-      scatter(x);
-      E = local_step(X, R);
+      X = x;
+      E = system_->local_step(X, R);
       result.energy.push_back(E);
       result.converged = true;
       break;
     }
     Eigen::MatrixXd candidate = g;
     bool accelerated = false;
-    if (options_.anderson) {
+    if (options.anderson) {
       const Eigen::Map<const Eigen::VectorXd> gv(g.data(), N), fv(f.data(), N);
       if (have_prev) {
         dG.col(next_col) = gv - prev_g;
@@ -248,21 +236,22 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
         const Eigen::VectorXd theta = scale.asDiagonal() * M.ldlt().solve(scale.asDiagonal() * (dFh.transpose() * fv));
         if (theta.allFinite()) {
           Eigen::VectorXd xv = gv - dG.leftCols(history) * theta;
-          candidate = Eigen::Map<Eigen::MatrixXd>(xv.data(), nf, 3);
+          candidate = Eigen::Map<Eigen::MatrixXd>(xv.data(), n, 3);
+          for (const int k : constrained_) candidate.row(k) = X_C_full.row(k);
           accelerated = true;
         }
       }
     }
-    scatter(candidate);
+    X = candidate;
     std::vector<Eigen::Matrix3d> R_candidate = R;
-    double E_candidate = local_step(X, R_candidate);
+    double E_candidate = system_->local_step(X, R_candidate);
     if (accelerated && !(E_candidate < E)) {
       // Safeguard: fall back to the plain local/global step, which cannot raise E.
       ++result.anderson_rejections;
       candidate = g;
-      scatter(candidate);
+      X = candidate;
       R_candidate = R;
-      E_candidate = local_step(X, R_candidate);
+      E_candidate = system_->local_step(X, R_candidate);
       history = 0;
       next_col = 0;
       have_prev = false;
@@ -271,12 +260,13 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
     R = std::move(R_candidate);
     E = E_candidate;
     result.energy.push_back(E);
-    g = global_step(R, fixed_rhs);
+    g = global_step(R, coupling, X_C_full);
   }
-  if (!result.converged) {
-    scatter(g);  // the last global solve is the best estimate we have
-    result.energy.push_back(local_step(X, R));
+  if (!result.converged && options.max_iterations > 0) {
+    X = g;  // the last global solve is the best estimate we have
+    result.energy.push_back(system_->local_step(X, R));
   }
+  if (options.max_iterations == 0) result.converged = false;
   result.iterate_ms = ms_since(t_iter);
   return result;
 }

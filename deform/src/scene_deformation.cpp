@@ -2,6 +2,7 @@
 
 #include <Eigen/Geometry>
 #include <chrono>
+#include <numeric>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -18,29 +19,70 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
 
-// What is computed once per vessel before any solve.
-struct VesselModel {
+}  // namespace
+
+// What is computed once per vessel, before any device is known.
+struct SceneDeformer::VesselModel {
   const geometry::Vessel* vessel = nullptr;
   std::optional<geometry::RayCaster> caster;
   Skeleton skeleton;
   RadiusProfile radius;
-  int device_points = 0;
-  double skeleton_ms = 0.0;
+  std::shared_ptr<const ArapSystem> system;  ///< surface (+ skeleton) terms, tether, ordering
+  std::vector<int> isolated;                 ///< vertices no face uses
+  double skeleton_ms = 0.0, weights_ms = 0.0;
 };
 
-VesselModel make_model(const geometry::Vessel& v, const geometry::Polyline& device, const DeformOptions& options) {
-  VesselModel m;
-  m.vessel = &v;
-  const auto t0 = Clock::now();
-  m.caster.emplace(v.mesh.mesh);
-  m.skeleton = build_skeleton(*m.caster, v.centerline, options.skeleton);
-  m.skeleton_ms = ms_since(t0);
-  if (m.skeleton.centres.empty())
+namespace {
+
+using VesselModel = SceneDeformer::VesselModel;
+
+ArapTether registration_tether(const geometry::TriangleMesh& mesh, int unknowns, double length_mm) {
+  ArapTether tether;
+  if (!(length_mm > 0.0)) return tether;
+  // Barycentric vertex areas (mm²) over ℓ² (mm²): dimensionless like the cot weights.
+  const auto n = mesh.V.rows();
+  tether.weight.assign(static_cast<std::size_t>(unknowns), 0.0);
+  tether.anchor = Positions::Zero(unknowns, 3);
+  tether.anchor.topRows(n) = mesh.V;
+  const double inv_l2 = 1.0 / (length_mm * length_mm);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(), b = mesh.V.row(mesh.F(f, 1)).transpose(),
+                          c = mesh.V.row(mesh.F(f, 2)).transpose();
+    const double third = (b - a).cross(c - a).norm() / 6.0;
+    for (int j = 0; j < 3; ++j) tether.weight[static_cast<std::size_t>(mesh.F(f, j))] += third * inv_l2;
+  }
+  return tether;
+}
+
+std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformOptions& options) {
+  auto m = std::make_unique<VesselModel>();
+  m->vessel = &v;
+  const auto& mesh = v.mesh.mesh;
+  auto t0 = Clock::now();
+  m->caster.emplace(mesh);
+  m->skeleton = build_skeleton(*m->caster, v.centerline, options.skeleton);
+  m->skeleton_ms = ms_since(t0);
+  if (m->skeleton.centres.empty())
     throw geometry::InputError(v.centerline_path.string() + ": the centerline of vessel '" + v.name +
                                "' does not run inside its mesh " + v.mesh_path.string() +
                                " (no slicing plane hit the wall)");
-  m.radius = radius_profile(m.skeleton);
-  m.device_points = static_cast<int>(device_points_in_vessel(v.centerline, m.radius, device, options.control).size());
+  m->radius = radius_profile(m->skeleton);
+
+  t0 = Clock::now();
+  const int n = static_cast<int>(mesh.V.rows());
+  const int centres = options.use_skeleton ? static_cast<int>(m->skeleton.centres.size()) : 0;
+  ArapTerms terms = surface_arap_terms(mesh.V, cotangent_weights(mesh), n + centres);
+  if (centres > 0) append_skeleton_terms(terms, mesh, m->skeleton, n, options.skeleton.weight);
+  m->system = std::make_shared<const ArapSystem>(std::move(terms), options.arap,
+                                                 registration_tether(mesh, n + centres, options.tether_length_mm));
+  // A vertex no face uses has no shape to keep: it stays where it is (otherwise it would
+  // be a part with nothing to determine it).
+  std::vector<char> used(static_cast<std::size_t>(n), 0);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    for (int j = 0; j < 3; ++j) used[static_cast<std::size_t>(mesh.F(f, j))] = 1;
+  for (int k = 0; k < n; ++k)
+    if (!used[static_cast<std::size_t>(k)]) m->isolated.push_back(k);
+  m->weights_ms = ms_since(t0);
   return m;
 }
 
@@ -77,38 +119,12 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
   report.timings.control_points_ms += ms_since(t0);
   if (handles.empty()) return mesh.V;
 
-  t0 = Clock::now();
-  const auto edges = cotangent_weights(mesh);
-  const int centres = options.use_skeleton ? static_cast<int>(m.skeleton.centres.size()) : 0;
-  ArapTerms terms = surface_arap_terms(mesh.V, edges, n + centres);
-  if (centres > 0) append_skeleton_terms(terms, mesh, m.skeleton, n, options.skeleton.weight);
-  report.timings.weights_ms += ms_since(t0);
+  const int centres = m.system->num_unknowns() - n;
   report.skeleton_points = centres > 0 ? centres + static_cast<int>(m.skeleton.spokes.size()) : 0;
-
-  ArapTether tether;
-  if (options.tether_length_mm > 0.0) {
-    // Barycentric vertex areas (mm²) over ℓ² (mm²): dimensionless like the cot weights.
-    tether.weight.assign(static_cast<std::size_t>(n + centres), 0.0);
-    tether.anchor = Positions::Zero(n + centres, 3);
-    tether.anchor.topRows(n) = mesh.V;
-    const double inv_l2 = 1.0 / (options.tether_length_mm * options.tether_length_mm);
-    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
-      const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(), b = mesh.V.row(mesh.F(f, 1)).transpose(),
-                            c = mesh.V.row(mesh.F(f, 2)).transpose();
-      const double third = (b - a).cross(c - a).norm() / 6.0;
-      for (int j = 0; j < 3; ++j) tether.weight[static_cast<std::size_t>(mesh.F(f, j))] += third * inv_l2;
-    }
-  }
 
   std::map<int, Eigen::Vector3d> targets = handle_vertex_targets(mesh, handles);
   for (const auto& [v, p] : fixed) targets[v] = p;
-  // A vertex no face uses has no shape to keep: it stays where it is (otherwise it
-  // would be a free part with nothing to determine it).
-  std::vector<char> used(static_cast<std::size_t>(n), 0);
-  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
-    for (int j = 0; j < 3; ++j) used[static_cast<std::size_t>(mesh.F(f, j))] = 1;
-  for (int v = 0; v < n; ++v)
-    if (!used[static_cast<std::size_t>(v)]) targets.emplace(v, mesh.V.row(v).transpose());
+  for (const int v : m.isolated) targets.emplace(v, mesh.V.row(v).transpose());
   Positions X;
   for (int round = 0;; ++round) {
     std::vector<int> constrained;
@@ -117,8 +133,8 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
       rows.row(static_cast<Eigen::Index>(constrained.size())) = p.transpose();
       constrained.push_back(v);
     }
-    const ArapSolver solver(terms, constrained, options.arap, tether);
-    report.timings.factor_ms += solver.assemble_ms() + solver.factor_ms();
+    const ArapSolver solver(m.system, constrained);
+    report.timings.factor_ms += solver.factor_ms();
     if (round > 0)  // warm start: the previous round's shape with the new targets
       for (std::size_t c = 0; c < constrained.size(); ++c) X.row(constrained[c]) = rows.row(static_cast<Eigen::Index>(c));
     const ArapResult r = round > 0 ? solver.solve(rows, &X) : solver.solve(rows);
@@ -135,7 +151,7 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
 
     t0 = Clock::now();
     const geometry::TriangleMesh deformed{X.topRows(n), mesh.F};
-    const geometry::RayCaster caster(deformed);
+    const geometry::RayCaster caster(deformed, geometry::RayCaster::BuildQuality::Low);
     const auto more = select_control_points(deformed, caster, deformed_centerline(m, deformed.V), m.radius, device,
                                             options.control);
     std::size_t added = 0;
@@ -158,15 +174,36 @@ void check_device(const geometry::Polyline& device) {
 
 }  // namespace
 
-SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Polyline& device, const DeformOptions& options_in) {
+SceneDeformer::SceneDeformer(const geometry::Scene& scene, DeformOptions options)
+    : scene_(scene), options_(std::move(options)) {
+  const auto t0 = Clock::now();
+  options_.control.device_thickness_mm = scene.device_thickness_mm;
+  if (std::none_of(scene.vessels.begin(), scene.vessels.end(),
+                   [](const geometry::Vessel& v) { return v.kind == geometry::VesselKind::Aorta; }))
+    throw geometry::InputError(scene.file.string() + ": the scene has no vessel of kind \"aorta\"");
+  for (const auto& v : scene.vessels) models_.push_back(make_model(v, options_));
+  precompute_ms_ = ms_since(t0);
+}
+
+SceneDeformer::~SceneDeformer() = default;
+
+SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Polyline& device, const DeformOptions& options) {
+  const SceneDeformer deformer(scene, options);
+  SceneDeformation out = deformer.deform(device);
+  out.total_ms += deformer.precompute_ms();
+  return out;
+}
+
+SceneDeformation SceneDeformer::deform(const geometry::Polyline& device) const {
   const auto t_total = Clock::now();
   check_device(device);
-  DeformOptions options = options_in;
-  options.control.device_thickness_mm = scene.device_thickness_mm;
-
-  std::vector<VesselModel> models;
-  models.reserve(scene.vessels.size());
-  for (const auto& v : scene.vessels) models.push_back(make_model(v, device, options));
+  const geometry::Scene& scene = scene_;
+  const DeformOptions& options = options_;
+  const auto& models = models_;
+  std::vector<int> device_points(models.size(), 0);
+  for (std::size_t i = 0; i < models.size(); ++i)
+    device_points[i] = static_cast<int>(
+        device_points_in_vessel(models[i]->vessel->centerline, models[i]->radius, device, options.control).size());
 
   SceneDeformation out;
   out.reports.resize(scene.vessels.size());
@@ -180,26 +217,24 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
     r.role = "unchanged";
     r.vertices = static_cast<int>(v.mesh.mesh.V.rows());
     r.faces = static_cast<int>(v.mesh.mesh.F.rows());
-    r.device_points = models[i].device_points;
-    r.timings.skeleton_ms = models[i].skeleton_ms;
+    r.device_points = device_points[i];
+    r.timings.skeleton_ms = models[i]->skeleton_ms;
+    r.timings.weights_ms = models[i]->weights_ms;
     out.vessels[i].mesh = v.mesh.mesh;
     out.vessels[i].erased.assign(static_cast<std::size_t>(r.vertices), 0);
-    if (v.kind == geometry::VesselKind::Aorta) aorta = static_cast<int>(i);
+    if (v.kind == geometry::VesselKind::Aorta && aorta < 0) aorta = static_cast<int>(i);
     // The iliac carrying the device is the one holding most of it.
-    if (v.kind == geometry::VesselKind::Iliac && models[i].device_points > 0 &&
-        (device_iliac < 0 || models[i].device_points > models[static_cast<std::size_t>(device_iliac)].device_points))
+    if (v.kind == geometry::VesselKind::Iliac && device_points[i] > 0 &&
+        (device_iliac < 0 || device_points[i] > device_points[static_cast<std::size_t>(device_iliac)]))
       device_iliac = static_cast<int>(i);
   }
-  if (aorta < 0) throw geometry::InputError(scene.file.string() + ": the scene has no vessel of kind \"aorta\"");
-  int total_points = 0;
-  for (const auto& m : models) total_points += m.device_points;
-  if (total_points == 0) {
+  if (std::accumulate(device_points.begin(), device_points.end(), 0) == 0) {
     double nearest = std::numeric_limits<double>::infinity();
     std::string which;
     for (const auto& m : models)
       for (const auto& d : device) {
-        const double dist = geometry::project_onto(m.vessel->centerline, d).distance_mm;
-        if (dist < nearest) nearest = dist, which = m.vessel->name;
+        const double dist = geometry::project_onto(m->vessel->centerline, d).distance_mm;
+        if (dist < nearest) nearest = dist, which = m->vessel->name;
       }
     throw geometry::InputError("device: no part of the device lies in any vessel (closest approach " +
                                std::to_string(nearest) + " mm to the centerline of '" + which +
@@ -210,7 +245,7 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
   const auto& aorta_mesh = scene.vessels[static_cast<std::size_t>(aorta)].mesh.mesh;
   auto& aorta_report = out.reports[static_cast<std::size_t>(aorta)];
   {
-    const auto& m = models[static_cast<std::size_t>(aorta)];
+    const auto& m = *models[static_cast<std::size_t>(aorta)];
     out.vessels[static_cast<std::size_t>(aorta)].mesh.V = deform_vessel(m, device, {}, options, aorta_report);
     if (aorta_report.control_points > 0) aorta_report.role = "deformed";
   }
@@ -221,15 +256,19 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
     const auto& v = scene.vessels[i];
     if (v.kind != geometry::VesselKind::Iliac) continue;
     auto& r = out.reports[i];
-    const auto& m = models[i];
+    const auto& m = *models[i];
     const auto& mesh = v.mesh.mesh;
     const auto t0 = Clock::now();
     // Top vertices: those whose foot on the centerline is within bind_length of its start.
     std::map<int, Eigen::Vector3d> bound;
     Eigen::Vector3d top_centroid = Eigen::Vector3d::Zero();
     Eigen::Vector3d mean_shift = Eigen::Vector3d::Zero();
+    // Only vertices near the proximal end can be within bind_length of it along the
+    // centerline (a vertex is at most a few radii from its foot): skip the rest cheaply.
+    const double reach = options.bind_length_mm + 3.0 * m.radius.at(0.0);
     for (Eigen::Index k = 0; k < mesh.V.rows(); ++k) {
       const Eigen::Vector3d p = mesh.V.row(k).transpose();
+      if ((p - v.centerline.front()).squaredNorm() > reach * reach) continue;
       const auto foot = geometry::project_onto(v.centerline, p);
       if (foot.arc_length_mm > options.bind_length_mm) continue;
       const int a = geometry::nearest_vertex(aorta_mesh.V, p);

@@ -44,8 +44,22 @@ CholeskyBackend resolve(CholeskyBackend b) {
 }
 }  // namespace
 
+Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> fill_reducing_ordering(const Eigen::SparseMatrix<double>& A) {
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> perm;
+  Eigen::AMDOrdering<int> amd;
+  // AMD wants the full symmetric pattern.
+  Eigen::SparseMatrix<double> full;
+  full = A.selfadjointView<Eigen::Lower>();
+  amd(full, perm);
+  return perm;
+}
+
 struct SparseCholesky::Impl {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt;
+  // With a given ordering: P A Pᵀ factored in natural order.
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt_ordered;
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> perm;  // P⁻¹
+  bool ordered = false;
 #ifdef EVAR_HAVE_CHOLMOD
   std::unique_ptr<Eigen::CholmodSupernodalLLT<Eigen::SparseMatrix<double>, Eigen::Lower>> cholmod;
 #endif
@@ -71,6 +85,25 @@ SparseCholesky::SparseCholesky(const Eigen::SparseMatrix<double>& A, CholeskyBac
 #endif
 }
 
+SparseCholesky::SparseCholesky(const Eigen::SparseMatrix<double>& A,
+                               const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>& ordering,
+                               CholeskyBackend backend)
+    : impl_(std::make_unique<Impl>()), backend_(resolve(backend)) {
+  if (backend_ != CholeskyBackend::EigenLDLT) {
+    *this = SparseCholesky(A, backend_);
+    return;
+  }
+  if (ordering.size() != A.rows()) throw std::invalid_argument("sparse Cholesky: ordering size does not match the matrix");
+  // As Eigen does internally: factor C = P⁻¹ A P⁻ᵀ (AMD's P maps new to old indices).
+  impl_->perm = ordering.inverse();
+  impl_->ordered = true;
+  Eigen::SparseMatrix<double> PAPt;
+  PAPt.template selfadjointView<Eigen::Lower>() = A.template selfadjointView<Eigen::Lower>().twistedBy(impl_->perm);
+  impl_->ldlt_ordered.compute(PAPt);
+  if (impl_->ldlt_ordered.info() != Eigen::Success || (impl_->ldlt_ordered.vectorD().array() <= 0.0).any())
+    throw std::runtime_error("sparse Cholesky (Eigen LDLT): the ARAP system is not positive definite");
+}
+
 SparseCholesky::~SparseCholesky() = default;
 SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
 SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
@@ -79,6 +112,7 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
 #ifdef EVAR_HAVE_CHOLMOD
   if (backend_ == CholeskyBackend::Cholmod) return impl_->cholmod->solve(B);
 #endif
+  if (impl_->ordered) return impl_->perm.transpose() * Eigen::MatrixXd(impl_->ldlt_ordered.solve(impl_->perm * B));
   return impl_->ldlt.solve(B);
 }
 

@@ -63,20 +63,28 @@ PolylineProjection project_onto(const Polyline& points, const Eigen::Vector3d& q
   if (points.size() < 2) throw std::invalid_argument("project_onto: polyline needs 2 points");
   PolylineProjection best{};
   best.distance_mm = std::numeric_limits<double>::infinity();
+  double best_d2 = std::numeric_limits<double>::infinity();
   double s0 = 0.0;
   const std::size_t last = points.size() - 2;
   for (std::size_t i = 0; i + 1 < points.size(); ++i) {
-    const Eigen::Vector3d a = points[i], d = points[i + 1] - points[i];
+    const Eigen::Vector3d& a = points[i];
+    const Eigen::Vector3d d = points[i + 1] - a;
     const double len2 = d.squaredNorm();
     const double len = std::sqrt(len2);
+    // Prune: no point of the segment is closer than |query − a| − len.
+    const double da = (query - a).norm();
+    if (da - len > 0.0 && (da - len) * (da - len) >= best_d2) {
+      s0 += len;
+      continue;
+    }
     if (len2 == 0.0) continue;
     const double u_raw = (query - a).dot(d) / len2;
     const double u = std::clamp(u_raw, 0.0, 1.0);
     const Eigen::Vector3d p = a + u * d;
-    const double dist = (query - p).norm();
-    if (dist < best.distance_mm) {
+    const double dist2 = (query - p).squaredNorm();
+    if (dist2 < best_d2) {
+      best_d2 = dist2;
       best.point = p;
-      best.distance_mm = dist;
       best.arc_length_mm = s0 + u * len;
       best.tangent = d / len;
       best.beyond_start = (i == 0 && u_raw < 0.0);
@@ -84,7 +92,8 @@ PolylineProjection project_onto(const Polyline& points, const Eigen::Vector3d& q
     }
     s0 += len;
   }
-  if (!std::isfinite(best.distance_mm)) throw std::invalid_argument("project_onto: polyline has no extent");
+  if (!std::isfinite(best_d2)) throw std::invalid_argument("project_onto: polyline has no extent");
+  best.distance_mm = std::sqrt(best_d2);
   return best;
 }
 

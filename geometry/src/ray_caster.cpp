@@ -55,12 +55,15 @@ struct RayCaster::Impl {
   TriangleMesh mesh;  // kept in double to recompute hit points exactly
 };
 
-RayCaster::RayCaster(const TriangleMesh& mesh) : impl_(std::make_unique<Impl>()) {
+RayCaster::RayCaster(const TriangleMesh& mesh, BuildQuality quality) : impl_(std::make_unique<Impl>()) {
   RTCDevice device = shared_device();
   impl_->mesh = mesh;
   impl_->scene.reset(rtcNewScene(device));
   rtcSetSceneFlags(impl_->scene.get(), RTC_SCENE_FLAG_ROBUST);
+  const RTCBuildQuality q = quality == BuildQuality::Low ? RTC_BUILD_QUALITY_LOW : RTC_BUILD_QUALITY_MEDIUM;
+  rtcSetSceneBuildQuality(impl_->scene.get(), q);
   RTCGeometry geom = rtcNewGeometry(device, RTC_GEOMETRY_TYPE_TRIANGLE);
+  rtcSetGeometryBuildQuality(geom, q);
   auto* vb = static_cast<float*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_VERTEX, 0, RTC_FORMAT_FLOAT3,
                                                          3 * sizeof(float), static_cast<std::size_t>(mesh.V.rows())));
   auto* ib = static_cast<unsigned*>(rtcSetNewGeometryBuffer(geom, RTC_BUFFER_TYPE_INDEX, 0, RTC_FORMAT_UINT3,

@@ -1,13 +1,20 @@
 #pragma once
 // As-rigid-as-possible solver (Sorkine & Alexa 2007) over an ArapTerms energy, with the
-// constrained unknowns (handles, fixed vertices) as hard constraints:
-//   precomputation: A = Σ w a aᵀ assembled, split into free (F) and constrained (C) parts,
-//                   A_FF factored once by sparse Cholesky;
-//   solve:          initial guess by Laplacian editing (all R = I), then alternating local
-//                   rotation fits and global solves A_FF x_F = b_F(R) − A_FC x_C, accelerated
-//                   by Anderson mixing with an energy safeguard (Peng et al. 2018) so the
-//                   energy never increases, until the largest update is below tolerance.
+// constrained unknowns (handles, fixed vertices) as hard constraints.
+//
+//   ArapSystem (once per mesh):  A = Σ w a aᵀ (+ tether) assembled, fill-reducing ordering
+//                                of its pattern computed;
+//   ArapSolver (per constraint   the constrained rows and columns of A replaced by identity
+//   set):                        (same pattern, so the ordering is reused) and factored by
+//                                sparse Cholesky;
+//   solve:                       initial guess by Laplacian editing (all R = I), then
+//                                alternating local rotation fits and global solves
+//                                A_FF x_F = b_F(R) − A_FC x_C, accelerated by Anderson mixing
+//                                with an energy safeguard (Peng et al. 2018) so the energy
+//                                never increases, until the largest update is below tolerance.
 #include <Eigen/Core>
+#include <Eigen/Sparse>
+#include <memory>
 #include <optional>
 #include <vector>
 
@@ -31,7 +38,7 @@ struct ArapOptions {
 /// put it, so a handle cluster cannot swing the whole vessel through its near-free rigid
 /// modes). Empty weight = no tether.
 struct ArapTether {
-  std::vector<double> weight;  ///< per unknown (mm⁻² · mm² = dimensionless, like w)
+  std::vector<double> weight;  ///< per unknown (dimensionless, like the cotangent weights)
   Positions anchor;            ///< per unknown (mm)
 };
 
@@ -42,44 +49,72 @@ struct ArapResult {
   double last_update_mm = 0.0; ///< largest update of the last iteration
   std::vector<double> energy;  ///< E(x, R(x)) of the initial guess and of every accepted iterate
   int anderson_rejections = 0; ///< accelerated steps refused by the energy safeguard
+  double factor_ms = 0.0;      ///< numeric factorization for this constraint set
   double init_ms = 0.0;        ///< initial guess (Laplacian editing or warm start)
   double iterate_ms = 0.0;     ///< all iterations
 };
 
+/// What depends only on the mesh (and skeleton, tether): shared by every constraint set.
+class ArapSystem {
+ public:
+  ArapSystem(ArapTerms terms, ArapOptions options = {}, ArapTether tether = {});
+
+  const ArapTerms& terms() const { return terms_; }
+  const ArapOptions& options() const { return options_; }
+  const ArapTether& tether() const { return tether_; }
+  int num_unknowns() const { return terms_.num_unknowns; }
+  double assemble_ms() const { return assemble_ms_; }
+  double ordering_ms() const { return ordering_ms_; }
+
+  /// E(X) = min_R E(X, R): the energy of a configuration of all unknowns.
+  double energy(const Positions& X) const;
+  /// E(X, R) with R fitted in place (warm start: R's current content).
+  double local_step(const Positions& X, std::vector<Eigen::Matrix3d>& R) const;
+  /// Σ_t w_t a_t (R_c e_t)ᵀ + tether, for all unknowns (#unknowns by 3).
+  void right_hand_side(const std::vector<Eigen::Matrix3d>& R, Eigen::MatrixXd& b) const;
+
+  const Eigen::SparseMatrix<double>& matrix() const { return A_; }  ///< full symmetric A
+  const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>& ordering() const { return ordering_; }
+
+ private:
+  ArapTerms terms_;
+  ArapOptions options_;
+  ArapTether tether_;
+  Eigen::SparseMatrix<double> A_;
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> ordering_;
+  double rest_energy_ = 0.0;  ///< Σ_t w_t |e_t|²
+  double assemble_ms_ = 0.0, ordering_ms_ = 0.0;
+};
+
 class ArapSolver {
  public:
-  /// Assembles and factors. `constrained` lists unknown indices held at given targets in
-  /// solve(); every connected component of the term graph needs at least one, otherwise
-  /// the problem has no unique solution and std::invalid_argument says which component.
+  /// Builds the system and factors it for `constrained` (unknown indices held at given
+  /// targets in solve()). Without a tether every connected component of the term graph
+  /// needs a constrained unknown, otherwise std::invalid_argument names a vertex of the
+  /// undetermined part.
   ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOptions options = {}, ArapTether tether = {});
+  /// Factors a shared system for a new constraint set (the ordering is reused).
+  ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int> constrained);
 
   /// `targets`: one row per constrained unknown, in the order given to the constructor.
   /// `initial`: optional warm start for all unknowns (e.g. the previous frame's result).
   ArapResult solve(const Positions& targets, const Positions* initial = nullptr) const;
 
-  /// E(X) = min_R E(X, R): the ARAP energy of a configuration of all unknowns.
-  double energy(const Positions& X) const;
-
-  const ArapTerms& terms() const { return terms_; }
+  double energy(const Positions& X) const { return system_->energy(X); }
+  const ArapSystem& system() const { return *system_; }
   const std::vector<int>& constrained() const { return constrained_; }
-  double assemble_ms() const { return assemble_ms_; }
+  double assemble_ms() const { return system_->assemble_ms() + masking_ms_; }
   double factor_ms() const { return factor_ms_; }
   CholeskyBackend backend() const { return cholesky_->backend(); }
 
  private:
-  double local_step(const Positions& X, std::vector<Eigen::Matrix3d>& R) const;
-  Eigen::MatrixXd global_step(const std::vector<Eigen::Matrix3d>& R, const Eigen::MatrixXd& fixed_rhs) const;
+  Eigen::MatrixXd global_step(const std::vector<Eigen::Matrix3d>& R, const Eigen::MatrixXd& coupling,
+                              const Eigen::MatrixXd& X_C_full) const;
 
-  ArapTerms terms_;
+  std::shared_ptr<const ArapSystem> system_;
   std::vector<int> constrained_;
-  std::vector<int> free_;          ///< unknown index of each free row
-  std::vector<int> free_row_;      ///< free row of each unknown, or -1
-  ArapOptions options_;
-  Eigen::SparseMatrix<double> A_FC_;
-  ArapTether tether_;
-  Eigen::MatrixXd tether_rhs_;     ///< weight_k · anchor_k for the free rows
-  double rest_energy_ = 0.0;       ///< Σ_t w_t |e_t|²
-  double assemble_ms_ = 0.0, factor_ms_ = 0.0;
+  std::vector<char> is_constrained_;
+  double masking_ms_ = 0.0, factor_ms_ = 0.0;
   std::optional<SparseCholesky> cholesky_;
 };
 

@@ -10,6 +10,7 @@
 //      displacement of its top, so the junction stays closed;
 //   5. landmarks move with the surface they sit on.
 #include <Eigen/Core>
+#include <memory>
 #include <string>
 #include <vector>
 
@@ -76,8 +77,37 @@ struct SceneDeformation {
   double total_ms = 0.0;
 };
 
-/// Throws geometry::InputError when the device is unusable (fewer than 2 points, not
-/// finite, or nowhere near any vessel) and std::runtime_error when a solve fails.
+/// The scene with everything that does not depend on the device precomputed per vessel
+/// (ray-casting BVH, skeleton and radius profile, cotangent weights, ARAP terms, tether,
+/// assembled matrix and its fill-reducing ordering), so each new device pose only costs
+/// control points, a numeric factorization and the iterations. The scene must outlive it.
+class SceneDeformer {
+ public:
+  /// Throws geometry::InputError when a vessel's centerline does not run inside its mesh.
+  SceneDeformer(const geometry::Scene& scene, DeformOptions options = {});
+  ~SceneDeformer();
+  SceneDeformer(const SceneDeformer&) = delete;
+  SceneDeformer& operator=(const SceneDeformer&) = delete;
+
+  /// Throws geometry::InputError when the device is unusable (fewer than 2 points, not
+  /// finite, or nowhere near any vessel) and std::runtime_error when a solve fails.
+  /// In the reports, weights_ms and skeleton_ms are the precomputation's (the constructor),
+  /// the other stages this call's; total_ms of a vessel is their sum (its cold cost) and
+  /// SceneDeformation::total_ms is this call's wall time.
+  SceneDeformation deform(const geometry::Polyline& device) const;
+  double precompute_ms() const { return precompute_ms_; }
+
+  struct VesselModel;  ///< opaque per-vessel precomputation
+
+ private:
+  const geometry::Scene& scene_;
+  DeformOptions options_;
+  std::vector<std::unique_ptr<VesselModel>> models_;
+  double precompute_ms_ = 0.0;
+};
+
+/// SceneDeformer(scene, options).deform(device), with the precomputation's stage timings
+/// (weights, skeleton) added to each vessel's report and to total_ms.
 SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Polyline& device,
                               const DeformOptions& options = {});
 

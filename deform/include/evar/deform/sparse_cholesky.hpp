@@ -14,6 +14,9 @@ enum class CholeskyBackend {
   Cholmod,     ///< SuiteSparse CHOLMOD supernodal LL^T (when built with it)
 };
 
+/// AMD ordering of the symmetric pattern of A (lower triangle read).
+Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> fill_reducing_ordering(const Eigen::SparseMatrix<double>& A);
+
 CholeskyBackend parse_cholesky_backend(const std::string& name);  ///< "default", "eigen", "cholmod"
 const char* to_string(CholeskyBackend backend);
 bool cholmod_available();
@@ -23,6 +26,11 @@ class SparseCholesky {
   /// Factors A (symmetric positive definite; only the lower triangle is read).
   /// Throws std::runtime_error if A is not positive definite.
   SparseCholesky(const Eigen::SparseMatrix<double>& A, CholeskyBackend backend = CholeskyBackend::Default);
+  /// Same, with a fill-reducing ordering computed once for A's sparsity pattern (see
+  /// fill_reducing_ordering), so repeated factorizations of matrices with that pattern
+  /// skip the ordering. CHOLMOD ignores it and orders itself.
+  SparseCholesky(const Eigen::SparseMatrix<double>& A, const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>& ordering,
+                 CholeskyBackend backend = CholeskyBackend::Default);
   ~SparseCholesky();
   SparseCholesky(SparseCholesky&&) noexcept;
   SparseCholesky& operator=(SparseCholesky&&) noexcept;

@@ -19,8 +19,13 @@ struct RayHit {
 
 class RayCaster {
  public:
+  /// How much effort the BVH build spends: High for a mesh queried many times (the
+  /// preoperative vessels), Low for a one-off check of a deformed mesh (builds several
+  /// times faster, queries a little slower).
+  enum class BuildQuality { Low, High };
+
   /// Builds the BVH over `mesh` (copied into Embree's buffers; the mesh may go away).
-  explicit RayCaster(const TriangleMesh& mesh);
+  explicit RayCaster(const TriangleMesh& mesh, BuildQuality quality = BuildQuality::High);
   ~RayCaster();
   RayCaster(const RayCaster&) = delete;
   RayCaster& operator=(const RayCaster&) = delete;
