@@ -395,4 +395,23 @@ void write_example_scene(const ExampleScene& scene, const std::filesystem::path&
   geometry::write_scene_manifest(dir / "scene.json", manifest);
 }
 
+geometry::Scene to_scene(const ExampleScene& ex) {
+  geometry::Scene s;
+  s.file = "example/scene.json";
+  for (const auto& v : ex.vessels) {
+    geometry::Vessel gv;
+    gv.name = v.name;
+    gv.kind = v.kind;
+    gv.mesh_path = "example/" + v.name + ".stl";
+    gv.centerline_path = "example/" + v.name + ".centerline.mrk.json";
+    gv.mesh = {v.mesh, geometry::MeshFormat::StlBinary};
+    gv.centerline = v.centerline;
+    s.vessels.push_back(std::move(gv));
+  }
+  s.landmarks_path = "example/landmarks.mrk.json";
+  s.landmarks = ex.landmarks;
+  s.device_thickness_mm = ex.device_thickness_mm;
+  return s;
+}
+
 }  // namespace evar::sim

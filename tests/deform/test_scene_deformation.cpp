@@ -9,24 +9,6 @@
 using namespace evar;
 
 namespace {
-// The example anatomy as a loaded scene (what load_scene gives for its files).
-geometry::Scene to_scene(const sim::ExampleScene& ex) {
-  geometry::Scene s;
-  s.file = "example/scene.json";
-  for (const auto& v : ex.vessels) {
-    geometry::Vessel gv;
-    gv.name = v.name;
-    gv.kind = v.kind;
-    gv.mesh_path = v.name + ".stl";
-    gv.centerline_path = v.name + ".centerline.mrk.json";
-    gv.mesh = {v.mesh, geometry::MeshFormat::StlBinary};
-    gv.centerline = v.centerline;
-    s.vessels.push_back(std::move(gv));
-  }
-  s.landmarks = ex.landmarks;
-  s.device_thickness_mm = ex.device_thickness_mm;
-  return s;
-}
 
 const sim::ExampleScene& example() {
   static const sim::ExampleScene ex = sim::make_example_scene({});
@@ -35,7 +17,7 @@ const sim::ExampleScene& example() {
 }  // namespace
 
 TEST(SceneDeformation, AfterDeformEveryDevicePointIsInsideItsVesselOrWithinDeltaDOfTheWall) {
-  const auto scene = to_scene(example());
+  const auto scene = sim::to_scene(example());
   const auto out = deform::deform_scene(scene, example().device);
   EXPECT_EQ(out.device_iliac, "iliac_right");
   // Containment on the deformed meshes with their full faces (the erased aortic stump is
@@ -77,7 +59,7 @@ TEST(SceneDeformation, AfterDeformEveryDevicePointIsInsideItsVesselOrWithinDelta
 }
 
 TEST(SceneDeformation, KeepsTopologyVertexOrderAndMovesLandmarksWithTheSurface) {
-  const auto scene = to_scene(example());
+  const auto scene = sim::to_scene(example());
   const auto out = deform::deform_scene(scene, example().device);
   ASSERT_EQ(out.vessels.size(), scene.vessels.size());
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
@@ -110,7 +92,7 @@ TEST(SceneDeformation, KeepsTopologyVertexOrderAndMovesLandmarksWithTheSurface) 
 }
 
 TEST(SceneDeformation, DeviceInsideTheLumenChangesNothing) {
-  const auto scene = to_scene(example());
+  const auto scene = sim::to_scene(example());
   // The aortic centerline itself, as a device: inside everywhere.
   const auto& cl = example().vessel("aorta").centerline;
   std::vector<Eigen::Vector3d> device(cl.begin() + 10, cl.end() - 10);
@@ -122,7 +104,7 @@ TEST(SceneDeformation, DeviceInsideTheLumenChangesNothing) {
 }
 
 TEST(SceneDeformation, DeviceFarFromEveryVesselIsAClearError) {
-  const auto scene = to_scene(example());
+  const auto scene = sim::to_scene(example());
   const std::vector<Eigen::Vector3d> device{{500, 500, 0}, {520, 500, 0}};
   try {
     deform::deform_scene(scene, device);
@@ -133,7 +115,7 @@ TEST(SceneDeformation, DeviceFarFromEveryVesselIsAClearError) {
 }
 
 TEST(SceneDeformation, EmptyOrNonFiniteDeviceIsAClearError) {
-  const auto scene = to_scene(example());
+  const auto scene = sim::to_scene(example());
   EXPECT_THROW(deform::deform_scene(scene, {}), geometry::InputError);
   EXPECT_THROW(deform::deform_scene(scene, {{0, 0, 0}, {NAN, 0, 0}}), geometry::InputError);
 }
@@ -143,7 +125,7 @@ TEST(SceneDeformation, TetherKeepsLandmarksFarFromTheDeviceWhereRegistrationPutT
   // should stay put (the paper: renal landmark positions are preserved). Without the
   // tether the handle cluster swings the whole aorta (kept as an option, asserted here so
   // the difference stays visible).
-  const auto scene = to_scene(example());
+  const auto scene = sim::to_scene(example());
   const auto renal_shift = [&](double tether_mm) {
     deform::DeformOptions opt;
     opt.tether_length_mm = tether_mm;

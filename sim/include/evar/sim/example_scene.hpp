@@ -106,6 +106,10 @@ DeviceClearance measure_device_clearance(const std::vector<Eigen::Vector3d>& dev
                                          const std::vector<Eigen::Vector3d>& centerline,
                                          const std::vector<double>& radii_mm);
 
+/// The scene as load_scene() would give it for the files write_example_scene() writes
+/// (mesh format binary STL, paths relative to "example/"), without touching the disk.
+geometry::Scene to_scene(const ExampleScene& scene);
+
 /// Writes the scene as a directory that load_scene() reads: dir/scene.json,
 /// dir/<vessel>.<stl|ply|obj> (extension from `format`), dir/<vessel>.centerline.mrk.json
 /// (Curve), dir/landmarks.mrk.json (Fiducial, labels kept) and dir/device.mrk.json
