@@ -9,5 +9,6 @@ if [ "${EVAR_SANITIZE:-0}" = 1 ]; then
   export EVAR_BUILD_TYPE=RelWithDebInfo
   args+=(-DEVAR_SANITIZE=ON)
 fi
-"$root/scripts/build.sh" "${args[@]}"
-ctest --test-dir "${EVAR_BUILD_DIR:-$root/build}" --output-on-failure -j"$(nproc)"
+# Tests on explicitly: run-example.sh configures the same build directory without them.
+"$root/scripts/build.sh" -DEVAR_BUILD_TESTS=ON "${args[@]}"
+ctest --test-dir "${EVAR_BUILD_DIR:-$root/build}" --output-on-failure --no-tests=error -j"$(nproc)"

@@ -24,6 +24,7 @@ struct Constraints {
 Constraints read_constraints(const std::filesystem::path& path, const geometry::Vertices& V) {
   using geometry::InputError;
   const std::string file = path.string();
+  if (!std::filesystem::is_regular_file(path)) throw InputError(file + ": not a readable file");
   std::ifstream in(path);
   if (!in) throw InputError(file + ": cannot open the constraints file");
   nlohmann::json j;
@@ -33,6 +34,9 @@ Constraints read_constraints(const std::filesystem::path& path, const geometry::
     throw InputError(file + ": not valid JSON (byte " + std::to_string(e.byte) + ")");
   }
   if (!j.is_object()) throw InputError(file + ": the top level must be an object with \"fixed\" and/or \"handles\"");
+  for (const auto& [key, value] : j.items())
+    if (key != "fixed" && key != "handles")
+      throw InputError(file + ": unknown key \"" + key + "\" (expected \"fixed\" and/or \"handles\")");
   const auto n = static_cast<long long>(V.rows());
   std::vector<int> owner(static_cast<std::size_t>(n), -1);
   Constraints c;
@@ -52,7 +56,8 @@ Constraints read_constraints(const std::filesystem::path& path, const geometry::
     for (std::size_t k = 0; k < j["fixed"].size(); ++k) {
       const auto& e = j["fixed"][k];
       const std::string where = "fixed[" + std::to_string(k) + "]";
-      if (!e.is_number_integer()) throw InputError(file + ": " + where + ": must be an integer vertex index");
+      if (!e.is_number_integer() || (e.is_number_unsigned() && e.get<unsigned long long>() > 0x7fffffffULL))
+        throw InputError(file + ": " + where + ": must be an integer vertex index");
       const long long v = e.get<long long>();
       if (v < 0 || v >= n) add(v, Eigen::RowVector3d::Zero(), where);  // throws the range message
       add(v, V.row(v), where);
@@ -63,7 +68,8 @@ Constraints read_constraints(const std::filesystem::path& path, const geometry::
     for (std::size_t k = 0; k < j["handles"].size(); ++k) {
       const auto& h = j["handles"][k];
       const std::string where = "handles[" + std::to_string(k) + "]";
-      if (!h.is_object() || !h.contains("vertex") || !h["vertex"].is_number_integer())
+      if (!h.is_object() || !h.contains("vertex") || !h["vertex"].is_number_integer() ||
+          (h["vertex"].is_number_unsigned() && h["vertex"].get<unsigned long long>() > 0x7fffffffULL))
         throw InputError(file + ": " + where + ".vertex: must be an integer vertex index");
       if (!h.contains("target") || !h["target"].is_array() || h["target"].size() != 3)
         throw InputError(file + ": " + where + ".target: must be [x, y, z] in mm");
@@ -113,6 +119,8 @@ int run_arap(const ArapCommand& cmd) {
     }
   }();
   const auto r = solver.solve(constraints.targets);
+  if (!r.X.allFinite() || !std::isfinite(r.energy.back()))
+    throw std::runtime_error(cmd.mesh.string() + ": the ARAP solve produced non-finite positions (coordinates or targets out of range?); nothing written");
   geometry::TriangleMesh out{r.X, mesh.F};
   geometry::write_mesh(cmd.out, out, geometry::format_for_extension(cmd.out));
   const double per_iteration = r.iterations > 0 ? r.iterate_ms / r.iterations : 0.0;

@@ -77,6 +77,26 @@ int run_deform(const DeformCommand& cmd) {
     throw;
   }
 
+  // Outputs must not overwrite an input or each other (vessel mesh files are named after
+  // their input files; two inputs from different folders may share a name).
+  std::vector<std::filesystem::path> inputs{cmd.scene, cmd.device, scene.landmarks_path};
+  for (const auto& v : scene.vessels) inputs.insert(inputs.end(), {v.mesh_path, v.centerline_path});
+  std::vector<std::filesystem::path> outputs{cmd.out / "landmarks.mrk.json", cmd.out / "report.json"};
+  if (cmd.preview) outputs.push_back(cmd.out / "preview.png");
+  for (const auto& v : scene.vessels) outputs.push_back(cmd.out / v.mesh_path.filename());
+  const auto same_file = [](const std::filesystem::path& a, const std::filesystem::path& b) {
+    std::error_code ec;
+    return std::filesystem::weakly_canonical(a, ec) == std::filesystem::weakly_canonical(b, ec);
+  };
+  for (std::size_t i = 0; i < outputs.size(); ++i) {
+    for (const auto& in : inputs)
+      if (!in.empty() && same_file(outputs[i], in))
+        throw geometry::InputError(outputs[i].string() + ": writing this output would overwrite an input; choose another --out");
+    for (std::size_t j = 0; j < i; ++j)
+      if (same_file(outputs[i], outputs[j]))
+        throw geometry::InputError(outputs[i].string() + ": two outputs would have this name (vessel mesh files with the same name in different folders); rename one");
+  }
+
   std::filesystem::create_directories(cmd.out);
   nlohmann::json report = {{"format", "evarnode-deform-report"},
                            {"version", 1},

@@ -22,20 +22,24 @@ Eigen::Matrix3d closest_rotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d
   // R = [u1, u2, u1 × u2] Vᵀ (V made proper) is U diag(1, 1, sign det A) Vᵀ, the maximizer
   // of tr(RᵀA) over SO(3), whether A is full rank, rank 2 (a planar one-ring) or mirrored:
   // the smallest singular direction never has to be computed.
+  // Scaled to unit norm so AᵀA neither underflows nor overflows.
+  const Eigen::Matrix3d An = A / scale;
   Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d> eig;
-  eig.computeDirect(A.transpose() * A);  // eigenvalues ascending
+  eig.computeDirect(An.transpose() * An);  // eigenvalues ascending
+  // Near rank 1 the second direction from AᵀA is rounding noise: let the SVD decide.
+  if (eig.eigenvalues()(1) < 1e-10 * eig.eigenvalues()(2)) return closest_rotation_svd(A);
   Eigen::Matrix3d V = eig.eigenvectors();
   const Eigen::Vector3d v1 = V.col(2), v2 = V.col(1);
-  Eigen::Vector3d u1 = A * v1;
+  Eigen::Vector3d u1 = An * v1;
   const double s1 = u1.norm();
-  if (!(s1 > 1e-12 * scale)) return closest_rotation_svd(A);
+  if (!(s1 > 1e-12)) return closest_rotation_svd(A);
   u1 /= s1;
-  Eigen::Vector3d u2 = A * v2;
+  Eigen::Vector3d u2 = An * v2;
   u2 -= u2.dot(u1) * u1;  // Gram-Schmidt against rounding
   const double s2 = u2.norm();
   // Rank 1 (all edges of the cell collinear): the rotation about that line is free;
   // the SVD picks one, and the warm start would serve as well.
-  if (!(s2 > 1e-9 * scale)) return closest_rotation_svd(A);
+  if (!(s2 > 1e-9)) return closest_rotation_svd(A);
   u2 /= s2;
   Eigen::Matrix3d U, Vp;
   U << u1, u2, u1.cross(u2);

@@ -48,7 +48,7 @@ std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, co
                                           const geometry::Polyline& device, const ControlPointOptions& options) {
   if (!(options.sample_step_mm > 0.0) || !(options.device_thickness_mm >= 0.0))
     throw std::invalid_argument("control points: sample step must be > 0 and device thickness >= 0");
-  const double spacing = options.spacing_mm > 0.0 ? options.spacing_mm : 1.5 * geometry::mean_edge_length(mesh);
+  const double spacing = options.spacing_mm > 0.0 ? options.spacing_mm : 1.5 * geometry::median_edge_length(mesh);
   const auto ours = device_points_in_vessel(centerline, radius, device, options);
   std::vector<Candidate> candidates;
   if (ours.size() >= 1) {

@@ -47,7 +47,8 @@ std::vector<WeightedEdge> cotangent_weights(const geometry::TriangleMesh& mesh, 
     std::size_t e = s;
     for (; e < contributions.size() && contributions[e].key == contributions[s].key; ++e) w += contributions[e].half_cot;
     const long long key = contributions[s].key;
-    edges.push_back({static_cast<int>(key / n), static_cast<int>(key % n), std::max(w, options.w_floor)});
+    // !(w >= floor) also catches NaN (from overflowing coordinates), which std::max passes on.
+    edges.push_back({static_cast<int>(key / n), static_cast<int>(key % n), !(w >= options.w_floor) ? options.w_floor : w});
     s = e;
   }
   return edges;

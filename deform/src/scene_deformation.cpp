@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <chrono>
 #include <numeric>
+#include <set>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -35,6 +36,9 @@ struct SceneDeformer::VesselModel {
 namespace {
 
 using VesselModel = SceneDeformer::VesselModel;
+
+// Ostium landmarks are placed on the wall; 10 mm off is already a different structure.
+constexpr double kMaxLandmarkDistanceMm = 10.0;
 
 ArapTether registration_tether(const geometry::TriangleMesh& mesh, int unknowns, double length_mm) {
   ArapTether tether;
@@ -154,12 +158,15 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
     const geometry::RayCaster caster(deformed, geometry::RayCaster::BuildQuality::Low);
     const auto more = select_control_points(deformed, caster, deformed_centerline(m, deformed.V), m.radius, device,
                                             options.control);
-    std::size_t added = 0;
+    std::set<int> fresh;  // vertices constrained for the first time this round
     for (const auto& [v, p] : handle_vertex_targets(deformed, more))
-      if (targets.emplace(v, p).second) ++added;
-    report.control_points += static_cast<int>(more.size());
+      if (targets.emplace(v, p).second) fresh.insert(v);
+    // Count only handles that constrain something new (the others were there already).
+    for (const auto& h : more)
+      if (fresh.count(mesh.F(h.face, 0)) || fresh.count(mesh.F(h.face, 1)) || fresh.count(mesh.F(h.face, 2)))
+        ++report.control_points;
     report.timings.control_points_ms += ms_since(t0);
-    if (added == 0) break;
+    if (fresh.empty()) break;
   }
   return X.topRows(n);
 }
@@ -169,7 +176,12 @@ void check_device(const geometry::Polyline& device) {
                                                     " point(s); at least 2 are needed");
   for (std::size_t i = 0; i < device.size(); ++i)
     if (!device[i].allFinite()) throw geometry::InputError("device: point " + std::to_string(i) + " is not finite");
-  if (geometry::arc_lengths(device).back() <= 0.0) throw geometry::InputError("device: all points coincide");
+  const double length = geometry::arc_lengths(device).back();
+  if (length <= 0.0) throw geometry::InputError("device: all points coincide");
+  // Guidewires are at most a few metres long; more means a stray control point.
+  if (length > 1e4)
+    throw geometry::InputError("device: the curve is " + std::to_string(length) +
+                               " mm long; at most 10000 mm is plausible (a stray control point?)");
 }
 
 }  // namespace
@@ -181,7 +193,28 @@ SceneDeformer::SceneDeformer(const geometry::Scene& scene, DeformOptions options
   if (std::none_of(scene.vessels.begin(), scene.vessels.end(),
                    [](const geometry::Vessel& v) { return v.kind == geometry::VesselKind::Aorta; }))
     throw geometry::InputError(scene.file.string() + ": the scene has no vessel of kind \"aorta\"");
-  for (const auto& v : scene.vessels) models_.push_back(make_model(v, options_));
+  const auto& aorta = *std::find_if(scene.vessels.begin(), scene.vessels.end(),
+                                    [](const geometry::Vessel& v) { return v.kind == geometry::VesselKind::Aorta; });
+  for (const auto& v : scene.vessels) {
+    // Iliac centerlines run from the bifurcation (near the aorta) to the distal end; a
+    // reversed one would bind the wrong end to the aorta.
+    if (v.kind == geometry::VesselKind::Iliac &&
+        geometry::project_onto(aorta.centerline, v.centerline.front()).distance_mm >
+            geometry::project_onto(aorta.centerline, v.centerline.back()).distance_mm)
+      throw geometry::InputError(v.centerline_path.string() + ": the centerline of iliac '" + v.name +
+                                 "' runs toward the aorta; it must run from the bifurcation to the distal end");
+    models_.push_back(make_model(v, options_));
+  }
+  // Each landmark sits on a vessel wall; one far from every wall is in the wrong frame.
+  for (const auto& lm : scene.landmarks) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const auto& v : scene.vessels)
+      nearest = std::min(nearest, geometry::closest_point_on_mesh(v.mesh.mesh, lm.position_lps).distance_mm);
+    if (nearest > kMaxLandmarkDistanceMm)
+      throw geometry::InputError(scene.landmarks_path.string() + ": landmark '" + lm.label + "' is " +
+                                 std::to_string(nearest) + " mm from the nearest vessel surface (at most " +
+                                 std::to_string(kMaxLandmarkDistanceMm) + " mm expected)");
+  }
   precompute_ms_ = ms_since(t0);
 }
 
@@ -293,16 +326,25 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device) const {
     if (carries && r.control_points > 0) {
       r.role = "carries the device";
       // 3. Erase the aortic vertices below the bound iliac points: distal of the plane
-      // through their centroid (normal: the iliac's initial direction) and within 1.5
-      // local iliac radii of its axis.
+      // through their centroid (normal: the iliac's initial direction) and inside the
+      // deformed iliac, i.e. the part of the aorta the iliac now represents. For an open
+      // iliac mesh (no inside) the test is the iliac's top radius around its axis.
       const auto arc = geometry::arc_lengths(v.centerline);
       const Eigen::Vector3d axis = geometry::tangent_at(v.centerline, arc, 0.0);
-      const double cut_radius = 1.5 * m.radius.at(0.0);
+      const double cut_radius = m.radius.at(0.0);
+      const geometry::TriangleMesh deformed_iliac{V_out, mesh.F};
+      const bool closed = geometry::is_closed(mesh);
+      const std::optional<geometry::RayCaster> inside =
+          closed ? std::optional<geometry::RayCaster>(std::in_place, deformed_iliac, geometry::RayCaster::BuildQuality::Low)
+                 : std::nullopt;
       auto& erased = out.vessels[static_cast<std::size_t>(aorta)].erased;
       for (Eigen::Index k = 0; k < aorta_mesh.V.rows(); ++k) {
         const Eigen::Vector3d q = aorta_mesh.V.row(k).transpose() - top_centroid;
         const double along = q.dot(axis);
-        if (along > 0.0 && (q - along * axis).norm() < cut_radius) erased[static_cast<std::size_t>(k)] = 1;
+        if (along <= 0.0) continue;
+        const bool within = inside ? inside->contains(aorta_deformed.row(k).transpose())
+                                   : (q - along * axis).norm() < cut_radius;
+        if (within) erased[static_cast<std::size_t>(k)] = 1;
       }
     } else if (!bound.empty() && mean_shift.norm() > 0.0) {
       V_out = mesh.V.rowwise() + mean_shift.transpose();

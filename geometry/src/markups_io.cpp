@@ -1,5 +1,6 @@
 // 3D Slicer markups JSON (.mrk.json), read into LPS millimetres and written as LPS.
 #include "evar/geometry/markups.hpp"
+#include "evar/geometry/triangle_mesh.hpp"
 
 #include <cmath>
 #include <stdexcept>
@@ -66,6 +67,8 @@ Eigen::Vector3d get_position(const fs::path& file, const json& j, const std::str
     }
     p[k] = c.get<double>();
     if (!std::isfinite(p[k])) bad(file, field + "[" + std::to_string(k) + "]", "not finite");
+    if (std::abs(p[k]) > kMaxCoordinateMm)
+      bad(file, field + "[" + std::to_string(k) + "]", "implausibly far from the origin (coordinates are mm, within 100 m)");
   }
   return p;
 }

@@ -58,6 +58,14 @@ void validate_mesh(const TriangleMesh& mesh, std::string_view source) {
           << ", " << V(v, 2) << ")";
       reject(source, out.str());
     }
+    // Patient coordinates in mm: anything beyond 100 m is a unit or export error, and
+    // would overflow the geometry (squared lengths, cross products) downstream.
+    if (V.row(v).cwiseAbs().maxCoeff() > kMaxCoordinateMm) {
+      std::ostringstream out;
+      out << "vertex " << v << " lies implausibly far from the origin (" << V(v, 0) << ", " << V(v, 1) << ", "
+          << V(v, 2) << "); coordinates must be millimetres within 100 m";
+      reject(source, out.str());
+    }
   }
 
   const auto nv = V.rows();
@@ -115,6 +123,35 @@ double mean_edge_length(const TriangleMesh& mesh) {
     }
   }
   return sum / (3.0 * static_cast<double>(F.rows()));
+}
+
+bool is_closed(const TriangleMesh& mesh) {
+  std::vector<std::uint64_t> edges;
+  edges.reserve(static_cast<std::size_t>(mesh.F.rows()) * 3);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const auto a = static_cast<std::uint32_t>(mesh.F(f, k)), b = static_cast<std::uint32_t>(mesh.F(f, (k + 1) % 3));
+      edges.push_back((std::uint64_t{std::min(a, b)} << 32) | std::max(a, b));
+    }
+  std::sort(edges.begin(), edges.end());
+  for (std::size_t i = 0; i < edges.size();) {
+    std::size_t j = i;
+    while (j < edges.size() && edges[j] == edges[i]) ++j;
+    if (j - i != 2) return false;
+    i = j;
+  }
+  return !edges.empty();
+}
+
+double median_edge_length(const TriangleMesh& mesh) {
+  std::vector<double> lengths;
+  lengths.reserve(static_cast<std::size_t>(mesh.F.rows()) * 3);
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) lengths.push_back((mesh.V.row(mesh.F(f, k)) - mesh.V.row(mesh.F(f, (k + 1) % 3))).norm());
+  if (lengths.empty()) return 0.0;
+  const auto mid = lengths.begin() + static_cast<std::ptrdiff_t>(lengths.size() / 2);
+  std::nth_element(lengths.begin(), mid, lengths.end());
+  return *mid;
 }
 
 }  // namespace evar::geometry

@@ -1,5 +1,6 @@
-// PLY (Stanford polygon format), hand-written: assimp 5.2 was seen to scramble face
-// indices on read, and vertex order and unreferenced vertices must survive exactly.
+// PLY (Stanford polygon format), hand-written: assimp 5.2 reads well-formed PLY correctly
+// but accepts malformed files silently (out-of-range indices, faces without their count),
+// throws bad_alloc on absurd element counts and names no line or byte (docs/FORMATS.md).
 //
 // Reads ascii, binary_little_endian and binary_big_endian. The "vertex" element needs
 // scalar properties x, y, z (any type); the "face" element needs a list property

@@ -51,7 +51,9 @@ Polyline resample(const Polyline& points, double step_mm) {
   if (unique.size() < 2) return unique;
   const auto arc = arc_lengths(unique);
   const double length = arc.back();
-  const auto n = static_cast<std::size_t>(std::floor(length / step_mm));
+  const double count = std::floor(length / step_mm);
+  if (!(count < 1e7)) throw std::invalid_argument("resample: more than 10 million samples requested");
+  const auto n = static_cast<std::size_t>(count);
   Polyline out;
   out.reserve(n + 2);
   for (std::size_t k = 0; k <= n; ++k) out.push_back(point_at(unique, arc, static_cast<double>(k) * step_mm));

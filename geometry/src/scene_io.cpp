@@ -1,5 +1,6 @@
 // scene.json ("evarnode-scene" version 1): the patient's vessels, landmarks and device.
 #include "evar/geometry/scene.hpp"
+#include "evar/geometry/polyline.hpp"
 
 #include <cmath>
 #include <set>
@@ -108,8 +109,9 @@ Scene load_scene(const std::filesystem::path& scene_json) {
     bad(file, "device_thickness_mm", std::string("expected a number, found ") + thickness.type_name());
   }
   scene.device_thickness_mm = thickness.get<double>();
-  if (!std::isfinite(scene.device_thickness_mm) || scene.device_thickness_mm < 0.0) {
-    bad(file, "device_thickness_mm", "must be a finite number >= 0, found " + thickness.dump());
+  // Guidewires are ~0.9 mm, the largest EVAR delivery sheaths 24 F = 8 mm.
+  if (!std::isfinite(scene.device_thickness_mm) || scene.device_thickness_mm < 0.0 || scene.device_thickness_mm > 15.0) {
+    bad(file, "device_thickness_mm", "must be a number from 0 to 15 (mm), found " + thickness.dump());
   }
 
   const json& vessels = member(file, root, "vessels", "vessels");
@@ -158,6 +160,13 @@ Scene load_scene(const std::filesystem::path& scene_json) {
     });
     vessel.centerline.reserve(curve.points.size());
     for (const ControlPoint& p : curve.points) vessel.centerline.push_back(p.position_lps);
+    // A centerline is walked along in steps of millimetres: it needs extent, and a length
+    // no vessel has (10 m) means a stray control point.
+    const double length = arc_lengths(vessel.centerline).back();
+    if (!(length > 0.0) || length > 1e4)
+      bad(file, field + ".centerline",
+          vessel.centerline_path.string() + ": the curve's length is " + std::to_string(length) +
+              " mm; a vessel centerline needs a length between 0 and 10000 mm (a stray control point?)");
   }
 
   if (!scene.landmarks_path.empty()) {

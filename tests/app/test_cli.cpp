@@ -171,3 +171,44 @@ TEST_F(Cli, UsageErrorsExitWithTwo) {
   EXPECT_EQ(evarnode({"deform", "--scene", "x.json"}).code, 2);
   EXPECT_EQ(evarnode({"no-such-command"}).code, 2);
 }
+
+TEST_F(Cli, DeformRefusesToOverwriteItsInputs) {
+  const auto r = evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", dir_.string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("would overwrite an input"), std::string::npos) << r.err;
+}
+
+TEST_F(Cli, DeformKeepsThePlyFormatOfItsInput) {
+  const auto dir = scratch("ply_scene");
+  evar::sim::ExampleSceneParams p;
+  p.aorta_vertices = 2500;
+  p.iliac_vertices = 1500;
+  evar::sim::write_example_scene(evar::sim::make_example_scene(p), dir / "in", evar::geometry::MeshFormat::PlyBinary);
+  const auto r = evarnode({"deform", "--scene", (dir / "in" / "scene.json").string(), "--device",
+                           (dir / "in" / "device.mrk.json").string(), "--out", (dir / "out").string(), "--no-preview"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto in = evar::geometry::read_mesh(dir / "in" / "iliac_right.ply");
+  const auto out = evar::geometry::read_mesh(dir / "out" / "iliac_right.ply");
+  EXPECT_EQ(out.format, evar::geometry::MeshFormat::PlyBinary);
+  EXPECT_EQ(out.mesh.V.rows(), in.mesh.V.rows());
+  EXPECT_EQ(out.mesh.F, in.mesh.F);  // PLY keeps vertex order and faces exactly
+}
+
+TEST_F(Cli, ArapRefusesToWriteANonFiniteResult) {
+  const auto dir = scratch("arap_overflow");
+  write_text(dir / "c.json", R"({"fixed": [0], "handles": [{"vertex": 5, "target": [1e308, 1e308, 1e308]}]})");
+  const auto r = evarnode({"arap", "--mesh", (dir_ / "iliac_left.stl").string(), "--constraints",
+                           (dir / "c.json").string(), "--out", (dir / "o.stl").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("non-finite"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(dir / "o.stl"));
+}
+
+TEST_F(Cli, ArapRefusesUnknownConstraintKeys) {
+  const auto dir = scratch("arap_typo");
+  write_text(dir / "c.json", R"({"fixd": [0], "handles": [{"vertex": 5, "target": [0, 0, 0]}]})");
+  const auto r = evarnode({"arap", "--mesh", (dir_ / "iliac_left.stl").string(), "--constraints",
+                           (dir / "c.json").string(), "--out", (dir / "o.stl").string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("unknown key \"fixd\""), std::string::npos) << r.err;
+}

@@ -21,7 +21,7 @@ TEST(ControlPoints, DeviceOutsideTheWallGivesHandlesMovedByEquation6) {
   deform::ControlPointOptions opt;
   opt.device_thickness_mm = 0.9;
   const auto handles = deform::select_control_points(tc.mesh, tc.caster, tc.centerline, tc.radius, device, opt);
-  // 20 mm outside, handles at least 1.5 mean edge lengths (~3 mm here, cap fans included) apart.
+  // 20 mm outside, handles at least 1.5 median edge lengths apart.
   ASSERT_GE(handles.size(), 6u);
   for (const auto& h : handles) {
     // h on the wall, d beyond it, and h + s lies Δd past d along (d − h).
@@ -30,8 +30,8 @@ TEST(ControlPoints, DeviceOutsideTheWallGivesHandlesMovedByEquation6) {
     EXPECT_LT((h.hit + h.shift - (h.device_point + 0.9 * dh.normalized())).norm(), 1e-9);
     EXPECT_GT(h.device_point.head<2>().norm(), 8.0);
   }
-  // Evenly spaced: no two handles closer than the spacing (1.5 x mean edge length).
-  const double spacing = 1.5 * geometry::mean_edge_length(tc.mesh);
+  // Evenly spaced: no two handles closer than the spacing (1.5 x median edge length).
+  const double spacing = 1.5 * geometry::median_edge_length(tc.mesh);
   for (std::size_t a = 0; a < handles.size(); ++a)
     for (std::size_t b = a + 1; b < handles.size(); ++b) EXPECT_GE((handles[a].hit - handles[b].hit).norm(), spacing);
 }

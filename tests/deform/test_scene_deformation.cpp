@@ -140,3 +140,94 @@ TEST(SceneDeformation, TetherKeepsLandmarksFarFromTheDeviceWhereRegistrationPutT
   EXPECT_LT(tethered, 1.0);
   EXPECT_GT(renal_shift(0.0), 3.0 * tethered);
 }
+
+TEST(SceneDeformation, KeepsTheOrderOfEveryFaceThatIsNotErased) {
+  const auto scene = sim::to_scene(example());
+  const auto out = deform::deform_scene(scene, example().device);
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    const auto& F_in = scene.vessels[i].mesh.mesh.F;
+    const auto& F_out = out.vessels[i].mesh.F;
+    const auto& erased = out.vessels[i].erased;
+    Eigen::Index k = 0;
+    for (Eigen::Index f = 0; f < F_in.rows(); ++f) {
+      if (erased[F_in(f, 0)] || erased[F_in(f, 1)] || erased[F_in(f, 2)]) continue;
+      ASSERT_LT(k, F_out.rows());
+      ASSERT_EQ(F_out.row(k), F_in.row(f)) << scene.vessels[i].name << " face " << f;
+      ++k;
+    }
+    EXPECT_EQ(k, F_out.rows());
+  }
+}
+
+TEST(SceneDeformation, ErasesOnlyTheAorticStumpInsideTheDeviceIliac) {
+  // The device runs up the right iliac (patient right = −x). The aortic wall below the
+  // bound iliac top that lies inside the deformed right iliac goes; the left junction stays.
+  const auto scene = sim::to_scene(example());
+  const auto out = deform::deform_scene(scene, example().device);
+  const auto& aorta = scene.vessels[0].mesh.mesh;
+  int erased = 0;
+  for (Eigen::Index k = 0; k < aorta.V.rows(); ++k) {
+    if (!out.vessels[0].erased[static_cast<std::size_t>(k)]) continue;
+    ++erased;
+    EXPECT_LT(aorta.V(k, 0), 1.0) << "erased aortic vertex " << k << " on the left side";
+  }
+  EXPECT_GT(erased, 0);
+}
+
+TEST(SceneDeformation, FindsTheIliacCarryingTheDeviceFromTheGeometry) {
+  // Nominal anatomy (no seeded variation: the iliacs are mirror images) with the device
+  // mirrored left-right, so it runs up the left iliac instead of the right.
+  sim::ExampleSceneParams p;
+  p.variation = 0.0;
+  auto ex = sim::make_example_scene(p);
+  for (auto& d : ex.device) d.x() *= -1.0;
+  const auto out = deform::deform_scene(sim::to_scene(ex), ex.device);
+  EXPECT_EQ(out.device_iliac, "iliac_left");
+  EXPECT_GT(out.reports[1].control_points, 0);
+  EXPECT_EQ(out.reports[2].control_points, 0);
+  EXPECT_EQ(out.reports[2].role, "follows the aorta");
+}
+
+TEST(SceneDeformation, ContralateralIliacFollowsTheAortaWithoutChangingShape) {
+  const auto scene = sim::to_scene(example());
+  const auto out = deform::deform_scene(scene, example().device);
+  EXPECT_EQ(out.reports[1].role, "follows the aorta");
+  const auto d = (out.vessels[1].mesh.V - scene.vessels[1].mesh.mesh.V).eval();
+  // One translation for every vertex: the shape is kept exactly.
+  EXPECT_LT((d.rowwise() - d.row(0)).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+TEST(SceneDeformation, RefusesAReversedIliacCenterline) {
+  auto scene = sim::to_scene(example());
+  std::reverse(scene.vessels[2].centerline.begin(), scene.vessels[2].centerline.end());
+  try {
+    deform::SceneDeformer deformer(scene);
+    FAIL() << "expected an InputError";
+  } catch (const geometry::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("iliac_right.centerline.mrk.json"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("runs toward the aorta"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SceneDeformation, RefusesALandmarkFarFromEveryVessel) {
+  auto scene = sim::to_scene(example());
+  scene.landmarks.push_back({"stray", {300.0, 0.0, 0.0}});
+  try {
+    deform::SceneDeformer deformer(scene);
+    FAIL() << "expected an InputError";
+  } catch (const geometry::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("landmark 'stray'"), std::string::npos) << e.what();
+  }
+}
+
+TEST(SceneDeformation, RefusesADeviceWithAStrayFarPoint) {
+  const auto scene = sim::to_scene(example());
+  auto device = example().device;
+  device.insert(device.begin() + 10, Eigen::Vector3d(9e4, 0.0, 0.0));
+  try {
+    deform::deform_scene(scene, device);
+    FAIL() << "expected an InputError";
+  } catch (const geometry::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("stray control point"), std::string::npos) << e.what();
+  }
+}

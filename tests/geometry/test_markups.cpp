@@ -194,7 +194,7 @@ TEST(ReadFiducials, CollectsAllFiducialPointsWithLabels) {
 
 TEST(WriteMarkups, RoundTripsExactlyAndWritesSlicerFields) {
   const fs::path file = test_dir() / "out.mrk.json";
-  Markup curve{"Curve", "device", {{"D-1", {0.1, -0.2, 1.0 / 3.0}}, {"D-2", {1e-9, 123456.789, -7.0}}}};
+  Markup curve{"Curve", "device", {{"D-1", {0.1, -0.2, 1.0 / 3.0}}, {"D-2", {1e-9, 12345.6789, -7.0}}}};
   Markup landmarks{"Fiducial", "landmarks", {{"renal_left", {1, 2, 3}}}};
   write_markups(file, {curve, landmarks});
 
@@ -239,6 +239,8 @@ TEST(ReadMarkups, MalformedFilesNameTheFileAndTheJsonPath) {
   const std::vector<Case> cases = {
       {"syntax.mrk.json", R"({"markups": [ {"type": "Curve",, } ]})", "invalid JSON: parse error at line 1"},
       {"empty.mrk.json", "", "invalid JSON"},
+      {"far.mrk.json", R"({"markups": [{"type": "Curve", "controlPoints": [{"position": [0, 1e6, 0]}]}]})",
+       "markups[0].controlPoints[0].position[1]: implausibly far from the origin"},
       {"overflow.mrk.json", R"({"markups": [{"type": "Curve", "controlPoints": [{"position": [1e999, 0, 0]}]}]})",
        "invalid JSON"},
       {"array.mrk.json", "[1, 2]", "top level: expected a JSON object, found array"},

@@ -732,3 +732,19 @@ TEST(StlRead, SliversWhoseCornersWeldTogetherAreDropped) {
   EXPECT_EQ(loaded.mesh.F.rows(), 12);
   EXPECT_NO_THROW(validate_mesh(loaded.mesh, path.string()));
 }
+
+TEST(ValidateMesh, RefusesCoordinatesBeyondAHundredMetres) {
+  TriangleMesh far = unit_cube();
+  far.V(3, 1) = 2e5;
+  EXPECT_THAT(validate_error(far), HasSubstr("vertex 3 lies implausibly far from the origin"));
+}
+
+TEST(MeshTopology, ClosedMeshesAndMedianEdgeLength) {
+  const TriangleMesh cube = unit_cube();
+  EXPECT_TRUE(is_closed(cube));
+  TriangleMesh open = cube;
+  open.F.conservativeResize(open.F.rows() - 1, 3);
+  EXPECT_FALSE(is_closed(open));
+  // Cube edges are 1 (12 of 18 per 6 faces... 24 of 36 half-edges) or sqrt(2) (diagonals).
+  EXPECT_DOUBLE_EQ(median_edge_length(cube), 1.0);
+}

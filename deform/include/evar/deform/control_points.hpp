@@ -18,7 +18,7 @@ namespace evar::deform {
 
 struct ControlPointOptions {
   double device_thickness_mm = 0.9;  ///< Δd
-  /// Minimum distance between two handles' hit points; 0 = 1.5 x the mesh's mean edge
+  /// Minimum distance between two handles' hit points; 0 = 1.5 x the mesh's median edge
   /// length. This is the resampling that keeps handles evenly spaced in tortuous vessels.
   double spacing_mm = 0.0;
   double sample_step_mm = 0.5;       ///< sampling of centerline and device for the rays

@@ -6,7 +6,7 @@
 // plane centre is an extra unknown joined to its hits (spokes) and to the neighbouring
 // centres (axis). Spokes and axis edges enter the ARAP energy as terms of their centre's
 // cell, so a cross-section resists flattening and the tube keeps its volume; see
-// docs/SKELETON.md for why the stacked system stays symmetric positive definite.
+// docs/DEFORMATION.md for why the stacked system stays symmetric positive definite.
 #include <Eigen/Core>
 #include <vector>
 

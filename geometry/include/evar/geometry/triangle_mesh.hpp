@@ -15,10 +15,23 @@ struct TriangleMesh {
   Faces F;     ///< #F by 3
 };
 
+/// Largest coordinate magnitude accepted from files (mm): 100 m. Beyond it a file has the
+/// wrong units or garbage, and squared lengths would overflow downstream.
+inline constexpr double kMaxCoordinateMm = 1e5;
+
 /// Checks what the deformation relies on and throws InputError naming `source` and the
-/// offending vertex/face/edge: at least one face, finite coordinates, indices in range,
+/// offending vertex/face/edge: at least one face, finite coordinates within
+/// kMaxCoordinateMm, indices in range,
 /// no triangle with a repeated index, no edge shared by more than two faces.
 void validate_mesh(const TriangleMesh& mesh, std::string_view source);
+
+/// True when every edge is shared by exactly two faces (a closed surface, which has an
+/// inside for ray-parity tests).
+bool is_closed(const TriangleMesh& mesh);
+
+/// Median edge length (mm) over all face edges (robust to a few stray vertices); 0 for a
+/// mesh without faces.
+double median_edge_length(const TriangleMesh& mesh);
 
 /// Mean edge length (mm) over all face edges; 0 for a mesh without faces.
 double mean_edge_length(const TriangleMesh& mesh);
