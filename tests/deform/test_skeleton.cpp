@@ -89,3 +89,37 @@ TEST(Skeleton, KeepsABentTubesVolumeBetterThanPlainArap) {
   std::cout << "relative volume change: plain ARAP " << plain << ", skeleton-based " << skeletal << "\n";
   EXPECT_LT(skeletal, 0.5 * plain);
 }
+
+TEST(Skeleton, EnergyNeverIncreasesWithSkeletonAndTetherAsDeformRunsIt) {
+  // The production configuration: surface + skeleton terms, a tether (ℓ = 50 mm), device
+  // like handles on one side only, Anderson on.
+  const auto m = test::straight_tube(80.0, 10.0, 32, 1.5);
+  const int n = static_cast<int>(m.V.rows());
+  const geometry::RayCaster caster(m);
+  const auto sk = deform::build_skeleton(caster, test::straight_centerline(80.0));
+  const int centres = static_cast<int>(sk.centres.size());
+  deform::ArapTerms terms = deform::surface_arap_terms(m.V, deform::cotangent_weights(m), n + centres);
+  deform::append_skeleton_terms(terms, m, sk, n, 1.0);
+  deform::ArapTether tether;
+  tether.weight.assign(static_cast<std::size_t>(n + centres), 0.0);
+  tether.anchor = deform::Positions::Zero(n + centres, 3);
+  tether.anchor.topRows(n) = m.V;
+  for (int i = 0; i < n; ++i) tether.weight[static_cast<std::size_t>(i)] = 2.0 / (50.0 * 50.0);  // ~2 mm² per vertex
+  std::vector<int> handles;
+  deform::Positions targets(0, 3);
+  for (int i = 0; i < n; ++i)
+    if (m.V(i, 0) > 8.0 && m.V(i, 2) > 30.0 && m.V(i, 2) < 50.0) {  // one side, middle
+      handles.push_back(i);
+      targets.conservativeResize(targets.rows() + 1, 3);
+      targets.row(targets.rows() - 1) = m.V.row(i) + Eigen::RowVector3d(6.0, 0.0, 2.0);
+    }
+  ASSERT_GT(handles.size(), 10u);
+  deform::ArapOptions opt;
+  opt.tolerance_mm = 1e-4;
+  const auto r = deform::ArapSolver(std::move(terms), handles, opt, tether).solve(targets);
+  EXPECT_TRUE(r.converged);
+  ASSERT_GE(r.energy.size(), 3u);
+  for (std::size_t k = 1; k < r.energy.size(); ++k)
+    EXPECT_LE(r.energy[k], r.energy[k - 1] * (1.0 + 1e-12)) << "iteration " << k;
+  EXPECT_LT(r.energy.back(), r.energy.front());
+}
