@@ -11,6 +11,7 @@
 #include <stdexcept>
 
 #include "evar/deform/landmark_binding.hpp"
+#include "evar/deform/registration_tether.hpp"
 #include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/input_error.hpp"
 
@@ -40,23 +41,6 @@ using VesselModel = SceneDeformer::VesselModel;
 // Ostium landmarks are placed on the wall; 10 mm off is already a different structure.
 constexpr double kMaxLandmarkDistanceMm = 10.0;
 
-ArapTether registration_tether(const geometry::TriangleMesh& mesh, int unknowns, double length_mm) {
-  ArapTether tether;
-  if (!(length_mm > 0.0)) return tether;
-  // Barycentric vertex areas (mm²) over ℓ² (mm²): dimensionless like the cot weights.
-  const auto n = mesh.V.rows();
-  tether.weight.assign(static_cast<std::size_t>(unknowns), 0.0);
-  tether.anchor = Positions::Zero(unknowns, 3);
-  tether.anchor.topRows(n) = mesh.V;
-  const double inv_l2 = 1.0 / (length_mm * length_mm);
-  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
-    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose(), b = mesh.V.row(mesh.F(f, 1)).transpose(),
-                          c = mesh.V.row(mesh.F(f, 2)).transpose();
-    const double third = (b - a).cross(c - a).norm() / 6.0;
-    for (int j = 0; j < 3; ++j) tether.weight[static_cast<std::size_t>(mesh.F(f, j))] += third * inv_l2;
-  }
-  return tether;
-}
 
 std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformOptions& options) {
   auto m = std::make_unique<VesselModel>();
