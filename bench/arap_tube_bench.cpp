@@ -1,7 +1,9 @@
 // ARAP on a bent tube (surface ARAP, no skeleton), stage by stage, at ~7.5k, 30k and 120k
-// vertices, for both Cholesky backends: cotangent weights, assembly + factorization, one
-// local/global iteration (and its two halves separately), and the solve to convergence
-// with and without Anderson acceleration.
+// vertices, for both Cholesky backends: cotangent weights; the ArapSystem (assembly +
+// fill-reducing ordering, once per mesh); the ArapSolver for one constraint set (masking
+// the constrained rows to identity + numeric factorization); the whole ArapSolver(terms,
+// ...) constructor (both together); one local/global iteration (and its two halves
+// separately); and the solve to convergence with and without Anderson acceleration.
 //
 // Times: "Time" is wall time of the measured region (manual time where the region is part
 // of a loop body); counters *_ms are wall unless named cpu_*; cpu_ms is process CPU time
@@ -10,6 +12,9 @@
 
 #include <Eigen/SparseCholesky>
 #include <chrono>
+#include <map>
+#include <memory>
+#include <utility>
 
 #include "bench_problems.hpp"
 
@@ -32,22 +37,29 @@ void set_common(benchmark::State& state, const bench::TubeProblem& p) {
   state.counters["constrained"] = static_cast<double>(p.constrained.size());
 }
 
-// A_FF (lower triangle) as ArapSolver builds it, for the triangular-solve benchmark.
-Eigen::SparseMatrix<double> free_block(const bench::TubeProblem& p) {
-  const Eigen::SparseMatrix<double> A = deform::assemble_system_matrix(p.terms);
-  std::vector<int> row(static_cast<std::size_t>(A.rows()), 0);
-  for (int c : p.constrained) row[static_cast<std::size_t>(c)] = -1;
-  int nf = 0;
-  for (auto& r : row) r = r < 0 ? -1 : nf++;
-  std::vector<Eigen::Triplet<double>> t;
-  for (int col = 0; col < A.outerSize(); ++col)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it) {
-      const int r = row[static_cast<std::size_t>(it.row())], c = row[static_cast<std::size_t>(col)];
-      if (r >= 0 && c >= 0 && r >= c) t.emplace_back(r, c, it.value());
-    }
-  Eigen::SparseMatrix<double> F(nf, nf);
-  F.setFromTriplets(t.begin(), t.end());
-  return F;
+// The ArapSystem of a tube problem for a backend, built once (outside any timing).
+const std::shared_ptr<const deform::ArapSystem>& tube_system(int vertices, deform::CholeskyBackend backend) {
+  static std::map<std::pair<int, int>, std::shared_ptr<const deform::ArapSystem>> cache;
+  auto& slot = cache[{vertices, static_cast<int>(backend)}];
+  if (!slot) {
+    deform::ArapOptions opt;
+    opt.backend = backend;
+    slot = std::make_shared<const deform::ArapSystem>(bent_tube(vertices).terms, opt);
+  }
+  return slot;
+}
+
+// The matrix ArapSolver factors: A with the constrained rows and columns set to identity
+// (pattern unchanged, explicit zeros kept), for the triangular-solve benchmark.
+Eigen::SparseMatrix<double> masked_matrix(const deform::ArapSystem& system, const std::vector<int>& constrained) {
+  std::vector<char> is_c(static_cast<std::size_t>(system.num_unknowns()), 0);
+  for (int c : constrained) is_c[static_cast<std::size_t>(c)] = 1;
+  Eigen::SparseMatrix<double> M = system.matrix();
+  for (int col = 0; col < M.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(M, col); it; ++it)
+      if (is_c[static_cast<std::size_t>(it.row())] || is_c[static_cast<std::size_t>(col)])
+        it.valueRef() = (it.row() == col) ? 1.0 : 0.0;
+  return M;
 }
 
 // --- cotangent weights (+ building the ARAP terms from them) -------------------------
@@ -72,13 +84,13 @@ void BM_TubeWeights(benchmark::State& state, int vertices) {
   state.counters["cpu_ms"] = avg(cpu);
 }
 
-// --- ArapSolver constructor: assembly + factorization ---------------------------------
+// --- ArapSolver(terms, constrained) constructor: ArapSystem + ArapSolver together ----
 void BM_TubeFactor(benchmark::State& state, int vertices, int backend_arg) {
   const auto& p = bent_tube(vertices);
   deform::ArapOptions opt;
   opt.backend = bench::backend_arg(backend_arg);
   if (!bench::backend_usable(state, opt.backend)) return;
-  double assemble = 0, factor = 0, total = 0, cpu = 0;
+  double assemble = 0, ordering = 0, masking = 0, factor = 0, total = 0, cpu = 0;
   for (auto _ : state) {
     auto terms = p.terms;  // the constructor takes its terms by value: copy outside the timing
     auto constrained = p.constrained;
@@ -88,35 +100,133 @@ void BM_TubeFactor(benchmark::State& state, int vertices, int backend_arg) {
     const auto t1 = Clock::now();
     cpu += bench::cpu_ms() - c0;
     state.SetIterationTime(ms_between(t0, t1) / 1e3);
-    assemble += solver.assemble_ms();
+    assemble += solver.system().assemble_ms();
+    ordering += solver.system().ordering_ms();
+    masking += solver.assemble_ms() - solver.system().assemble_ms();
     factor += solver.factor_ms();
     total += ms_between(t0, t1);
   }
   set_common(state, p);
   state.SetLabel(bench::backend_label(opt.backend));
-  state.counters["assemble_ms"] = avg(assemble);
-  state.counters["factor_ms"] = avg(factor);
-  state.counters["ctor_ms"] = avg(total);  // + component check and free/constrained split
+  state.counters["assemble_ms"] = avg(assemble);  // A (+ tether) assembled
+  state.counters["ordering_ms"] = avg(ordering);  // AMD of A's pattern (CHOLMOD orders again itself)
+  state.counters["masking_ms"] = avg(masking);    // copy of A, constrained rows/cols -> identity
+  state.counters["factor_ms"] = avg(factor);      // numeric factorization (Eigen: + symbolic, natural order)
+  state.counters["ctor_ms"] = avg(total);
   state.counters["cpu_ms"] = avg(cpu);
 }
 
-// --- the triangular solves of one global step (3 right-hand sides) --------------------
+// --- ArapSystem construction alone: assembly + AMD ordering (once per mesh) -----------
+void BM_TubeSystem(benchmark::State& state, int vertices) {
+  const auto& p = bent_tube(vertices);
+  double assemble = 0, ordering = 0, total = 0, cpu = 0;
+  for (auto _ : state) {
+    auto terms = p.terms;  // copied outside the timing
+    const double c0 = bench::cpu_ms();
+    const auto t0 = Clock::now();
+    const deform::ArapSystem system(std::move(terms));
+    const auto t1 = Clock::now();
+    cpu += bench::cpu_ms() - c0;
+    state.SetIterationTime(ms_between(t0, t1) / 1e3);
+    assemble += system.assemble_ms();
+    ordering += system.ordering_ms();
+    total += ms_between(t0, t1);
+    benchmark::DoNotOptimize(system.matrix().valuePtr());
+  }
+  set_common(state, p);
+  state.counters["assemble_ms"] = avg(assemble);
+  state.counters["ordering_ms"] = avg(ordering);
+  state.counters["system_ms"] = avg(total);
+  state.counters["cpu_ms"] = avg(cpu);
+  state.counters["nnz_A"] = static_cast<double>(tube_system(vertices, deform::CholeskyBackend::EigenLDLT)->matrix().nonZeros());
+}
+
+// --- ArapSolver(system, constrained): masking + numeric factorization, per constraint set
+void BM_TubeSolverForConstraints(benchmark::State& state, int vertices, int backend_arg) {
+  const auto& p = bent_tube(vertices);
+  const auto backend = bench::backend_arg(backend_arg);
+  if (!bench::backend_usable(state, backend)) return;
+  const auto& system = tube_system(vertices, backend);
+  double masking = 0, factor = 0, total = 0, cpu = 0;
+  for (auto _ : state) {
+    auto constrained = p.constrained;
+    const double c0 = bench::cpu_ms();
+    const auto t0 = Clock::now();
+    const deform::ArapSolver solver(system, std::move(constrained));
+    const auto t1 = Clock::now();
+    cpu += bench::cpu_ms() - c0;
+    state.SetIterationTime(ms_between(t0, t1) / 1e3);
+    masking += solver.assemble_ms() - system->assemble_ms();
+    factor += solver.factor_ms();
+    total += ms_between(t0, t1);
+  }
+  set_common(state, p);
+  state.SetLabel(bench::backend_label(backend));
+  state.counters["masking_ms"] = avg(masking);
+  state.counters["factor_ms"] = avg(factor);
+  state.counters["solver_ms"] = avg(total);  // + index checks
+  state.counters["cpu_ms"] = avg(cpu);
+}
+
+// --- for comparison, the bd2df38 path: only the free block A_FF (constrained rows and
+// columns removed), ordered by Eigen's own AMD and factored (AMD + symbolic + numeric) ---
+Eigen::SparseMatrix<double> free_block(const deform::ArapSystem& system, const std::vector<int>& constrained) {
+  const auto& A = system.matrix();
+  std::vector<int> row(static_cast<std::size_t>(A.rows()), 0);
+  for (int c : constrained) row[static_cast<std::size_t>(c)] = -1;
+  int nf = 0;
+  for (auto& r : row) r = r < 0 ? -1 : nf++;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int col = 0; col < A.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it) {
+      const int r = row[static_cast<std::size_t>(it.row())], c = row[static_cast<std::size_t>(col)];
+      if (r >= 0 && c >= 0 && r >= c) t.emplace_back(r, c, it.value());
+    }
+  Eigen::SparseMatrix<double> F(nf, nf);
+  F.setFromTriplets(t.begin(), t.end());
+  return F;
+}
+
+void BM_TubeFreeBlockFactor(benchmark::State& state, int vertices) {
+  const auto& p = bent_tube(vertices);
+  const auto& system = *tube_system(vertices, deform::CholeskyBackend::EigenLDLT);
+  const Eigen::SparseMatrix<double> A_FF = free_block(system, p.constrained);
+  double cpu = 0;
+  for (auto _ : state) {
+    const double c0 = bench::cpu_ms();
+    const deform::SparseCholesky chol(A_FF, deform::CholeskyBackend::EigenLDLT);
+    cpu += bench::cpu_ms() - c0;
+    benchmark::DoNotOptimize(&chol);
+  }
+  set_common(state, p);
+  state.SetLabel("eigen, A_FF with its own AMD (bd2df38)");
+  state.counters["cpu_ms"] = avg(cpu);
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(A_FF);
+  state.counters["nnz_L"] = static_cast<double>(ldlt.matrixL().nestedExpression().nonZeros());
+}
+
+// --- the triangular solves of one global step (3 right-hand sides), on the matrix and
+// ordering ArapSolver uses (full size, constrained rows identity; Eigen: the system's AMD)
 void BM_TubeTriangularSolve(benchmark::State& state, int vertices, int backend_arg) {
   const auto& p = bent_tube(vertices);
   const auto backend = bench::backend_arg(backend_arg);
   if (!bench::backend_usable(state, backend)) return;
-  const Eigen::SparseMatrix<double> A_FF = free_block(p);
-  const deform::SparseCholesky chol(A_FF, backend);
-  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(A_FF.rows(), 3);
+  const auto& system = *tube_system(vertices, backend);
+  const Eigen::SparseMatrix<double> M = masked_matrix(system, p.constrained);
+  const deform::SparseCholesky chol(M, system.ordering(), backend);
+  const Eigen::MatrixXd B = Eigen::MatrixXd::Random(M.rows(), 3);
   for (auto _ : state) {
     Eigen::MatrixXd X = chol.solve(B);
     benchmark::DoNotOptimize(X.data());
   }
   set_common(state, p);
   state.SetLabel(bench::backend_label(backend));
-  state.counters["nnz_A_FF_lower"] = static_cast<double>(A_FF.nonZeros());
+  state.counters["nnz_A_lower"] = static_cast<double>(Eigen::SparseMatrix<double>(M.triangularView<Eigen::Lower>()).nonZeros());
   if (backend == deform::CholeskyBackend::EigenLDLT) {
-    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(A_FF);
+    // The factor as SparseCholesky builds it: P A Pᵀ in natural order.
+    Eigen::SparseMatrix<double> PAPt;
+    PAPt.selfadjointView<Eigen::Lower>() = M.selfadjointView<Eigen::Lower>().twistedBy(system.ordering().inverse());
+    Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(PAPt);
     state.counters["nnz_L"] = static_cast<double>(ldlt.matrixL().nestedExpression().nonZeros());
   }
 }
@@ -213,9 +323,12 @@ struct Registrar {
       const std::string s = std::to_string(v);
       add("tube_weights/" + s, iterations_for(v, 40, 10, 3), false, BM_TubeWeights, v);
       add("tube_local_step/" + s, iterations_for(v, 40, 10, 3), false, BM_TubeLocalStep, v);
+      add("tube_system/" + s, iterations_for(v, 20, 5, 2), true, BM_TubeSystem, v);
+      add("tube_free_block_factor/" + s, iterations_for(v, 20, 5, 2), false, BM_TubeFreeBlockFactor, v);
       for (int b = 0; b < 2; ++b) {
         const std::string sb = s + "/" + backends[b];
         add("tube_factor/" + sb, iterations_for(v, 20, 5, 2), true, BM_TubeFactor, v, b);
+        add("tube_constraint_set/" + sb, iterations_for(v, 20, 5, 2), true, BM_TubeSolverForConstraints, v, b);
         add("tube_triangular_solve/" + sb, iterations_for(v, 100, 30, 10), false, BM_TubeTriangularSolve, v, b);
         for (bool a : {true, false}) {
           const std::string sba = sb + (a ? "/anderson" : "/plain");

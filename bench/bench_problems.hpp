@@ -99,25 +99,6 @@ inline sim::ExampleSceneParams scene_params(int aorta_vertices) {
   return p;
 }
 
-/// The example anatomy as a loaded scene (what load_scene gives for its files).
-inline geometry::Scene to_scene(const sim::ExampleScene& ex) {
-  geometry::Scene s;
-  s.file = "example/scene.json";
-  for (const auto& v : ex.vessels) {
-    geometry::Vessel gv;
-    gv.name = v.name;
-    gv.kind = v.kind;
-    gv.mesh_path = v.name + ".stl";
-    gv.centerline_path = v.name + ".centerline.mrk.json";
-    gv.mesh = {v.mesh, geometry::MeshFormat::StlBinary};
-    gv.centerline = v.centerline;
-    s.vessels.push_back(std::move(gv));
-  }
-  s.landmarks = ex.landmarks;
-  s.device_thickness_mm = ex.device_thickness_mm;
-  return s;
-}
-
 struct SceneProblem {
   sim::ExampleScene example;
   geometry::Scene scene;
@@ -129,7 +110,7 @@ inline const SceneProblem& example_scene(int aorta_vertices) {
   if (!slot) {
     slot = std::make_unique<SceneProblem>();
     slot->example = sim::make_example_scene(scene_params(aorta_vertices));
-    slot->scene = to_scene(slot->example);
+    slot->scene = sim::to_scene(slot->example);
   }
   return *slot;
 }

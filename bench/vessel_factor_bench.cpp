@@ -1,0 +1,171 @@
+// The aorta's ARAP system of the example scene (surface + skeleton terms + registration
+// tether, as SceneDeformer builds it) and its factorization for the first containment
+// round's constraint set, at the three scene resolutions:
+//
+//   vessel_system/<n>       ArapSystem construction (assembly + AMD ordering; SceneDeformer
+//                           does this once per vessel);
+//   vessel_factor/<n>       ArapSolver(system, constrained): masking + numeric factorization
+//                           (what each deform() call pays per round);
+//   vessel_free_block/<n>   for comparison, the bd2df38 path: the free block A_FF ordered
+//                           by Eigen's own AMD and factored (AMD + symbolic + numeric).
+//
+// The set-up mirrors SceneDeformer's private make_model() with default DeformOptions; the
+// deform benchmarks time the product code itself.
+#include <benchmark/benchmark.h>
+
+#include <Eigen/SparseCholesky>
+#include <chrono>
+#include <map>
+#include <memory>
+
+#include "bench_problems.hpp"
+#include "evar/deform/control_points.hpp"
+#include "evar/deform/registration_tether.hpp"
+#include "evar/deform/scene_deformation.hpp"
+#include "evar/deform/skeleton.hpp"
+#include "evar/geometry/ray_caster.hpp"
+
+using namespace evar;
+using bench::avg;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+struct AortaProblem {
+  deform::ArapTerms terms;
+  deform::ArapTether tether;
+  std::shared_ptr<const deform::ArapSystem> system;
+  std::vector<int> constrained;  ///< handle vertices of the first round
+  int vertices = 0;
+};
+
+const AortaProblem& aorta(int aorta_vertices) {
+  static std::map<int, std::unique_ptr<AortaProblem>> cache;
+  auto& slot = cache[aorta_vertices];
+  if (slot) return *slot;
+  const auto& sp = bench::example_scene(aorta_vertices);
+  const geometry::Vessel* v = nullptr;
+  for (const auto& x : sp.scene.vessels)
+    if (x.kind == geometry::VesselKind::Aorta) v = &x;
+  const deform::DeformOptions opt;
+  const auto& mesh = v->mesh.mesh;
+  const geometry::RayCaster caster(mesh);
+  const auto skeleton = deform::build_skeleton(caster, v->centerline, opt.skeleton);
+  const int n = static_cast<int>(mesh.V.rows());
+  const int centres = static_cast<int>(skeleton.centres.size());
+  auto p = std::make_unique<AortaProblem>();
+  p->vertices = n;
+  p->terms = deform::surface_arap_terms(mesh.V, deform::cotangent_weights(mesh), n + centres);
+  deform::append_skeleton_terms(p->terms, mesh, skeleton, n, opt.skeleton.weight);
+  p->tether = deform::registration_tether(mesh, n + centres, opt.tether_length_mm);
+  p->system = std::make_shared<const deform::ArapSystem>(p->terms, opt.arap, p->tether);
+  auto control = opt.control;
+  control.device_thickness_mm = sp.scene.device_thickness_mm;
+  const auto handles =
+      deform::select_control_points(mesh, caster, v->centerline, deform::radius_profile(skeleton), sp.example.device, control);
+  for (const auto& [k, target] : deform::handle_vertex_targets(mesh, handles)) p->constrained.push_back(k);
+  slot = std::move(p);
+  return *slot;
+}
+
+void set_common(benchmark::State& state, const AortaProblem& p) {
+  state.counters["vertices"] = p.vertices;
+  state.counters["unknowns"] = p.system->num_unknowns();
+  state.counters["constrained"] = static_cast<double>(p.constrained.size());
+}
+
+void BM_VesselSystem(benchmark::State& state, int aorta_vertices) {
+  const auto& p = aorta(aorta_vertices);
+  double assemble = 0, ordering = 0, cpu = 0;
+  for (auto _ : state) {
+    auto terms = p.terms;  // copies outside the timing
+    auto tether = p.tether;
+    const double c0 = bench::cpu_ms();
+    const auto t0 = Clock::now();
+    const deform::ArapSystem system(std::move(terms), deform::ArapOptions{}, std::move(tether));
+    const auto t1 = Clock::now();
+    cpu += bench::cpu_ms() - c0;
+    state.SetIterationTime(std::chrono::duration<double>(t1 - t0).count());
+    assemble += system.assemble_ms();
+    ordering += system.ordering_ms();
+  }
+  set_common(state, p);
+  state.counters["assemble_ms"] = avg(assemble);
+  state.counters["ordering_ms"] = avg(ordering);
+  state.counters["cpu_ms"] = avg(cpu);
+  state.counters["nnz_A"] = static_cast<double>(p.system->matrix().nonZeros());
+}
+
+void BM_VesselFactor(benchmark::State& state, int aorta_vertices) {
+  const auto& p = aorta(aorta_vertices);
+  double masking = 0, factor = 0, cpu = 0;
+  for (auto _ : state) {
+    auto constrained = p.constrained;
+    const double c0 = bench::cpu_ms();
+    const auto t0 = Clock::now();
+    const deform::ArapSolver solver(p.system, std::move(constrained));
+    const auto t1 = Clock::now();
+    cpu += bench::cpu_ms() - c0;
+    state.SetIterationTime(std::chrono::duration<double>(t1 - t0).count());
+    masking += solver.assemble_ms() - p.system->assemble_ms();
+    factor += solver.factor_ms();
+  }
+  set_common(state, p);
+  state.SetLabel("eigen, system ordering");
+  state.counters["masking_ms"] = avg(masking);
+  state.counters["factor_ms"] = avg(factor);
+  state.counters["cpu_ms"] = avg(cpu);
+  // nnz(L) as SparseCholesky builds it: masked A, P A Pᵀ in natural order.
+  std::vector<char> is_c(static_cast<std::size_t>(p.system->num_unknowns()), 0);
+  for (int c : p.constrained) is_c[static_cast<std::size_t>(c)] = 1;
+  Eigen::SparseMatrix<double> M = p.system->matrix();
+  for (int col = 0; col < M.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(M, col); it; ++it)
+      if (is_c[static_cast<std::size_t>(it.row())] || is_c[static_cast<std::size_t>(col)])
+        it.valueRef() = (it.row() == col) ? 1.0 : 0.0;
+  Eigen::SparseMatrix<double> PAPt;
+  PAPt.selfadjointView<Eigen::Lower>() = M.selfadjointView<Eigen::Lower>().twistedBy(p.system->ordering().inverse());
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::NaturalOrdering<int>> ldlt(PAPt);
+  state.counters["nnz_L"] = static_cast<double>(ldlt.matrixL().nestedExpression().nonZeros());
+}
+
+void BM_VesselFreeBlock(benchmark::State& state, int aorta_vertices) {
+  const auto& p = aorta(aorta_vertices);
+  const auto& A = p.system->matrix();
+  std::vector<int> row(static_cast<std::size_t>(A.rows()), 0);
+  for (int c : p.constrained) row[static_cast<std::size_t>(c)] = -1;
+  int nf = 0;
+  for (auto& r : row) r = r < 0 ? -1 : nf++;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int col = 0; col < A.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it) {
+      const int r = row[static_cast<std::size_t>(it.row())], c = row[static_cast<std::size_t>(col)];
+      if (r >= 0 && c >= 0 && r >= c) t.emplace_back(r, c, it.value());
+    }
+  Eigen::SparseMatrix<double> F(nf, nf);
+  F.setFromTriplets(t.begin(), t.end());
+  double cpu = 0;
+  for (auto _ : state) {
+    const double c0 = bench::cpu_ms();
+    const deform::SparseCholesky chol(F, deform::CholeskyBackend::EigenLDLT);
+    cpu += bench::cpu_ms() - c0;
+    benchmark::DoNotOptimize(&chol);
+  }
+  set_common(state, p);
+  state.SetLabel("eigen, A_FF with its own AMD (bd2df38)");
+  state.counters["cpu_ms"] = avg(cpu);
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(F);
+  state.counters["nnz_L"] = static_cast<double>(ldlt.matrixL().nestedExpression().nonZeros());
+}
+
+}  // namespace
+
+BENCHMARK_CAPTURE(BM_VesselSystem, 7500, 7500)->Iterations(20)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselFactor, 7500, 7500)->Iterations(20)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselFreeBlock, 7500, 7500)->Iterations(20)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselSystem, 30000, 30000)->Iterations(5)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselFactor, 30000, 30000)->Iterations(5)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselFreeBlock, 30000, 30000)->Iterations(5)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselSystem, 120000, 120000)->Iterations(2)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselFactor, 120000, 120000)->Iterations(2)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselFreeBlock, 120000, 120000)->Iterations(2)->Unit(benchmark::kMillisecond);
