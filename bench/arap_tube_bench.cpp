@@ -170,39 +170,11 @@ void BM_TubeSolverForConstraints(benchmark::State& state, int vertices, int back
 
 // --- for comparison, the bd2df38 path: only the free block A_FF (constrained rows and
 // columns removed), ordered by Eigen's own AMD and factored (AMD + symbolic + numeric) ---
-Eigen::SparseMatrix<double> free_block(const deform::ArapSystem& system, const std::vector<int>& constrained) {
-  const auto& A = system.matrix();
-  std::vector<int> row(static_cast<std::size_t>(A.rows()), 0);
-  for (int c : constrained) row[static_cast<std::size_t>(c)] = -1;
-  int nf = 0;
-  for (auto& r : row) r = r < 0 ? -1 : nf++;
-  std::vector<Eigen::Triplet<double>> t;
-  for (int col = 0; col < A.outerSize(); ++col)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it) {
-      const int r = row[static_cast<std::size_t>(it.row())], c = row[static_cast<std::size_t>(col)];
-      if (r >= 0 && c >= 0 && r >= c) t.emplace_back(r, c, it.value());
-    }
-  Eigen::SparseMatrix<double> F(nf, nf);
-  F.setFromTriplets(t.begin(), t.end());
-  return F;
-}
-
 void BM_TubeFreeBlockFactor(benchmark::State& state, int vertices) {
   const auto& p = bent_tube(vertices);
   const auto& system = *tube_system(vertices, deform::CholeskyBackend::EigenLDLT);
-  const Eigen::SparseMatrix<double> A_FF = free_block(system, p.constrained);
-  double cpu = 0;
-  for (auto _ : state) {
-    const double c0 = bench::cpu_ms();
-    const deform::SparseCholesky chol(A_FF, deform::CholeskyBackend::EigenLDLT);
-    cpu += bench::cpu_ms() - c0;
-    benchmark::DoNotOptimize(&chol);
-  }
+  bench::time_free_block_factor(state, bench::free_block(system, p.constrained));
   set_common(state, p);
-  state.SetLabel("eigen, A_FF with its own AMD (bd2df38)");
-  state.counters["cpu_ms"] = avg(cpu);
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(A_FF);
-  state.counters["nnz_L"] = static_cast<double>(ldlt.matrixL().nestedExpression().nonZeros());
 }
 
 // --- the triangular solves of one global step (3 right-hand sides), on the matrix and

@@ -5,6 +5,7 @@
 #include <benchmark/benchmark.h>
 
 #include <Eigen/Geometry>
+#include <Eigen/SparseCholesky>
 #include <cmath>
 #include <ctime>
 #include <map>
@@ -129,6 +130,41 @@ inline double cpu_ms() {
   timespec ts{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &ts);
   return static_cast<double>(ts.tv_sec) * 1e3 + static_cast<double>(ts.tv_nsec) * 1e-6;
+}
+
+/// The free block A_FF of a system (lower triangle) for a constraint set: what the solver
+/// factored before the shared ArapSystem (commit bd2df38), kept for comparison.
+inline Eigen::SparseMatrix<double> free_block(const deform::ArapSystem& system, const std::vector<int>& constrained) {
+  const auto& A = system.matrix();
+  std::vector<int> row(static_cast<std::size_t>(A.rows()), 0);
+  for (int c : constrained) row[static_cast<std::size_t>(c)] = -1;
+  int nf = 0;
+  for (auto& r : row) r = r < 0 ? -1 : nf++;
+  std::vector<Eigen::Triplet<double>> t;
+  for (int col = 0; col < A.outerSize(); ++col)
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it) {
+      const int r = row[static_cast<std::size_t>(it.row())], c = row[static_cast<std::size_t>(col)];
+      if (r >= 0 && c >= 0 && r >= c) t.emplace_back(r, c, it.value());
+    }
+  Eigen::SparseMatrix<double> F(nf, nf);
+  F.setFromTriplets(t.begin(), t.end());
+  return F;
+}
+
+/// Times factoring A_FF with its own AMD ordering (Eigen LDLT) over `state`'s iterations;
+/// sets the label and the cpu_ms and nnz_L counters.
+inline void time_free_block_factor(benchmark::State& state, const Eigen::SparseMatrix<double>& A_FF) {
+  double cpu = 0;
+  for (auto _ : state) {
+    const double c0 = cpu_ms();
+    const deform::SparseCholesky chol(A_FF, deform::CholeskyBackend::EigenLDLT);
+    cpu += cpu_ms() - c0;
+    benchmark::DoNotOptimize(&chol);
+  }
+  state.SetLabel("eigen, A_FF with its own AMD (bd2df38)");
+  state.counters["cpu_ms"] = state.iterations() > 0 ? cpu / static_cast<double>(state.iterations()) : 0.0;
+  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(A_FF);
+  state.counters["nnz_L"] = static_cast<double>(ldlt.matrixL().nestedExpression().nonZeros());
 }
 
 }  // namespace evar::bench

@@ -131,31 +131,8 @@ void BM_VesselFactor(benchmark::State& state, int aorta_vertices) {
 
 void BM_VesselFreeBlock(benchmark::State& state, int aorta_vertices) {
   const auto& p = aorta(aorta_vertices);
-  const auto& A = p.system->matrix();
-  std::vector<int> row(static_cast<std::size_t>(A.rows()), 0);
-  for (int c : p.constrained) row[static_cast<std::size_t>(c)] = -1;
-  int nf = 0;
-  for (auto& r : row) r = r < 0 ? -1 : nf++;
-  std::vector<Eigen::Triplet<double>> t;
-  for (int col = 0; col < A.outerSize(); ++col)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(A, col); it; ++it) {
-      const int r = row[static_cast<std::size_t>(it.row())], c = row[static_cast<std::size_t>(col)];
-      if (r >= 0 && c >= 0 && r >= c) t.emplace_back(r, c, it.value());
-    }
-  Eigen::SparseMatrix<double> F(nf, nf);
-  F.setFromTriplets(t.begin(), t.end());
-  double cpu = 0;
-  for (auto _ : state) {
-    const double c0 = bench::cpu_ms();
-    const deform::SparseCholesky chol(F, deform::CholeskyBackend::EigenLDLT);
-    cpu += bench::cpu_ms() - c0;
-    benchmark::DoNotOptimize(&chol);
-  }
+  bench::time_free_block_factor(state, bench::free_block(*p.system, p.constrained));
   set_common(state, p);
-  state.SetLabel("eigen, A_FF with its own AMD (bd2df38)");
-  state.counters["cpu_ms"] = avg(cpu);
-  Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt(F);
-  state.counters["nnz_L"] = static_cast<double>(ldlt.matrixL().nestedExpression().nonZeros());
 }
 
 }  // namespace
