@@ -114,6 +114,27 @@ const Warm& warm_deformer(int aorta_vertices, deform::CholeskyBackend backend, d
   return *slot;
 }
 
+// Times deform(device) on a prebuilt SceneDeformer for `state`'s iterations, summing the
+// per-vessel report counters into `sums`; `each` sees every result (extra counters).
+template <typename Each>
+void time_warm_deform(benchmark::State& state, const deform::SceneDeformer& deformer,
+                      const geometry::Polyline& device, std::map<std::string, double>& sums, Each each) {
+  double total = 0, cpu = 0;
+  for (auto _ : state) {
+    const double c0 = bench::cpu_ms();
+    const auto out = deformer.deform(device);
+    cpu += bench::cpu_ms() - c0;
+    state.SetIterationTime(out.total_ms / 1e3);
+    total += out.total_ms;
+    add_reports(sums, out, true);
+    each(out);
+  }
+  for (const auto& [name, sum] : sums) state.counters[name] = avg(sum);
+  add_per_iteration(state, sums);
+  state.counters["total_ms"] = avg(total);  // wall time of deform() per call
+  state.counters["cpu_ms"] = avg(cpu);
+}
+
 // --- warm: deform(device) on a prebuilt SceneDeformer ----------------------------------
 void BM_DeformWarm(benchmark::State& state, int aorta_vertices, int backend_arg) {
   const auto backend = bench::backend_arg(backend_arg);
@@ -121,19 +142,7 @@ void BM_DeformWarm(benchmark::State& state, int aorta_vertices, int backend_arg)
   const auto& sp = bench::example_scene(aorta_vertices);
   const auto& w = warm_deformer(aorta_vertices, backend, deform::ArapOptions{}.tolerance_mm);
   std::map<std::string, double> sums;
-  double total = 0, cpu = 0;
-  for (auto _ : state) {
-    const double c0 = bench::cpu_ms();
-    const auto out = w.deformer->deform(sp.example.device);
-    cpu += bench::cpu_ms() - c0;
-    state.SetIterationTime(out.total_ms / 1e3);
-    total += out.total_ms;
-    add_reports(sums, out, true);
-  }
-  for (const auto& [name, sum] : sums) state.counters[name] = avg(sum);
-  add_per_iteration(state, sums);
-  state.counters["total_ms"] = avg(total);  // wall time of deform() per call
-  state.counters["cpu_ms"] = avg(cpu);
+  time_warm_deform(state, *w.deformer, sp.example.device, sums, [](const deform::SceneDeformation&) {});
   state.counters["precompute_ms"] = w.construct_ms;  // the SceneDeformer constructor (once)
   state.SetLabel(bench::backend_label(backend) + ", warm");
 }
@@ -159,14 +168,7 @@ void BM_DeformFixedPoint(benchmark::State& state, double tolerance_mm) {
   const auto& ref = deform_reference();
   const auto& w = warm_deformer(7500, deform::CholeskyBackend::EigenLDLT, tolerance_mm);
   std::map<std::string, double> sums;
-  double total = 0, cpu = 0;
-  for (auto _ : state) {
-    const double c0 = bench::cpu_ms();
-    const auto out = w.deformer->deform(sp.example.device);
-    cpu += bench::cpu_ms() - c0;
-    state.SetIterationTime(out.total_ms / 1e3);
-    total += out.total_ms;
-    add_reports(sums, out, true);
+  time_warm_deform(state, *w.deformer, sp.example.device, sums, [&](const deform::SceneDeformation& out) {
     for (std::size_t i = 0; i < out.vessels.size(); ++i) {
       const auto& name = out.reports[i].name;
       const auto d = (out.vessels[i].mesh.V - ref.vessels[i].mesh.V).rowwise().norm();
@@ -175,11 +177,7 @@ void BM_DeformFixedPoint(benchmark::State& state, double tolerance_mm) {
       sums[name + ".ref_iterations"] += ref.reports[i].iterations;
       sums[name + ".ref_control_points"] += ref.reports[i].control_points;
     }
-  }
-  for (const auto& [name, sum] : sums) state.counters[name] = avg(sum);
-  add_per_iteration(state, sums);
-  state.counters["total_ms"] = avg(total);
-  state.counters["cpu_ms"] = avg(cpu);
+  });
   state.SetLabel("eigen, warm, tolerance " + std::to_string(tolerance_mm) + " mm, reference 1e-6 mm");
 }
 

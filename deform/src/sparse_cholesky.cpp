@@ -54,43 +54,6 @@ Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> fill_reducing_orde
   return perm;
 }
 
-namespace {
-// L D Lᵀ y = b for all columns of b in one sweep of L per triangle (Eigen's sparse
-// triangular solve sweeps L once per column; the factor is the memory traffic).
-template <typename Ldlt>
-Eigen::MatrixXd solve_ordered(const Ldlt& ldlt, const Eigen::MatrixXd& b) {
-  const auto& L = ldlt.matrixL().nestedExpression();  // column-major, strictly lower, unit diagonal
-  const auto& D = ldlt.vectorD();
-  const Eigen::Index n = b.rows(), k = b.cols();
-  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> y = b;
-  double* Y = y.data();
-  const int* outer = L.outerIndexPtr();
-  const int* inner = L.innerIndexPtr();
-  const double* value = L.valuePtr();
-  for (Eigen::Index j = 0; j < n; ++j) {  // forward: L z = b
-    const double* yj = Y + j * k;
-    for (int p = outer[j]; p < outer[j + 1]; ++p) {
-      const Eigen::Index i = inner[p];
-      if (i <= j) continue;
-      double* yi = Y + i * k;
-      for (Eigen::Index c = 0; c < k; ++c) yi[c] -= value[p] * yj[c];
-    }
-  }
-  for (Eigen::Index j = 0; j < n; ++j)  // D w = z
-    for (Eigen::Index c = 0; c < k; ++c) Y[j * k + c] /= D[j];
-  for (Eigen::Index j = n - 1; j >= 0; --j) {  // backward: Lᵀ y = w
-    double* yj = Y + j * k;
-    for (int p = outer[j]; p < outer[j + 1]; ++p) {
-      const Eigen::Index i = inner[p];
-      if (i <= j) continue;
-      const double* yi = Y + i * k;
-      for (Eigen::Index c = 0; c < k; ++c) yj[c] -= value[p] * yi[c];
-    }
-  }
-  return y;
-}
-}  // namespace
-
 struct SparseCholesky::Impl {
   Eigen::SimplicialLDLT<Eigen::SparseMatrix<double>, Eigen::Lower, Eigen::AMDOrdering<int>> ldlt;
   // With a given ordering: P A Pᵀ factored in natural order.
@@ -149,7 +112,7 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
 #ifdef EVAR_HAVE_CHOLMOD
   if (backend_ == CholeskyBackend::Cholmod) return impl_->cholmod->solve(B);
 #endif
-  if (impl_->ordered) return impl_->perm.transpose() * solve_ordered(impl_->ldlt_ordered, impl_->perm * B);
+  if (impl_->ordered) return impl_->perm.transpose() * Eigen::MatrixXd(impl_->ldlt_ordered.solve(impl_->perm * B));
   return impl_->ldlt.solve(B);
 }
 
