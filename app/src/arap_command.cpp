@@ -9,6 +9,7 @@
 #include "evar/deform/cotangent_weights.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/mesh_io.hpp"
+#include "json_file.hpp"
 #include "logging.hpp"
 
 namespace evar::app {
@@ -147,9 +148,7 @@ int run_arap(const ArapCommand& cmd) {
                         {"last_update_mm", r.last_update_mm},
                         {"energy", r.energy.back()},
                         {"energy_history", r.energy}};
-    std::ofstream f(cmd.report);
-    f << j.dump(2) << '\n';
-    if (!f) throw std::runtime_error(cmd.report.string() + ": cannot write");
+    write_json(cmd.report, j);
   }
   return 0;
 }

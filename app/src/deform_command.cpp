@@ -8,6 +8,7 @@
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/scene.hpp"
+#include "json_file.hpp"
 #include "logging.hpp"
 #include "preview.hpp"
 
@@ -42,12 +43,6 @@ nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& out
             {"factor", r.timings.factor_ms},
             {"iterate", r.timings.iterate_ms},
             {"total", r.timings.total_ms}}}};
-}
-
-void write_json(const std::filesystem::path& path, const nlohmann::json& j) {
-  std::ofstream out(path);
-  out << j.dump(2) << '\n';
-  if (!out) throw std::runtime_error(path.string() + ": cannot write");
 }
 
 }  // namespace

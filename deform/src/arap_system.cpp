@@ -8,26 +8,26 @@ void ArapTerms::begin_cell() {
   cell_begin.push_back(num_terms());
 }
 
-void ArapTerms::add_term(double w, std::initializer_list<std::pair<int, double>> coeffs, const Eigen::Vector3d& e) {
-  weight.push_back(w);
+namespace {
+template <typename Coeffs>
+void append_term(ArapTerms& terms, double w, const Coeffs& coeffs, const Eigen::Vector3d& e) {
+  terms.weight.push_back(w);
   for (const auto& [k, a] : coeffs) {
-    coeff_index.push_back(k);
-    coeff_value.push_back(a);
+    terms.coeff_index.push_back(k);
+    terms.coeff_value.push_back(a);
   }
-  coeff_begin.push_back(static_cast<int>(coeff_index.size()));
-  rest.push_back(e);
-  cell_begin.back() = num_terms();
+  terms.coeff_begin.push_back(static_cast<int>(terms.coeff_index.size()));
+  terms.rest.push_back(e);
+  terms.cell_begin.back() = terms.num_terms();
+}
+}  // namespace
+
+void ArapTerms::add_term(double w, std::initializer_list<std::pair<int, double>> coeffs, const Eigen::Vector3d& e) {
+  append_term(*this, w, coeffs, e);
 }
 
 void ArapTerms::add_term(double w, const std::vector<std::pair<int, double>>& coeffs, const Eigen::Vector3d& e) {
-  weight.push_back(w);
-  for (const auto& [k, a] : coeffs) {
-    coeff_index.push_back(k);
-    coeff_value.push_back(a);
-  }
-  coeff_begin.push_back(static_cast<int>(coeff_index.size()));
-  rest.push_back(e);
-  cell_begin.back() = num_terms();
+  append_term(*this, w, coeffs, e);
 }
 
 ArapTerms surface_arap_terms(const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& V,

@@ -189,15 +189,21 @@ SceneDeformer::SceneDeformer(const geometry::Scene& scene, DeformOptions options
                                  "' runs toward the aorta; it must run from the bifurcation to the distal end");
     models_.push_back(make_model(v, options_));
   }
-  // Each landmark sits on a vessel wall; one far from every wall is in the wrong frame.
+  // Each landmark follows the vessel surface it sits on, bound once here; one far from
+  // every wall is in the wrong frame.
   for (const auto& lm : scene.landmarks) {
-    double nearest = std::numeric_limits<double>::infinity();
-    for (const auto& v : scene.vessels)
-      nearest = std::min(nearest, geometry::closest_point_on_mesh(v.mesh.mesh, lm.position_lps).distance_mm);
-    if (nearest > kMaxLandmarkDistanceMm)
+    std::size_t best = 0;
+    SurfaceBinding binding;
+    binding.distance_mm = std::numeric_limits<double>::infinity();
+    for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+      const auto b = bind_to_surface(scene.vessels[i].mesh.mesh, lm.position_lps);
+      if (b.distance_mm < binding.distance_mm) binding = b, best = i;
+    }
+    if (binding.distance_mm > kMaxLandmarkDistanceMm)
       throw geometry::InputError(scene.landmarks_path.string() + ": landmark '" + lm.label + "' is " +
-                                 std::to_string(nearest) + " mm from the nearest vessel surface (at most " +
+                                 std::to_string(binding.distance_mm) + " mm from the nearest vessel surface (at most " +
                                  std::to_string(kMaxLandmarkDistanceMm) + " mm expected)");
+    landmark_bindings_.emplace_back(best, binding);
   }
   precompute_ms_ = ms_since(t0);
 }
@@ -353,17 +359,12 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device) const {
     r.max_displacement_mm = (dv.mesh.V - scene.vessels[i].mesh.mesh.V).rowwise().norm().maxCoeff();
   }
 
-  // 5. Landmarks follow the nearest vessel surface.
-  for (const auto& lm : scene.landmarks) {
-    std::size_t best = 0;
-    SurfaceBinding best_binding;
-    best_binding.distance_mm = std::numeric_limits<double>::infinity();
-    for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
-      const auto b = bind_to_surface(scene.vessels[i].mesh.mesh, lm.position_lps);
-      if (b.distance_mm < best_binding.distance_mm) best_binding = b, best = i;
-    }
-    out.landmarks.push_back({lm.label, evaluate_binding(best_binding, scene.vessels[best].mesh.mesh.F, out.vessels[best].mesh.V)});
-    out.landmark_vessel.push_back(scene.vessels[best].name);
+  // 5. Landmarks follow the surface they were bound to.
+  for (std::size_t k = 0; k < scene.landmarks.size(); ++k) {
+    const auto& [vessel, binding] = landmark_bindings_[k];
+    out.landmarks.push_back({scene.landmarks[k].label,
+                             evaluate_binding(binding, scene.vessels[vessel].mesh.mesh.F, out.vessels[vessel].mesh.V)});
+    out.landmark_vessel.push_back(scene.vessels[vessel].name);
   }
   if (device_iliac >= 0) out.device_iliac = scene.vessels[static_cast<std::size_t>(device_iliac)].name;
   for (auto& r : out.reports)

@@ -16,6 +16,7 @@
 
 #include "evar/deform/arap_solver.hpp"
 #include "evar/deform/control_points.hpp"
+#include "evar/deform/landmark_binding.hpp"
 #include "evar/deform/skeleton.hpp"
 #include "evar/geometry/scene.hpp"
 
@@ -103,6 +104,8 @@ class SceneDeformer {
   const geometry::Scene& scene_;
   DeformOptions options_;
   std::vector<std::unique_ptr<VesselModel>> models_;
+  /// Per landmark: the vessel whose surface it sits on and its binding there (scene-only).
+  std::vector<std::pair<std::size_t, SurfaceBinding>> landmark_bindings_;
   double precompute_ms_ = 0.0;
 };
 
