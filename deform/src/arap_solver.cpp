@@ -91,7 +91,7 @@ double ArapSystem::local_step(const Positions& X, std::vector<Eigen::Matrix3d>& 
       deformed_sq += w * ep.squaredNorm();
     }
     auto& Rc = R[static_cast<std::size_t>(c)];
-    Rc = closest_rotation(S, Rc);
+    Rc = refine_rotation(S, Rc);
     E += deformed_sq - 2.0 * Rc.cwiseProduct(S).sum();  // Σ w |e' − R e|²
   }
   if (!tether_.weight.empty())

@@ -67,3 +67,39 @@ TEST(ClosestRotation, WarmStartHalfATurnAwayStillFindsTheMaximum) {
   const Eigen::Matrix3d warm = Eigen::AngleAxisd(M_PI, Eigen::Vector3d::UnitX()).toRotationMatrix();
   EXPECT_LT((closest_rotation(A, warm) - Eigen::Matrix3d::Identity()).norm(), 1e-9);
 }
+
+TEST(ClosestRotation, ClosedFormMatchesSvd) {
+  std::mt19937_64 rng(5);
+  std::normal_distribution<double> n(0.0, 1.0);
+  for (int trial = 0; trial < 200; ++trial) {
+    Eigen::Matrix3d A;
+    for (int k = 0; k < 9; ++k) A(k / 3, k % 3) = n(rng);
+    const Eigen::Matrix3d R = evar::deform::closest_rotation_closed_form(A);
+    ASSERT_TRUE(is_rotation(R));
+    EXPECT_NEAR(objective(R, A), objective(closest_rotation_svd(A), A), 1e-9 * A.norm()) << "trial " << trial;
+  }
+}
+
+TEST(RefineRotation, OneStepSquaresTheErrorOfAWarmStart) {
+  // ARAP's local step relies on this: the rotation error after a step is about the
+  // square of the error before it, so it vanishes as the iteration converges.
+  std::mt19937_64 rng(3);
+  const Eigen::Matrix3d S = Eigen::Vector3d(3.0, 2.0, 0.2).asDiagonal();  // nearly planar ring
+  for (const double error_rad : {1e-2, 1e-3, 1e-4}) {
+    const Eigen::Matrix3d Q = random_rotation(rng);
+    const Eigen::Vector3d axis = Eigen::Vector3d::Random().normalized();
+    const Eigen::Matrix3d warm = Q * Eigen::AngleAxisd(error_rad, axis).toRotationMatrix();
+    const Eigen::Matrix3d R = evar::deform::refine_rotation(Q * S, warm);
+    ASSERT_TRUE(is_rotation(R));
+    const double left_rad = Eigen::AngleAxisd(Q.transpose() * R).angle();
+    EXPECT_LT(left_rad, 5.0 * error_rad * error_rad) << "start " << error_rad;
+  }
+}
+
+TEST(RefineRotation, FarFromTheMaximumItSolvesExactly) {
+  std::mt19937_64 rng(9);
+  const Eigen::Matrix3d Q = random_rotation(rng);
+  const Eigen::Matrix3d A = Q * Eigen::Vector3d(3.0, 2.0, 1.0).asDiagonal();
+  const Eigen::Matrix3d warm = Q * Eigen::AngleAxisd(2.5, Eigen::Vector3d::UnitY()).toRotationMatrix();
+  EXPECT_LT((evar::deform::refine_rotation(A, warm) - Q).norm(), 1e-9);
+}
