@@ -75,6 +75,18 @@ ArapSystem::ArapSystem(ArapTerms terms, ArapOptions options, ArapTether tether)
   ordering_ms_ = ms_since(t1);
 }
 
+const SparseCholesky* ArapSystem::prefactored() const {
+  std::call_once(prefactor_once_, [this] {
+    if (tether_.weight.empty() || num_unknowns() == 0) return;
+    try {
+      prefactored_.emplace(A_, ordering_, options_.backend);
+    } catch (const std::runtime_error&) {
+      // Singular without constraints: every constraint set is factored on its own.
+    }
+  });
+  return prefactored_ ? &*prefactored_ : nullptr;
+}
+
 double ArapSystem::local_step(const Positions& X, std::vector<Eigen::Matrix3d>& R) const {
   double E = rest_energy_;
   const auto* idx = terms_.coeff_index.data();
@@ -125,7 +137,7 @@ double ArapSystem::energy(const Positions& X) const {
 ArapSolver::ArapSolver(ArapTerms terms, std::vector<int> constrained, ArapOptions options, ArapTether tether)
     : ArapSolver(std::make_shared<const ArapSystem>(std::move(terms), options, std::move(tether)), std::move(constrained)) {}
 
-ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int> constrained)
+ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int> constrained, ConstraintMethod method)
     : system_(std::move(system)), constrained_(std::move(constrained)) {
   const int n = system_->num_unknowns();
   const bool tethered = !system_->tether().weight.empty();
@@ -139,6 +151,29 @@ ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int
   }
   if (!tethered) check_components(system_->terms(), constrained_);
 
+  const auto k = static_cast<Eigen::Index>(constrained_.size());
+  if (method != ConstraintMethod::Refactor && k > 0) {
+    const SparseCholesky* A = system_->prefactored();
+    if (!A && method == ConstraintMethod::Capacitance)
+      throw std::invalid_argument("ARAP: the capacitance method needs a tethered, positive definite system");
+    const bool cheaper = A && 2.0 * static_cast<double>(k) * static_cast<double>(A->factor_nonzeros()) +
+                                      30.0 * 3.0 * n * static_cast<double>(k) <
+                                  A->factorization_flops();
+    if (A && (method == ConstraintMethod::Capacitance || cheaper)) {
+      const auto t1 = Clock::now();
+      Eigen::MatrixXd E = Eigen::MatrixXd::Zero(n, k);
+      for (Eigen::Index c = 0; c < k; ++c) E(constrained_[static_cast<std::size_t>(c)], c) = 1.0;
+      W_ = A->solve(E);
+      Eigen::MatrixXd S(k, k);
+      for (Eigen::Index c = 0; c < k; ++c) S.row(c) = W_.row(constrained_[static_cast<std::size_t>(c)]);
+      S_.compute(0.5 * (S + S.transpose()));
+      if (S_.info() != Eigen::Success || !W_.allFinite())
+        throw std::runtime_error("ARAP: the capacitance matrix of the constraint set is not positive definite");
+      capacitance_ = true;
+      factor_ms_ = ms_since(t1);
+      return;
+    }
+  }
   // Constrained rows and columns become identity: same pattern, so the ordering holds.
   const auto t0 = Clock::now();
   Eigen::SparseMatrix<double> M = system_->matrix();
@@ -156,6 +191,17 @@ Eigen::MatrixXd ArapSolver::global_step(const std::vector<Eigen::Matrix3d>& R, c
                                         const Eigen::MatrixXd& X_C_full) const {
   Eigen::MatrixXd rhs;
   system_->right_hand_side(R, rhs);
+  if (capacitance_) {
+    // x = A⁻¹(b + E μ) with Eᵀx = x_C:  S μ = x_C − Eᵀ A⁻¹ b,  x = A⁻¹b + W μ.
+    // Rows F of A x = b + E μ are those of A_FF x_F + A_FC x_C = b_F.
+    Eigen::MatrixXd x = system_->prefactored()->solve(rhs);
+    Eigen::MatrixXd r(static_cast<Eigen::Index>(constrained_.size()), 3);
+    for (std::size_t c = 0; c < constrained_.size(); ++c)
+      r.row(static_cast<Eigen::Index>(c)) = X_C_full.row(constrained_[c]) - x.row(constrained_[c]);
+    x.noalias() += W_ * S_.solve(r);
+    for (const int c : constrained_) x.row(c) = X_C_full.row(c);  // exact, not up to rounding
+    return x;
+  }
   rhs -= coupling;  // free rows: b_F − A_FC x_C
   for (const int k : constrained_) rhs.row(k) = X_C_full.row(k);
   return cholesky_->solve(rhs);
@@ -176,7 +222,7 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   const auto t_init = Clock::now();
   Eigen::MatrixXd X_C_full = Eigen::MatrixXd::Zero(n, 3);
   for (std::size_t c = 0; c < constrained_.size(); ++c) X_C_full.row(constrained_[c]) = targets.row(static_cast<Eigen::Index>(c));
-  const Eigen::MatrixXd coupling = system_->matrix() * X_C_full;
+  const Eigen::MatrixXd coupling = capacitance_ ? Eigen::MatrixXd() : Eigen::MatrixXd(system_->matrix() * X_C_full);
   Positions& X = result.X;
   std::vector<Eigen::Matrix3d> R(static_cast<std::size_t>(system_->terms().num_cells), Eigen::Matrix3d::Identity());
   Eigen::MatrixXd x(n, 3);

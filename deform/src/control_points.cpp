@@ -34,8 +34,10 @@ void try_ray(const geometry::RayCaster& caster, const Eigen::Vector3d& c, const 
 std::vector<Eigen::Vector3d> device_points_in_vessel(const geometry::Polyline& centerline, const RadiusProfile& radius,
                                                      const geometry::Polyline& device, const ControlPointOptions& options) {
   std::vector<Eigen::Vector3d> inside;
+  const geometry::PolylineProjector onto_centerline(centerline);
+  int segment = -1;
   for (const auto& d : geometry::resample(device, options.sample_step_mm)) {
-    const auto foot = geometry::project_onto(centerline, d);
+    const auto foot = onto_centerline.project(d, segment, &segment);
     if (foot.beyond_start || foot.beyond_end) continue;
     if (foot.distance_mm > options.reach_radii * radius.at(foot.arc_length_mm)) continue;
     inside.push_back(d);
@@ -51,24 +53,28 @@ std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, co
   const double spacing = options.spacing_mm > 0.0 ? options.spacing_mm : 1.5 * geometry::median_edge_length(mesh);
   const auto ours = device_points_in_vessel(centerline, radius, device, options);
   std::vector<Candidate> candidates;
+  const geometry::PolylineProjector onto_centerline(centerline);
+  int segment = -1;
   if (ours.size() >= 1) {
     // Device samples -> their foot on the centerline.
     for (const auto& d : ours) {
-      const auto foot = geometry::project_onto(centerline, d);
+      const auto foot = onto_centerline.project(d, segment, &segment);
       try_ray(caster, foot.point, d, foot.arc_length_mm, options.device_thickness_mm, candidates);
     }
     // Centerline samples -> nearest point of this vessel's part of the device (the
     // paper's direction: it covers stretches where the device runs beside the vessel).
     if (ours.size() >= 2) {
       const auto arc = geometry::arc_lengths(centerline);
+      const geometry::PolylineProjector onto_device(ours);
+      int device_segment = -1;
       for (double s = 0.0; s <= arc.back(); s += options.sample_step_mm) {
         const Eigen::Vector3d c = geometry::point_at(centerline, arc, s);
-        const auto near = geometry::project_onto(ours, c);
+        const auto near = onto_device.project(c, device_segment, &device_segment);
         const double r = radius.at(s);
         if (near.distance_mm > options.reach_radii * r) continue;
         // Only rays across the lumen: a device point far along the axis is reached
         // through an end cap, which says nothing about the wall.
-        if (std::abs(geometry::project_onto(centerline, near.point).arc_length_mm - s) > r) continue;
+        if (std::abs(onto_centerline.project(near.point, segment, &segment).arc_length_mm - s) > r) continue;
         try_ray(caster, c, near.point, s, options.device_thickness_mm, candidates);
       }
     }

@@ -93,6 +93,28 @@ void solve_ldlt_xyz(const int* outer, const int* inner, const double* value, con
     y[3 * j + 2] = s2;
   }
 }
+// The same for k columns (row-major n by k): the prefactored path's A⁻¹E.
+void solve_ldlt_rows(const int* outer, const int* inner, const double* value, const double* d, Eigen::Index n,
+                     Eigen::Index k, double* y) {
+  for (Eigen::Index j = 0; j < n; ++j) {
+    const double* yj = y + j * k;
+    for (int p = outer[j]; p < outer[j + 1]; ++p) {
+      double* yi = y + static_cast<Eigen::Index>(inner[p]) * k;
+      const double l = value[p];
+      for (Eigen::Index c = 0; c < k; ++c) yi[c] -= l * yj[c];
+    }
+  }
+  for (Eigen::Index j = 0; j < n; ++j)
+    for (Eigen::Index c = 0; c < k; ++c) y[j * k + c] /= d[j];
+  for (Eigen::Index j = n - 1; j >= 0; --j) {
+    double* yj = y + j * k;
+    for (int p = outer[j]; p < outer[j + 1]; ++p) {
+      const double* yi = y + static_cast<Eigen::Index>(inner[p]) * k;
+      const double l = value[p];
+      for (Eigen::Index c = 0; c < k; ++c) yj[c] -= l * yi[c];
+    }
+  }
+}
 }  // namespace
 
 struct SparseCholesky::Impl {
@@ -145,6 +167,22 @@ SparseCholesky::SparseCholesky(const Eigen::SparseMatrix<double>& A,
     throw std::runtime_error("sparse Cholesky (Eigen LDLT): the ARAP system is not positive definite");
 }
 
+double SparseCholesky::factorization_flops() const {
+  if (backend_ != CholeskyBackend::EigenLDLT || !impl_->ordered) return 0.0;
+  const auto& L = impl_->ldlt_ordered.matrixL().nestedExpression();
+  double flops = 0.0;
+  for (Eigen::Index j = 0; j < L.outerSize(); ++j) {
+    const double c = L.outerIndexPtr()[j + 1] - L.outerIndexPtr()[j];
+    flops += c * c;
+  }
+  return flops;
+}
+
+Eigen::Index SparseCholesky::factor_nonzeros() const {
+  if (backend_ != CholeskyBackend::EigenLDLT || !impl_->ordered) return 0;
+  return impl_->ldlt_ordered.matrixL().nestedExpression().nonZeros();
+}
+
 SparseCholesky::~SparseCholesky() = default;
 SparseCholesky::SparseCholesky(SparseCholesky&&) noexcept = default;
 SparseCholesky& SparseCholesky::operator=(SparseCholesky&&) noexcept = default;
@@ -153,18 +191,23 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
 #ifdef EVAR_HAVE_CHOLMOD
   if (backend_ == CholeskyBackend::Cholmod) return impl_->cholmod->solve(B);
 #endif
-  if (impl_->ordered && B.cols() == 3) {
+  if (impl_->ordered && B.cols() > 0) {
     // C = P A Pᵀ is factored: A x = b  ⇔  C (P x) = P b.
     const auto& L = impl_->ldlt_ordered.matrixL().nestedExpression();
     const int* p = impl_->perm.indices().data();
-    const Eigen::Index n = B.rows();
-    std::vector<double> y(static_cast<std::size_t>(3 * n));
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) y[static_cast<std::size_t>(3 * p[i] + c)] = B(i, c);
-    solve_ldlt_xyz(L.outerIndexPtr(), L.innerIndexPtr(), L.valuePtr(), impl_->ldlt_ordered.vectorD().data(), n, y.data());
-    Eigen::MatrixXd X(n, 3);
-    for (Eigen::Index i = 0; i < n; ++i)
-      for (int c = 0; c < 3; ++c) X(i, c) = y[static_cast<std::size_t>(3 * p[i] + c)];
+    const Eigen::Index n = B.rows(), k = B.cols();
+    std::vector<double> y(static_cast<std::size_t>(k * n));
+    for (Eigen::Index c = 0; c < k; ++c)
+      for (Eigen::Index i = 0; i < n; ++i) y[static_cast<std::size_t>(k * p[i] + c)] = B(i, c);
+    const Eigen::VectorXd D = impl_->ldlt_ordered.vectorD();  // returned by value
+    const double* d = D.data();
+    if (k == 3)
+      solve_ldlt_xyz(L.outerIndexPtr(), L.innerIndexPtr(), L.valuePtr(), d, n, y.data());
+    else
+      solve_ldlt_rows(L.outerIndexPtr(), L.innerIndexPtr(), L.valuePtr(), d, n, k, y.data());
+    Eigen::MatrixXd X(n, k);
+    for (Eigen::Index c = 0; c < k; ++c)
+      for (Eigen::Index i = 0; i < n; ++i) X(i, c) = y[static_cast<std::size_t>(k * p[i] + c)];
     return X;
   }
   if (impl_->ordered) return impl_->perm.transpose() * Eigen::MatrixXd(impl_->ldlt_ordered.solve(impl_->perm * B));

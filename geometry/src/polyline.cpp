@@ -61,42 +61,62 @@ Polyline resample(const Polyline& points, double step_mm) {
   return out;
 }
 
-PolylineProjection project_onto(const Polyline& points, const Eigen::Vector3d& query) {
+PolylineProjector::PolylineProjector(const Polyline& points) : points_(&points) {
   if (points.size() < 2) throw std::invalid_argument("project_onto: polyline needs 2 points");
-  PolylineProjection best{};
-  best.distance_mm = std::numeric_limits<double>::infinity();
-  double best_d2 = std::numeric_limits<double>::infinity();
-  double s0 = 0.0;
-  const std::size_t last = points.size() - 2;
+  length_.resize(points.size() - 1);
+  arc_.resize(points.size() - 1);
+  double s = 0.0;
   for (std::size_t i = 0; i + 1 < points.size(); ++i) {
+    length_[i] = (points[i + 1] - points[i]).norm();
+    arc_[i] = s;
+    s += length_[i];
+  }
+}
+
+PolylineProjection PolylineProjector::project(const Eigen::Vector3d& query, int hint, int* segment_out) const {
+  const Polyline& points = *points_;
+  const std::size_t segments = length_.size();
+  PolylineProjection best{};
+  double best_d2 = std::numeric_limits<double>::infinity();
+  double best_d = best_d2;
+  std::size_t best_i = segments;
+  const auto consider = [&](std::size_t i) {
+    const double len = length_[i];
+    if (len == 0.0) return;
     const Eigen::Vector3d& a = points[i];
     const Eigen::Vector3d d = points[i + 1] - a;
-    const double len2 = d.squaredNorm();
-    const double len = std::sqrt(len2);
-    // Prune: no point of the segment is closer than |query − a| − len.
-    const double da = (query - a).norm();
-    if (da - len > 0.0 && (da - len) * (da - len) >= best_d2) {
-      s0 += len;
-      continue;
-    }
-    if (len2 == 0.0) continue;
-    const double u_raw = (query - a).dot(d) / len2;
+    const double u_raw = (query - a).dot(d) / d.squaredNorm();
     const double u = std::clamp(u_raw, 0.0, 1.0);
     const Eigen::Vector3d p = a + u * d;
     const double dist2 = (query - p).squaredNorm();
-    if (dist2 < best_d2) {
+    // The first segment in order wins ties, as a plain scan would choose.
+    if (dist2 < best_d2 || (dist2 == best_d2 && i < best_i)) {
       best_d2 = dist2;
+      best_d = std::sqrt(dist2);
+      best_i = i;
       best.point = p;
-      best.arc_length_mm = s0 + u * len;
+      best.arc_length_mm = arc_[i] + u * len;
       best.tangent = d / len;
       best.beyond_start = (i == 0 && u_raw < 0.0);
-      best.beyond_end = (i == last && u_raw > 1.0);
+      best.beyond_end = (i + 1 == segments && u_raw > 1.0);
     }
-    s0 += len;
+  };
+  if (hint >= 0 && static_cast<std::size_t>(hint) < segments) consider(static_cast<std::size_t>(hint));
+  for (std::size_t i = 0; i < segments; ++i) {
+    // No point of the segment is nearer than |query − a| − len: rule it out when that
+    // exceeds the best distance so far (strictly, so ties are still compared).
+    const double reach = length_[i] + best_d;
+    if ((query - points[i]).squaredNorm() > reach * reach) continue;
+    consider(i);
   }
-  if (!std::isfinite(best_d2)) throw std::invalid_argument("project_onto: polyline has no extent");
-  best.distance_mm = std::sqrt(best_d2);
+  if (best_i == segments) throw std::invalid_argument("project_onto: polyline has no extent");
+  best.distance_mm = best_d;
+  if (segment_out) *segment_out = static_cast<int>(best_i);
   return best;
+}
+
+PolylineProjection project_onto(const Polyline& points, const Eigen::Vector3d& query) {
+  return PolylineProjector(points).project(query);
 }
 
 std::vector<Frame> rotation_minimizing_frames(const Polyline& points) {

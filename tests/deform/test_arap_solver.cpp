@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 
 #include "evar/deform/arap_solver.hpp"
+#include "evar/deform/registration_tether.hpp"
 #include "tube_fixture.hpp"
 
 using namespace evar;
@@ -147,4 +148,57 @@ TEST(ArapSolver, WarmStartFromTheSolutionConvergesImmediately) {
   const auto warm = solver.solve(targets, &cold.X);
   EXPECT_LE(warm.iterations, 2);
   EXPECT_LT((warm.X - cold.X).rowwise().norm().maxCoeff(), 0.05);
+}
+
+namespace {
+// A tethered tube with a few handles pulled sideways, as the aorta is in a scene.
+struct TetheredPull {
+  geometry::TriangleMesh mesh = test::straight_tube();
+  std::shared_ptr<const deform::ArapSystem> system;
+  std::vector<int> handles;
+  Positions targets;
+  explicit TetheredPull(int count) {
+    ArapOptions opt;
+    opt.tolerance_mm = 1e-7;
+    system = std::make_shared<const deform::ArapSystem>(test::tube_terms(mesh), opt,
+                                                        deform::registration_tether(mesh, static_cast<int>(mesh.V.rows()), 50.0));
+    for (Eigen::Index i = 0; i < mesh.V.rows() && static_cast<int>(handles.size()) < count; i += 7)
+      if (mesh.V(i, 2) > 20.0 && mesh.V(i, 2) < 40.0 && mesh.V(i, 0) > 0.0) handles.push_back(static_cast<int>(i));
+    targets = rows_of(mesh.V, handles);
+    targets.col(0).array() += 3.0;
+  }
+};
+}  // namespace
+
+TEST(ArapSolver, CapacitanceAndRefactorGiveTheSameDeformation) {
+  const TetheredPull pull(12);
+  ASSERT_EQ(pull.handles.size(), 12u);
+  ASSERT_NE(pull.system->prefactored(), nullptr);
+  const ArapSolver refactor(pull.system, pull.handles, deform::ConstraintMethod::Refactor);
+  const ArapSolver capacitance(pull.system, pull.handles, deform::ConstraintMethod::Capacitance);
+  ASSERT_EQ(capacitance.method(), deform::ConstraintMethod::Capacitance);
+  const auto a = refactor.solve(pull.targets);
+  const auto b = capacitance.solve(pull.targets);
+  ASSERT_TRUE(a.converged && b.converged);
+  // Both solve the same global step to rounding; a 1e-7 mm stopping rule leaves both
+  // within micrometres of the one fixed point.
+  EXPECT_LT((a.X - b.X).rowwise().norm().maxCoeff(), 1e-5);
+  EXPECT_LT((rows_of(b.X, pull.handles) - pull.targets).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_GT((b.X - pull.mesh.V).rowwise().norm().maxCoeff(), 2.9);  // it did move
+}
+
+TEST(ArapSolver, AutomaticMethodFollowsTheOperationCount) {
+  const TetheredPull few(4);
+  EXPECT_EQ(ArapSolver(few.system, few.handles).method(), deform::ConstraintMethod::Capacitance);
+  // Every vertex of the tube's lower half: forming A⁻¹E would cost far more than a factor.
+  const auto many = test::vertices_outside_z(few.mesh, 30.0, 1e9);
+  EXPECT_EQ(ArapSolver(few.system, many).method(), deform::ConstraintMethod::Refactor);
+}
+
+TEST(ArapSolver, CapacitanceNeedsATether) {
+  const auto m = test::straight_tube();
+  auto system = std::make_shared<const deform::ArapSystem>(test::tube_terms(m));
+  EXPECT_EQ(system->prefactored(), nullptr);
+  EXPECT_THROW(ArapSolver(system, test::vertices_outside_z(m, 1.0, 59.0), deform::ConstraintMethod::Capacitance),
+               std::invalid_argument);
 }

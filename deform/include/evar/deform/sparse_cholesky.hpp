@@ -38,6 +38,11 @@ class SparseCholesky {
   /// X = A^{-1} B for an n by k right-hand side.
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
   CholeskyBackend backend() const { return backend_; }
+  /// Σ_j c_j² over the columns of L (c_j its entries below the diagonal): the cost of a
+  /// numeric factorization in multiply-adds. 0 when not known (CHOLMOD, or no ordering given).
+  double factorization_flops() const;
+  /// Entries of L below the diagonal: a triangular solve costs 2 per entry and column.
+  Eigen::Index factor_nonzeros() const;
 
  private:
   struct Impl;

@@ -27,6 +27,21 @@ struct PolylineProjection {
 /// Closest point on the polyline (needs >= 2 distinct points).
 PolylineProjection project_onto(const Polyline& points, const Eigen::Vector3d& query);
 
+/// project_onto for many queries against one polyline: segment lengths and arc lengths
+/// computed once, and a segment to try first (e.g. the previous query's, for queries
+/// that walk along a curve), after which all other segments are ruled out by one
+/// squared distance each. Results equal project_onto's, ties included.
+class PolylineProjector {
+ public:
+  explicit PolylineProjector(const Polyline& points);
+  /// `hint`: a segment index to try first (-1: none). `segment_out`: the segment found.
+  PolylineProjection project(const Eigen::Vector3d& query, int hint = -1, int* segment_out = nullptr) const;
+
+ private:
+  const Polyline* points_;
+  std::vector<double> length_, arc_;
+};
+
 /// Point and unit tangent at arc length s (clamped to [0, length]).
 Eigen::Vector3d point_at(const Polyline& points, const std::vector<double>& arc, double s);
 Eigen::Vector3d tangent_at(const Polyline& points, const std::vector<double>& arc, double s);
