@@ -8,7 +8,10 @@
 //                       iteration is one deform(device) (control points, numeric
 //                       factorization, iterations, binding, erasure, landmarks);
 //   BM_DeformFixedPoint warm deform at a given tolerance against a tightly converged
-//                       reference (tolerance 1e-6 mm): distance per vessel and time.
+//                       reference (tolerance 1e-6 mm): distance per vessel and time;
+//   BM_DeformSequence   a moving device, frame after frame, each frame started from
+//                       scratch or from the previous frame's result, against per-frame
+//                       references.
 //
 // Per-vessel counters "<vessel>.<stage>_ms" come from the VesselReport structs. In a warm
 // call, "<vessel>.call_ms" = control_points + factor + iterate (what the call spent on that
@@ -17,8 +20,10 @@
 // deform_scene: precomputation + the call; for a warm call: the call's wall time).
 #include <benchmark/benchmark.h>
 
+#include <cmath>
 #include <map>
 #include <memory>
+#include <optional>
 #include <stdexcept>
 #include <tuple>
 
@@ -181,8 +186,61 @@ void BM_DeformFixedPoint(benchmark::State& state, double tolerance_mm) {
   state.SetLabel("eigen, warm, tolerance " + std::to_string(tolerance_mm) + " mm, reference 1e-6 mm");
 }
 
+// --- a live sequence: each frame warm-started from the previous one ------------------
+// The example device moved along a breathing-like loop (2 mm cranio-caudal, 0.5 mm
+// left-right, kSequenceFrames frames per cycle), deformed frame after frame. Each frame's
+// reference is its own deformation at 1e-6 mm from Laplacian editing.
+constexpr int kSequenceFrames = 24;
+geometry::Polyline sequence_device(int frame) {
+  const double phase = 2.0 * 3.141592653589793 * frame / kSequenceFrames;
+  geometry::Polyline device = bench::example_scene(7500).example.device;
+  for (auto& p : device) p += Eigen::Vector3d(0.5 * std::sin(phase), 0.0, 2.0 * (1.0 - std::cos(phase)) / 2.0);
+  return device;
+}
+const deform::SceneDeformation& sequence_reference(int frame) {
+  static std::map<int, deform::SceneDeformation> refs;
+  auto it = refs.find(frame);
+  if (it == refs.end()) {
+    const auto& w = warm_deformer(7500, deform::CholeskyBackend::EigenLDLT, kReferenceTolerance);
+    it = refs.emplace(frame, w.deformer->deform(sequence_device(frame))).first;
+  }
+  return it->second;
+}
+
+void BM_DeformSequence(benchmark::State& state, double tolerance_mm, bool warm_start) {
+  const auto& w = warm_deformer(7500, deform::CholeskyBackend::EigenLDLT, tolerance_mm);
+  for (int k = 0; k < kSequenceFrames; ++k) sequence_reference(k);  // untimed
+  std::map<std::string, double> sums;
+  std::optional<deform::SceneDeformation> previous = w.deformer->deform(sequence_device(kSequenceFrames - 1));
+  int frame = 0;
+  double total = 0;
+  for (auto _ : state) {
+    auto out = w.deformer->deform(sequence_device(frame), warm_start ? &*previous : nullptr);
+    state.SetIterationTime(out.total_ms / 1e3);
+    total += out.total_ms;
+    add_reports(sums, out, true);
+    const auto& ref = sequence_reference(frame);
+    for (std::size_t i = 0; i < out.vessels.size(); ++i) {
+      const auto d = (out.vessels[i].mesh.V - ref.vessels[i].mesh.V).rowwise().norm();
+      sums[out.reports[i].name + ".max_dist_mm"] += d.maxCoeff();
+      sums[out.reports[i].name + ".same_handles"] += out.reports[i].control_points == ref.reports[i].control_points;
+    }
+    previous = std::move(out);
+    frame = (frame + 1) % kSequenceFrames;
+  }
+  for (const auto& [name, sum] : sums) state.counters[name] = avg(sum);
+  add_per_iteration(state, sums);
+  state.counters["total_ms"] = avg(total);
+  state.SetLabel(std::string(warm_start ? "warm start from the previous frame" : "every frame from scratch") +
+                 ", tolerance " + std::to_string(tolerance_mm) + " mm");
+}
+
 }  // namespace
 
+BENCHMARK_CAPTURE(BM_DeformSequence, 7500/cold_0.01, 0.01, false)->Iterations(48)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DeformSequence, 7500/warm_0.01, 0.01, true)->Iterations(48)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DeformSequence, 7500/cold_0.002, 2e-3, false)->Iterations(48)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DeformSequence, 7500/warm_0.002, 2e-3, true)->Iterations(48)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformScene, 7500/eigen, 7500, 0)->Iterations(5)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformScene, 7500/cholmod, 7500, 1)->Iterations(5)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformScene, 30000/eigen, 30000, 0)->Iterations(2)->UseManualTime()->Unit(benchmark::kMillisecond);

@@ -98,7 +98,7 @@ geometry::Polyline deformed_centerline(const VesselModel& m, const geometry::Ver
 // until no new handle appears or `containment_rounds` is reached.
 geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline& device,
                                  const std::map<int, Eigen::Vector3d>& fixed, const DeformOptions& options,
-                                 VesselReport& report) {
+                                 const geometry::Vertices* previous, VesselReport& report) {
   const auto& mesh = m.vessel->mesh.mesh;
   const int n = static_cast<int>(mesh.V.rows());
   auto t0 = Clock::now();
@@ -123,9 +123,19 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
     }
     const ArapSolver solver(m.system, constrained);
     report.timings.factor_ms += solver.factor_ms();
+    if (round == 0 && previous) {
+      // Warm start from the previous frame: its surface, and skeleton centres at the
+      // middle of their wall hits there (solve() puts the new targets in).
+      X.resize(m.system->num_unknowns(), 3);
+      X.topRows(n) = *previous;
+      if (centres > 0) {
+        const auto cl = deformed_centerline(m, *previous);
+        for (int k = 0; k < centres; ++k) X.row(n + k) = cl[static_cast<std::size_t>(k)].transpose();
+      }
+    }
     if (round > 0)  // warm start: the previous round's shape with the new targets
       for (std::size_t c = 0; c < constrained.size(); ++c) X.row(constrained[c]) = rows.row(static_cast<Eigen::Index>(c));
-    const ArapResult r = round > 0 ? solver.solve(rows, &X) : solver.solve(rows);
+    const ArapResult r = (round > 0 || previous) ? solver.solve(rows, &X) : solver.solve(rows);
     report.timings.iterate_ms += r.init_ms + r.iterate_ms;
     report.iterations += r.iterations;
     report.converged = r.converged;
@@ -153,6 +163,12 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
     if (fresh.empty()) break;
   }
   return X.topRows(n);
+}
+
+// The previous frame's vertices of vessel i, when that frame deformed it.
+const geometry::Vertices* warm_start(const SceneDeformation* previous, std::size_t i) {
+  if (!previous || previous->reports[i].control_points == 0) return nullptr;
+  return &previous->vessels[i].mesh.V;
 }
 
 void check_device(const geometry::Polyline& device) {
@@ -217,9 +233,15 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
   return out;
 }
 
-SceneDeformation SceneDeformer::deform(const geometry::Polyline& device) const {
+SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const SceneDeformation* previous) const {
   const auto t_total = Clock::now();
   check_device(device);
+  if (previous) {
+    bool same = previous->vessels.size() == scene_.vessels.size() && previous->reports.size() == scene_.vessels.size();
+    for (std::size_t i = 0; same && i < scene_.vessels.size(); ++i)
+      same = previous->vessels[i].mesh.V.rows() == scene_.vessels[i].mesh.mesh.V.rows();
+    if (!same) throw std::invalid_argument("deform: the previous frame's deformation is of another scene");
+  }
   const geometry::Scene& scene = scene_;
   const DeformOptions& options = options_;
   const auto& models = models_;
@@ -269,7 +291,8 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device) const {
   auto& aorta_report = out.reports[static_cast<std::size_t>(aorta)];
   {
     const auto& m = *models[static_cast<std::size_t>(aorta)];
-    out.vessels[static_cast<std::size_t>(aorta)].mesh.V = deform_vessel(m, device, {}, options, aorta_report);
+    out.vessels[static_cast<std::size_t>(aorta)].mesh.V =
+        deform_vessel(m, device, {}, options, warm_start(previous, static_cast<std::size_t>(aorta)), aorta_report);
     if (aorta_report.control_points > 0) aorta_report.role = "deformed";
   }
   const auto& aorta_deformed = out.vessels[static_cast<std::size_t>(aorta)].mesh.V;
@@ -312,7 +335,7 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device) const {
                                  std::to_string(options.bind_length_mm) +
                                  " mm of its centerline's proximal end, so it cannot be bound to the aorta");
     auto& V_out = out.vessels[i].mesh.V;
-    if (carries) V_out = deform_vessel(m, device, bound, options, r);
+    if (carries) V_out = deform_vessel(m, device, bound, options, warm_start(previous, i), r);
     if (carries && r.control_points > 0) {
       r.role = "carries the device";
       // 3. Erase the aortic vertices below the bound iliac points: distal of the plane

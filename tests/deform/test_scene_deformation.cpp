@@ -231,3 +231,29 @@ TEST(SceneDeformation, RefusesADeviceWithAStrayFarPoint) {
     EXPECT_NE(std::string(e.what()).find("stray control point"), std::string::npos) << e.what();
   }
 }
+
+TEST(SceneDeformation, WarmStartFromThePreviousFrameReachesTheSameShapeInFewerIterations) {
+  const auto scene = sim::to_scene(example());
+  deform::DeformOptions tight;
+  tight.arap.tolerance_mm = 1e-4;  // both runs close to the one fixed point
+  const deform::SceneDeformer deformer(scene, tight);
+  // Frame 0, then the device 0.5 mm further to the patient's left (a breath, a push).
+  const auto frame0 = deformer.deform(example().device);
+  geometry::Polyline moved = example().device;
+  for (auto& p : moved) p.x() += 0.5;
+  const auto cold = deformer.deform(moved);
+  const auto warm = deformer.deform(moved, &frame0);
+  int cold_iterations = 0, warm_iterations = 0;
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    cold_iterations += cold.reports[i].iterations;
+    warm_iterations += warm.reports[i].iterations;
+    ASSERT_EQ(warm.reports[i].control_points, cold.reports[i].control_points) << scene.vessels[i].name;
+    // 1e-4 mm updates leave both within about 0.005 mm of the fixed point (docs/BENCHMARKS.md).
+    EXPECT_LT((warm.vessels[i].mesh.V - cold.vessels[i].mesh.V).rowwise().norm().maxCoeff(), 0.02)
+        << scene.vessels[i].name;
+  }
+  EXPECT_LT(warm_iterations, cold_iterations);
+  deform::SceneDeformation other = frame0;
+  other.vessels.pop_back();
+  EXPECT_THROW(deformer.deform(moved, &other), std::invalid_argument);
+}

@@ -95,7 +95,13 @@ class SceneDeformer {
   /// In the reports, weights_ms and skeleton_ms are the precomputation's (the constructor),
   /// the other stages this call's; total_ms of a vessel is their sum (its cold cost) and
   /// SceneDeformation::total_ms is this call's wall time.
-  SceneDeformation deform(const geometry::Polyline& device) const;
+  ///
+  /// `previous`: the result for the previous device pose of a live sequence. Each vessel's
+  /// solve then starts from its shape there instead of from Laplacian editing, which
+  /// saves iterations when the device moved little and keeps consecutive overlays
+  /// coherent. The fixed point is the same; the result differs by less than the
+  /// stopping rule's distance to it.
+  SceneDeformation deform(const geometry::Polyline& device, const SceneDeformation* previous = nullptr) const;
   double precompute_ms() const { return precompute_ms_; }
 
   struct VesselModel;  ///< opaque per-vessel precomputation
