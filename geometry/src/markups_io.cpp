@@ -9,6 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "evar/geometry/input_error.hpp"
+#include "json_fields.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry {
@@ -27,20 +28,7 @@ constexpr const char* kSchema =
   detail::fail(file, field + ": " + what);
 }
 
-json parse_json_file(const fs::path& file) {
-  const std::string text = detail::read_file(file);
-  try {
-    return json::parse(text);
-  } catch (const json::exception& e) {
-    // e.what() reads "[json.exception.parse_error.101] parse error at line 3, column 7: ...";
-    // the bracketed id means nothing to a user.
-    std::string what = e.what();
-    if (const auto close = what.find("] "); what.starts_with("[json.") && close != std::string::npos) {
-      what.erase(0, close + 2);
-    }
-    detail::fail(file, "invalid JSON: " + what);
-  }
-}
+using detail::parse_json_file;
 
 std::string get_string(const fs::path& file, const json& j, const std::string& field) {
   if (!j.is_string()) bad(file, field, std::string("expected a string, found ") + j.type_name());

@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include "evar/geometry/input_error.hpp"
+#include "json_fields.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry {
@@ -26,24 +27,9 @@ constexpr int kVersion = 1;
   detail::fail(file, field + ": " + what);
 }
 
-json parse_json_file(const fs::path& file) {
-  const std::string text = detail::read_file(file);
-  try {
-    return json::parse(text);
-  } catch (const json::exception& e) {
-    std::string what = e.what();  // drop nlohmann's "[json.exception.parse_error.101] "
-    if (const auto close = what.find("] "); what.starts_with("[json.") && close != std::string::npos) {
-      what.erase(0, close + 2);
-    }
-    detail::fail(file, "invalid JSON: " + what);
-  }
-}
+using detail::parse_json_file;
 
-const json& member(const fs::path& file, const json& object, const char* key, const std::string& field) {
-  const auto it = object.find(key);
-  if (it == object.end()) bad(file, field, "missing");
-  return *it;
-}
+using detail::member;
 
 std::string string_field(const fs::path& file, const json& object, const char* key,
                          const std::string& field) {
