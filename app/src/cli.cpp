@@ -87,6 +87,17 @@ int run_cli(const std::vector<std::string>& args) {
       ->check(CLI::Range(300, 2000000))
       ->capture_default_str();
 
+  ProjectCommand project;
+  auto* pr = app.add_subcommand("project",
+                                "Print the pixel coordinates of points in a C-arm view (to check the projection\n"
+                                "conventions by hand: docs/CARM_GEOMETRY.md). Points in C-arm coordinates (LPS mm,\n"
+                                "isocenter at the origin), or in CT LPS with --registration.");
+  pr->add_option("--geometry", project.geometry, "view geometry JSON (angles, distances, detector; docs/FORMATS.md)")
+      ->required();
+  pr->add_option("--registration", project.registration, "CT to C-arm registration JSON {\"matrix\": 4x4}");
+  pr->add_option("--points", project.points, "points: any 3D Slicer markups file (.mrk.json), labels kept")->required();
+  pr->add_option("--out", project.out, "also write the result as JSON");
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -99,6 +110,7 @@ int run_cli(const std::vector<std::string>& args) {
     if (d->parsed()) return run_deform(deform);
     if (a->parsed()) return run_arap(arap);
     if (e->parsed()) return run_example(example);
+    if (pr->parsed()) return run_project(project);
   } catch (const geometry::InputError& err) {
     log().error("{}", err.what());
     return 1;

@@ -36,4 +36,9 @@ struct ExampleCommand {
 };
 int run_example(const ExampleCommand& cmd);
 
+struct ProjectCommand {
+  std::filesystem::path geometry, registration, points, out;
+};
+int run_project(const ProjectCommand& cmd);
+
 }  // namespace evar::app

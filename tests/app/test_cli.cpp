@@ -212,3 +212,42 @@ TEST_F(Cli, ArapRefusesUnknownConstraintKeys) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("unknown key \"fixd\""), std::string::npos) << r.err;
 }
+
+TEST_F(Cli, ProjectPrintsPixelsAndWritesJson) {
+  const auto dir = scratch("project");
+  write_text(dir / "g.json", R"({"primary_angle_deg": 0, "secondary_angle_deg": 0, "source_to_detector_mm": 1200,
+      "source_to_isocenter_mm": 800, "detector_size_px": [1000, 800], "pixel_spacing_mm": [0.3, 0.3]})");
+  write_text(dir / "p.mrk.json", R"({"markups": [{"type": "Fiducial", "coordinateSystem": "LPS", "controlPoints": [
+      {"label": "iso", "position": [0, 0, 0]}, {"label": "left", "position": [6, 0, 0]}]}]})");
+  // CT origin 100 mm to the patient's right of the isocenter.
+  write_text(dir / "t.json", R"({"matrix": [[1,0,0,-100],[0,1,0,0],[0,0,1,0],[0,0,0,1]]})");
+  testing::internal::CaptureStdout();
+  const int code = run_cli({"project", "--geometry", (dir / "g.json").string(), "--points", (dir / "p.mrk.json").string(),
+                            "--out", (dir / "r.json").string()});
+  const std::string table = testing::internal::GetCapturedStdout();
+  ASSERT_EQ(code, 0);
+  EXPECT_NE(table.find("499.50"), std::string::npos) << table;  // (cols − 1) / 2
+  const auto r = nlohmann::json::parse(std::ifstream(dir / "r.json"));
+  ASSERT_EQ(r["points"].size(), 2u);
+  EXPECT_DOUBLE_EQ(r["points"][0]["pixel"][1].get<double>(), 399.5);
+  // 6 mm at the isocenter, magnified 1.5, over 0.3 mm pixels: 30 px to the right.
+  EXPECT_NEAR(r["points"][1]["pixel"][0].get<double>(), 529.5, 1e-9);
+  EXPECT_EQ(r["points"][1]["where"], "on the detector");
+  testing::internal::CaptureStdout();
+  ASSERT_EQ(run_cli({"project", "--geometry", (dir / "g.json").string(), "--registration", (dir / "t.json").string(),
+                     "--points", (dir / "p.mrk.json").string(), "--out", (dir / "r2.json").string()}),
+            0);
+  testing::internal::GetCapturedStdout();
+  const auto r2 = nlohmann::json::parse(std::ifstream(dir / "r2.json"));
+  EXPECT_NEAR(r2["points"][0]["pixel"][0].get<double>(), 499.5 - 100 * 1.5 / 0.3, 1e-9);
+}
+
+TEST_F(Cli, ProjectNamesABadGeometryField) {
+  const auto dir = scratch("project_bad");
+  write_text(dir / "g.json", R"({"primary_angle_deg": 0, "secondary_angle_deg": 0, "source_to_detector_mm": 700,
+      "source_to_isocenter_mm": 800, "detector_size_px": [1000, 800], "pixel_spacing_mm": [0.3, 0.3]})");
+  write_text(dir / "p.mrk.json", R"({"markups": [{"type": "Fiducial", "controlPoints": [{"position": [0, 0, 0]}]}]})");
+  const auto run = evarnode({"project", "--geometry", (dir / "g.json").string(), "--points", (dir / "p.mrk.json").string()});
+  EXPECT_EQ(run.code, 1);
+  EXPECT_NE(run.err.find("g.json: source_to_isocenter_mm"), std::string::npos) << run.err;
+}
