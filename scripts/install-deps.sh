@@ -8,6 +8,7 @@ packages=(
   libeigen3-dev libembree-dev libassimp-dev libsuitesparse-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
+  libdcmtk-dev
   libgtest-dev libgmock-dev libbenchmark-dev
 )
 

@@ -92,7 +92,7 @@ int run_cli(const std::vector<std::string>& args) {
                                 "Print the pixel coordinates of points in a C-arm view (to check the projection\n"
                                 "conventions by hand: docs/CARM_GEOMETRY.md). Points in C-arm coordinates (LPS mm,\n"
                                 "isocenter at the origin), or in CT LPS with --registration.");
-  pr->add_option("--geometry", project.geometry, "view geometry JSON (angles, distances, detector; docs/FORMATS.md)")
+  pr->add_option("--geometry", project.geometry, "view geometry JSON (docs/FORMATS.md) or a DICOM XA / Enhanced XA file")
       ->required();
   pr->add_option("--registration", project.registration, "CT to C-arm registration JSON {\"matrix\": 4x4}");
   pr->add_option("--points", project.points, "points: any 3D Slicer markups file (.mrk.json), labels kept")->required();

@@ -13,6 +13,7 @@
 #include "evar/geometry/markups.hpp"
 #include "json_file.hpp"
 #include "logging.hpp"
+#include "view_input.hpp"
 
 namespace evar::app {
 
@@ -26,7 +27,7 @@ std::string describe(const geometry::CArmView& v) {
 }  // namespace
 
 int run_project(const ProjectCommand& cmd) {
-  const geometry::CArmView view = geometry::read_view_geometry(cmd.geometry);
+  const geometry::CArmView view = read_view(cmd.geometry);
   geometry::ProjectionMatrix P = geometry::projection_matrix(view);
   if (!cmd.registration.empty()) P = geometry::registered(P, geometry::read_registration(cmd.registration));
   std::vector<geometry::ControlPoint> points;

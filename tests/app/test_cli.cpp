@@ -8,6 +8,7 @@
 
 #include "evar/app/cli.hpp"
 #include "evar/geometry/mesh_io.hpp"
+#include "evar/geometry/xa_dicom.hpp"
 #include "evar/sim/example_scene.hpp"
 
 namespace fs = std::filesystem;
@@ -250,4 +251,25 @@ TEST_F(Cli, ProjectNamesABadGeometryField) {
   const auto run = evarnode({"project", "--geometry", (dir / "g.json").string(), "--points", (dir / "p.mrk.json").string()});
   EXPECT_EQ(run.code, 1);
   EXPECT_NE(run.err.find("g.json: source_to_isocenter_mm"), std::string::npos) << run.err;
+}
+
+TEST_F(Cli, ProjectReadsTheGeometryOfADicomFile) {
+  const auto dir = scratch("project_dicom");
+  evar::geometry::CArmView v;
+  v.primary_angle_deg = 0;
+  v.secondary_angle_deg = 0;
+  v.source_to_detector_mm = 1200;
+  v.source_to_isocenter_mm = 800;
+  v.detector_cols = 100;
+  v.detector_rows = 80;
+  v.row_spacing_mm = v.col_spacing_mm = 0.3;
+  evar::geometry::write_xa_dicom(dir / "view.img", v, {cv::Mat(80, 100, CV_16UC1, cv::Scalar(100))});
+  write_text(dir / "p.mrk.json", R"({"markups": [{"type": "Fiducial", "controlPoints": [{"position": [0, 0, 0]}]}]})");
+  testing::internal::CaptureStdout();
+  const int code = run_cli({"project", "--geometry", (dir / "view.img").string(), "--points",
+                            (dir / "p.mrk.json").string(), "--out", (dir / "r.json").string()});
+  testing::internal::GetCapturedStdout();
+  ASSERT_EQ(code, 0);
+  const auto r = nlohmann::json::parse(std::ifstream(dir / "r.json"));
+  EXPECT_DOUBLE_EQ(r["points"][0]["pixel"][0].get<double>(), 49.5);
 }
