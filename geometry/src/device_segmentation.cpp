@@ -1,0 +1,533 @@
+#include "evar/geometry/device_segmentation.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numeric>
+#include <queue>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+
+namespace evar::geometry {
+
+namespace {
+
+constexpr float kInf = std::numeric_limits<float>::infinity();
+
+// The ridge measure at the best scale, with the across-ridge normal and the Newton offset
+// from the pixel to the ridge centre along it.
+struct Ridge {
+  cv::Mat response;  // CV_32F, noise units
+  cv::Mat nx, ny;    // CV_32F unit normal
+  cv::Mat offset;    // CV_32F, px along the normal
+  cv::Mat contrast;  // CV_32F, the top-hat attenuation (−log units): the device's Δp on its centreline
+  cv::Mat attenuation;  // CV_32F, −log(I + 1), lightly smoothed: the background on either side
+};
+
+cv::Mat to_float(const cv::Mat& image) {
+  if (image.empty()) throw std::invalid_argument("segment_device: empty image");
+  if (image.channels() != 1 || (image.depth() != CV_8U && image.depth() != CV_16U && image.depth() != CV_32F))
+    throw std::invalid_argument("segment_device: expected a single-channel 8-bit, 16-bit or float image");
+  cv::Mat f;
+  image.convertTo(f, CV_32F);
+  cv::patchNaNs(f, 0.0);
+  return f;
+}
+
+// The exposed field: rows and columns whose mean intensity is at least 30 % of the
+// typical mean of the central half (lead shutters transmit almost nothing).
+cv::Rect exposed_field(const cv::Mat& f) {
+  cv::Mat col_mean, row_mean;
+  cv::reduce(f, col_mean, 0, cv::REDUCE_AVG, CV_32F);
+  cv::reduce(f, row_mean, 1, cv::REDUCE_AVG, CV_32F);
+  const auto bounds = [](const float* m, int n) -> std::pair<int, int> {
+    std::vector<float> centre(m + n / 4, m + std::max(n / 4 + 1, 3 * n / 4));
+    std::nth_element(centre.begin(), centre.begin() + static_cast<long>(centre.size() / 2), centre.end());
+    const float ref = centre[centre.size() / 2];
+    if (!(ref > 0.0f)) return {0, -1};
+    int lo = 0, hi = n - 1;
+    while (lo < n && m[lo] < 0.3f * ref) ++lo;
+    while (hi >= 0 && m[hi] < 0.3f * ref) --hi;
+    return {lo, hi};
+  };
+  const auto [x0, x1] = bounds(col_mean.ptr<float>(0), f.cols);
+  const auto [y0, y1] = bounds(row_mean.ptr<float>(0), f.rows);
+  if (x1 < x0 || y1 < y0) return {};
+  return {x0, y0, x1 - x0 + 1, y1 - y0 + 1};
+}
+
+std::vector<double> scales_of(const SegmentationOptions& o) {
+  if (!o.scales_px.empty()) return o.scales_px;
+  std::vector<double> s;
+  for (const double f : {0.35, 0.5, 0.7}) s.push_back(std::max(0.8, f * o.device_width_px));
+  return s;
+}
+
+Ridge compute_ridge(const cv::Mat& intensity, const cv::Rect& inner, const SegmentationOptions& o) {
+  cv::Mat p;
+  cv::log(intensity + 1.0f, p);
+  p = -p;
+  Ridge r;
+  cv::GaussianBlur(p, r.attenuation, cv::Size(0, 0), 1.0);
+  // White top-hat: p minus its opening by a disc wider than any device, which removes the
+  // background and every structure wider than a device (vertebral bodies, pelvis, soft
+  // tissue, step edges) and keeps thin curves at their full contrast.
+  {
+    const int d = std::max(5, 2 * static_cast<int>(std::round(1.25 * o.device_width_px)) + 1);
+    cv::Mat opened;
+    cv::morphologyEx(p, opened, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(d, d)));
+    p -= opened;
+  }
+  r.contrast = p;
+  const int H = p.rows, W = p.cols;
+  cv::Mat raw(H, W, CV_32F, cv::Scalar(0.0f));
+  r.nx = cv::Mat(H, W, CV_32F, cv::Scalar(1.0f));
+  r.ny = cv::Mat(H, W, CV_32F, cv::Scalar(0.0f));
+  r.offset = cv::Mat(H, W, CV_32F, cv::Scalar(0.0f));
+  cv::Mat g;
+  for (const double sigma : scales_of(o)) {
+    cv::GaussianBlur(p, g, cv::Size(0, 0), sigma, sigma, cv::BORDER_REFLECT);
+    const float s2 = static_cast<float>(sigma * sigma);
+    const float inv_sigma = static_cast<float>(1.0 / sigma);
+    for (int y = std::max(inner.y, 1); y < std::min(inner.y + inner.height, H - 1); ++y) {
+      const float* up = g.ptr<float>(y - 1);
+      const float* row = g.ptr<float>(y);
+      const float* dn = g.ptr<float>(y + 1);
+      float* out = raw.ptr<float>(y);
+      for (int x = std::max(inner.x, 1); x < std::min(inner.x + inner.width, W - 1); ++x) {
+        const float a = row[x + 1] - 2.0f * row[x] + row[x - 1];
+        const float c = dn[x] - 2.0f * row[x] + up[x];
+        const float b = 0.25f * (dn[x + 1] - dn[x - 1] - up[x + 1] + up[x - 1]);
+        const float root = std::sqrt((a - c) * (a - c) + 4.0f * b * b);
+        const float l2 = 0.5f * (a + c - root);  // across the ridge (most negative)
+        if (!(l2 < 0.0f)) continue;
+        const float l1 = 0.5f * (a + c + root);
+        float nx, ny;
+        if (std::abs(b) > 1e-12f) {
+          nx = b;
+          ny = l2 - a;
+        } else if (a < c) {
+          nx = 1.0f;
+          ny = 0.0f;
+        } else {
+          nx = 0.0f;
+          ny = 1.0f;
+        }
+        const float nn = std::sqrt(nx * nx + ny * ny);
+        nx /= nn;
+        ny /= nn;
+        const float gx = 0.5f * (row[x + 1] - row[x - 1]), gy = 0.5f * (dn[x] - up[x]);
+        const float offset = -(gx * nx + gy * ny) / l2;
+        const float blob = l1 / l2;
+        const float edge = offset * inv_sigma;
+        // β = 0.5 for blobs; 0.4 σ for the offset: a ridge pixel is within half a pixel of
+        // the centre, the flank of a blurred step edge about σ from it.
+        const float response = s2 * (-l2) * std::exp(-2.0f * blob * blob) * std::exp(-3.125f * edge * edge);
+        if (response > out[x]) {
+          out[x] = response;
+          r.nx.at<float>(y, x) = nx;
+          r.ny.at<float>(y, x) = ny;
+          r.offset.at<float>(y, x) = std::clamp(offset, -1.0f, 1.0f);
+        }
+      }
+    }
+  }
+  // Local noise level: per 64-pixel block, the median of the positive responses (almost
+  // all of a block is background), interpolated between blocks.
+  constexpr int kBlock = 64;
+  const int bx = std::max(1, (inner.width + kBlock - 1) / kBlock), by = std::max(1, (inner.height + kBlock - 1) / kBlock);
+  cv::Mat noise(by, bx, CV_32F, cv::Scalar(0.0f));
+  std::vector<float> values;
+  float global = 0.0f;
+  {
+    std::vector<float> all;
+    for (int y = inner.y; y < inner.y + inner.height; y += 3)
+      for (int x = inner.x; x < inner.x + inner.width; x += 3)
+        if (const float v = raw.at<float>(y, x); v > 0.0f) all.push_back(v);
+    if (!all.empty()) {
+      std::nth_element(all.begin(), all.begin() + static_cast<long>(all.size() / 2), all.end());
+      global = all[all.size() / 2];
+    }
+  }
+  for (int j = 0; j < by; ++j)
+    for (int i = 0; i < bx; ++i) {
+      values.clear();
+      for (int y = inner.y + j * kBlock; y < std::min(inner.y + (j + 1) * kBlock, inner.y + inner.height); ++y)
+        for (int x = inner.x + i * kBlock; x < std::min(inner.x + (i + 1) * kBlock, inner.x + inner.width); ++x)
+          if (const float v = raw.at<float>(y, x); v > 0.0f) values.push_back(v);
+      float level = global;
+      if (values.size() > 200) {
+        std::nth_element(values.begin(), values.begin() + static_cast<long>(values.size() / 2), values.end());
+        level = values[values.size() / 2];
+      }
+      noise.at<float>(j, i) = std::max(level, 1e-12f);
+    }
+  cv::Mat noise_full;
+  cv::resize(noise, noise_full, inner.size(), 0, 0, cv::INTER_LINEAR);
+  r.response = cv::Mat(H, W, CV_32F, cv::Scalar(0.0f));
+  if (global > 0.0f) r.response(inner) = raw(inner) / noise_full;
+  return r;
+}
+
+float bilinear(const cv::Mat& m, float x, float y) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= m.cols || y0 + 1 >= m.rows) return 0.0f;
+  const float fx = x - static_cast<float>(x0), fy = y - static_cast<float>(y0);
+  return (1 - fy) * ((1 - fx) * m.at<float>(y0, x0) + fx * m.at<float>(y0, x0 + 1)) +
+         fy * ((1 - fx) * m.at<float>(y0 + 1, x0) + fx * m.at<float>(y0 + 1, x0 + 1));
+}
+
+std::vector<Eigen::Vector2d> resample_and_smooth(const std::vector<Eigen::Vector2d>& pts, double step, double sigma) {
+  if (pts.size() < 2) return pts;
+  std::vector<double> s(pts.size(), 0.0);
+  for (std::size_t i = 1; i < pts.size(); ++i) s[i] = s[i - 1] + (pts[i] - pts[i - 1]).norm();
+  const double length = s.back();
+  if (!(length > 0.0)) return {pts.front()};
+  const int n = std::max(2, static_cast<int>(std::ceil(length / step)) + 1);
+  std::vector<Eigen::Vector2d> even(static_cast<std::size_t>(n));
+  std::size_t k = 0;
+  for (int i = 0; i < n; ++i) {
+    const double t = length * i / (n - 1);
+    while (k + 2 < s.size() && s[k + 1] < t) ++k;
+    const double seg = s[k + 1] - s[k];
+    const double u = seg > 0.0 ? std::clamp((t - s[k]) / seg, 0.0, 1.0) : 0.0;
+    even[static_cast<std::size_t>(i)] = pts[k] + u * (pts[k + 1] - pts[k]);
+  }
+  // Gaussian along arc length; the window shrinks symmetrically at the ends, so the tip and
+  // the border point are not pulled inwards.
+  const double sig = sigma / (length / (n - 1));
+  if (!(sig > 0.0)) return even;
+  const int half = static_cast<int>(std::ceil(3.0 * sig));
+  std::vector<Eigen::Vector2d> out(even.size());
+  for (int i = 0; i < n; ++i) {
+    const int h = std::min({half, i, n - 1 - i});
+    Eigen::Vector2d acc = Eigen::Vector2d::Zero();
+    double wsum = 0.0;
+    for (int j = -h; j <= h; ++j) {
+      const double w = std::exp(-0.5 * j * j / (sig * sig));
+      acc += w * even[static_cast<std::size_t>(i + j)];
+      wsum += w;
+    }
+    out[static_cast<std::size_t>(i)] = acc / wsum;
+  }
+  return out;
+}
+
+}  // namespace
+
+cv::Mat ridge_response(const cv::Mat& image, const SegmentationOptions& options) {
+  const cv::Mat f = to_float(image);
+  const cv::Rect field = exposed_field(f);
+  if (field.area() == 0) return cv::Mat(f.size(), CV_32F, cv::Scalar(0.0f));
+  return compute_ridge(f, field, options).response;
+}
+
+DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o) {
+  DeviceCurve2D result;
+  const cv::Mat f = to_float(image);
+  const int H = f.rows, W = f.cols;
+  result.field = exposed_field(f);
+  if (result.field.area() == 0) {
+    result.reason = "the image has no exposed field (no row or column is brighter than the shutters)";
+    return result;
+  }
+  // Drop the field's rim: the shutter edge itself is the strongest structure there.
+  if (!(o.device_width_px > 0.5 && o.device_width_px < 100.0))
+    throw std::invalid_argument("segment_device: device width must be 0.5 to 100 px");
+  const auto scales = scales_of(o);
+  const int rim = static_cast<int>(std::ceil(2.0 * *std::max_element(scales.begin(), scales.end()) + o.device_width_px)) + 2;
+  cv::Rect inner(result.field.x + rim, result.field.y + rim, result.field.width - 2 * rim, result.field.height - 2 * rim);
+  if (inner.width < 8 || inner.height < 8) {
+    result.reason = "the exposed field is too small to search";
+    return result;
+  }
+  const Ridge ridge = compute_ridge(f, inner, o);
+  const cv::Mat& R = ridge.response;
+
+  // Non-maximum suppression across the ridge, then hysteresis.
+  cv::Mat ridge_px(H, W, CV_8U, cv::Scalar(0));
+  for (int y = inner.y; y < inner.y + inner.height; ++y)
+    for (int x = inner.x; x < inner.x + inner.width; ++x) {
+      const float v = R.at<float>(y, x);
+      if (v < o.low_threshold) continue;
+      const float nx = ridge.nx.at<float>(y, x), ny = ridge.ny.at<float>(y, x);
+      if (v >= bilinear(R, x + nx, y + ny) && v >= bilinear(R, x - nx, y - ny)) ridge_px.at<std::uint8_t>(y, x) = 1;
+    }
+  cv::Mat confident(H, W, CV_8U, cv::Scalar(0));
+  {
+    std::vector<int> stack, component;
+    cv::Mat seen(H, W, CV_8U, cv::Scalar(0));
+    for (int y = inner.y; y < inner.y + inner.height; ++y)
+      for (int x = inner.x; x < inner.x + inner.width; ++x) {
+        if (!ridge_px.at<std::uint8_t>(y, x) || seen.at<std::uint8_t>(y, x) || R.at<float>(y, x) < o.high_threshold) continue;
+        component.clear();
+        stack.assign(1, y * W + x);
+        seen.at<std::uint8_t>(y, x) = 1;
+        while (!stack.empty()) {
+          const int q = stack.back();
+          stack.pop_back();
+          component.push_back(q);
+          const int qy = q / W, qx = q % W;
+          for (int dy = -1; dy <= 1; ++dy)
+            for (int dx = -1; dx <= 1; ++dx) {
+              const int ny = qy + dy, nx = qx + dx;
+              if (ny < 0 || nx < 0 || ny >= H || nx >= W || seen.at<std::uint8_t>(ny, nx) || !ridge_px.at<std::uint8_t>(ny, nx))
+                continue;
+              seen.at<std::uint8_t>(ny, nx) = 1;
+              stack.push_back(ny * W + nx);
+            }
+        }
+        if (component.size() >= 12)  // chains of noise maxima are shorter
+          for (const int q : component) confident.at<std::uint8_t>(q / W, q % W) = 1;
+      }
+  }
+  if (cv::countNonZero(confident) == 0) {
+    result.reason = "no ridge stronger than " + std::to_string(o.high_threshold) + " noise units";
+    return result;
+  }
+
+  // Band around the confident pixels, and the minimal path from the field border.
+  cv::Mat dist_to_confident;
+  cv::Mat not_confident = confident == 0;
+  cv::distanceTransform(not_confident, dist_to_confident, cv::DIST_L2, 3);
+  const auto in_band = [&](int y, int x) {
+    return x >= inner.x && y >= inner.y && x < inner.x + inner.width && y < inner.y + inner.height &&
+           dist_to_confident.at<float>(y, x) <= o.gap_radius_px;
+  };
+  // 1 on a confident ridge, 31 on flat background: crossing 10 px of background costs as
+  // much as following 300 px of wire.
+  // Within the confident band the cost still falls towards the ridge centre, so the path
+  // keeps to it instead of wandering across the wire's width.
+  const auto cost = [&](int y, int x) {
+    const float r = R.at<float>(y, x) / static_cast<float>(o.high_threshold);
+    const float miss = 1.0f - std::min(r, 1.0f);
+    return 1.0f + 30.0f * miss * miss + 0.5f * (1.0f - std::min(r / 8.0f, 1.0f));
+  };
+  std::vector<float> dist(static_cast<std::size_t>(H) * static_cast<std::size_t>(W), kInf);
+  std::vector<int> parent(dist.size(), -1);
+  std::vector<int> order;  // settled pixels, parents before children
+  using Entry = std::pair<float, int>;
+  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> heap;
+  for (int y = inner.y; y < inner.y + inner.height; ++y)
+    for (int x = inner.x; x < inner.x + inner.width; ++x) {
+      const bool on_border = x == inner.x || y == inner.y || x == inner.x + inner.width - 1 || y == inner.y + inner.height - 1;
+      if (on_border && in_band(y, x)) {
+        dist[static_cast<std::size_t>(y * W + x)] = 0.0f;
+        heap.emplace(0.0f, y * W + x);
+      }
+    }
+  const bool border_reachable = !heap.empty();
+  if (!border_reachable) {
+    // The device lies wholly inside the field: start from its strongest pixel instead and
+    // take the farthest confident pixel as the far end.
+    cv::Point best;
+    cv::Mat masked;
+    R.copyTo(masked, confident);
+    cv::minMaxLoc(masked, nullptr, nullptr, nullptr, &best);
+    dist[static_cast<std::size_t>(best.y * W + best.x)] = 0.0f;
+    heap.emplace(0.0f, best.y * W + best.x);
+  }
+  const auto run_dijkstra = [&] {
+    order.clear();
+    while (!heap.empty()) {
+      const auto [d, q] = heap.top();
+      heap.pop();
+      if (d > dist[static_cast<std::size_t>(q)]) continue;
+      order.push_back(q);
+      const int qy = q / W, qx = q % W;
+      const float cq = cost(qy, qx);
+      for (int dy = -1; dy <= 1; ++dy)
+        for (int dx = -1; dx <= 1; ++dx) {
+          if (!dx && !dy) continue;
+          const int ny = qy + dy, nx = qx + dx;
+          if (!in_band(ny, nx)) continue;
+          const float step = (dx && dy) ? 1.41421356f : 1.0f;
+          const float nd = d + step * 0.5f * (cq + cost(ny, nx));
+          const auto idx = static_cast<std::size_t>(ny * W + nx);
+          if (nd < dist[idx]) {
+            dist[idx] = nd;
+            parent[idx] = q;
+            heap.emplace(nd, ny * W + nx);
+          }
+        }
+    }
+  };
+  run_dijkstra();
+  if (!border_reachable) {
+    // Re-root at the far end of the device so the path runs end to end.
+    int far = order.front();
+    for (const int q : order)
+      if (confident.at<std::uint8_t>(q / W, q % W) && dist[static_cast<std::size_t>(q)] > dist[static_cast<std::size_t>(far)]) far = q;
+    std::fill(dist.begin(), dist.end(), kInf);
+    std::fill(parent.begin(), parent.end(), -1);
+    dist[static_cast<std::size_t>(far)] = 0.0f;
+    heap.emplace(0.0f, far);
+    run_dijkstra();
+  }
+
+  // Evidence collected on the way to the root: +1 per pixel on (or next to) a confident
+  // ridge, −1.5 per other pixel, and −5 per pixel where the path turns by more than 50°
+  // over 8 px (a wire bends gently; stepping from a bony rim onto it makes a corner).
+  // Only confident pixels that look like a line on the background count: the background
+  // 1.5 device widths to either side must differ by less than 0.3 of the line's contrast
+  // (the rim of a bone sits on a step, a wire does not).
+  cv::Mat contrast_local;
+  const int reach = std::max(3, 2 * static_cast<int>(std::round(0.5 * o.device_width_px)) + 1);
+  cv::dilate(ridge.contrast, contrast_local, cv::Mat::ones(reach, reach, CV_8U));
+  const float side = static_cast<float>(1.5 * o.device_width_px);
+  const auto side_step_at = [&](int y, int x) {
+    const float nx = ridge.nx.at<float>(y, x), ny = ridge.ny.at<float>(y, x), off = ridge.offset.at<float>(y, x);
+    const float cx = x + off * nx, cy = y + off * ny;
+    return std::abs(bilinear(ridge.attenuation, cx + side * nx, cy + side * ny) -
+                    bilinear(ridge.attenuation, cx - side * nx, cy - side * ny));
+  };
+  cv::Mat line_like(H, W, CV_8U, cv::Scalar(0));
+  for (int y = inner.y; y < inner.y + inner.height; ++y)
+    for (int x = inner.x; x < inner.x + inner.width; ++x)
+      if (confident.at<std::uint8_t>(y, x) && side_step_at(y, x) <= 0.3f * contrast_local.at<float>(y, x))
+        line_like.at<std::uint8_t>(y, x) = 1;
+  cv::Mat near_confident;
+  cv::dilate(line_like, near_confident, cv::Mat::ones(3, 3, CV_8U));
+  const auto ancestor = [&](int q, int k) {
+    for (; k > 0 && q >= 0; --k) q = parent[static_cast<std::size_t>(q)];
+    return q;
+  };
+  // A device has the same contrast all along (the attenuation image makes it independent
+  // of the background), so a pixel counts as ridge only if its response is at least 35 %
+  // of the running mean along the path so far: a faint bony line met by the path is gap.
+  // The strength of the ridge a path pixel is on: the largest response within the
+  // device's width (the path may run a pixel off the centre).
+  cv::Mat R_local;
+  cv::dilate(R, R_local, cv::Mat::ones(reach, reach, CV_8U));
+  std::vector<float> score(dist.size(), -kInf);
+  std::vector<float> running(dist.size(), 0.0f), running_contrast(dist.size(), 0.0f);
+  std::vector<char> is_ridge(dist.size(), 0);
+  for (const int q : order) {
+    const int y = q / W, x = q % W;
+    const int p = parent[static_cast<std::size_t>(q)];
+    const float r = R_local.at<float>(y, x);
+    const float c = contrast_local.at<float>(y, x);
+    const float mean_so_far = p < 0 ? 0.0f : running[static_cast<std::size_t>(p)];
+    const float contrast_so_far = p < 0 ? 0.0f : running_contrast[static_cast<std::size_t>(p)];
+    // The contrast (Δp) too: noise is stronger over bone (fewer quanta), and a chain of
+    // noise maxima there can pass on noise units but never has a device's Δp.
+    const bool ridge = near_confident.at<std::uint8_t>(y, x) && r >= 0.35f * mean_so_far && c >= 0.5f * contrast_so_far;
+    is_ridge[static_cast<std::size_t>(q)] = ridge;
+    // Only pixels that pass update the means, so a long faint line cannot drag them down.
+    running[static_cast<std::size_t>(q)] =
+        !ridge ? mean_so_far : (mean_so_far == 0.0f ? r : mean_so_far + (r - mean_so_far) / 30.0f);
+    running_contrast[static_cast<std::size_t>(q)] =
+        !ridge ? contrast_so_far : (contrast_so_far == 0.0f ? c : contrast_so_far + (c - contrast_so_far) / 30.0f);
+    float gain = ridge ? 1.0f : -1.5f;
+    if (const int a = ancestor(q, 8); a >= 0)
+      if (const int b = ancestor(a, 8); b >= 0) {
+        const Eigen::Vector2f v1(x - a % W, y - a / W), v2(a % W - b % W, a / W - b / W);
+        if (v1.dot(v2) < std::cos(50.0f * 3.14159265f / 180.0f) * v1.norm() * v2.norm()) gain -= 5.0f;
+      }
+    score[static_cast<std::size_t>(q)] = (p < 0 ? 0.0f : score[static_cast<std::size_t>(p)]) + gain;
+  }
+  int tip = -1;
+  for (const int q : order) {
+    const int y = q / W, x = q % W;
+    if (!line_like.at<std::uint8_t>(y, x)) continue;
+    if (o.seed_px && (Eigen::Vector2d(x, y) - *o.seed_px).norm() > o.seed_radius_px) continue;
+    if (tip < 0 || score[static_cast<std::size_t>(q)] > score[static_cast<std::size_t>(tip)]) tip = q;
+  }
+  if (tip < 0) {
+    result.reason = o.seed_px ? "nothing device-like within " + std::to_string(o.seed_radius_px) + " px of the seed"
+                              : "no confident ridge connects to the field";
+    return result;
+  }
+
+  // The path, tip first; a trailing stretch that is mostly gap is not the device.
+  std::vector<int> path;
+  for (int q = tip; q >= 0; q = parent[static_cast<std::size_t>(q)]) path.push_back(q);
+  // Judged again against the device's own contrast, now that the path is known (the
+  // running means start at the border, which may be past the device's end).
+  float device_response = 0.0f, device_contrast = 0.0f;
+  {
+    std::vector<float> rs, cs;
+    for (const int q : path)
+      if (near_confident.at<std::uint8_t>(q / W, q % W)) {
+        rs.push_back(R_local.at<float>(q / W, q % W));
+        cs.push_back(contrast_local.at<float>(q / W, q % W));
+      }
+    if (!rs.empty()) {
+      std::nth_element(rs.begin(), rs.begin() + static_cast<long>(rs.size() / 2), rs.end());
+      std::nth_element(cs.begin(), cs.begin() + static_cast<long>(cs.size() / 2), cs.end());
+      device_response = rs[rs.size() / 2];
+      device_contrast = cs[cs.size() / 2];
+    }
+  }
+  const auto ridge_at = [&](int q) {
+    const int y = q / W, x = q % W;
+    return near_confident.at<std::uint8_t>(y, x) && R_local.at<float>(y, x) >= 0.35f * device_response &&
+           contrast_local.at<float>(y, x) >= 0.5f * device_contrast;
+  };
+  // Keep the prefix (from the tip) with the most evidence: past the device's proximal end
+  // the path to the border is gap with a few stray ridge pixels.
+  std::size_t best_end = 0;
+  float running_score = 0.0f, best_score = -kInf;
+  for (std::size_t i = 0; i < path.size(); ++i) {
+    running_score += ridge_at(path[i]) ? 1.0f : -1.5f;
+    if (running_score >= best_score) best_score = running_score, best_end = i;
+  }
+  result.reaches_border = border_reachable && path.size() - 1 - best_end <= static_cast<std::size_t>(o.device_width_px) + 2;
+  path.resize(best_end + 1);
+  std::vector<float> contrasts, steps;
+  std::vector<Eigen::Vector2d> centres;
+  std::vector<float> along;
+  int gaps = 0;
+  for (const int q : path) {
+    const int y = q / W, x = q % W;
+    const float off = ridge.offset.at<float>(y, x);
+    centres.emplace_back(x + off * ridge.nx.at<float>(y, x), y + off * ridge.ny.at<float>(y, x));
+    along.push_back(R.at<float>(y, x));
+    if (ridge_at(q)) {
+      contrasts.push_back(contrast_local.at<float>(y, x));
+      steps.push_back(side_step_at(y, x));
+    }
+    gaps += ridge_at(q) ? 0 : 1;
+  }
+  result.points = resample_and_smooth(centres, o.sample_step_px, o.smoothing_px);
+  for (std::size_t i = 1; i < result.points.size(); ++i) result.length_px += (result.points[i] - result.points[i - 1]).norm();
+  result.gap_fraction = static_cast<double>(gaps) / static_cast<double>(path.size());
+  std::nth_element(along.begin(), along.begin() + static_cast<long>(along.size() / 2), along.end());
+  result.median_response = along[along.size() / 2];
+  result.confidence = (1.0 - result.gap_fraction) * std::min(1.0, result.median_response / (2.0 * o.high_threshold));
+  if (!contrasts.empty()) {
+    std::nth_element(contrasts.begin(), contrasts.begin() + static_cast<long>(contrasts.size() / 2), contrasts.end());
+    result.contrast = contrasts[contrasts.size() / 2];
+  }
+  if (!steps.empty()) {
+    std::nth_element(steps.begin(), steps.begin() + static_cast<long>(steps.size() / 2), steps.end());
+    result.side_step = steps[steps.size() / 2];
+  }
+  // A device is a line on the background: the same background on both sides. The border
+  // of a bone or of the body is a step with a rim on it.
+  if (result.side_step > 0.3 * result.contrast) {
+    result.reason = "the strongest curve is the edge of a wider structure (one side is " +
+                    std::to_string(result.side_step) + " −log units denser than the other, the curve itself " +
+                    std::to_string(result.contrast) + "): no device in the image";
+    result.points.clear();
+    return result;
+  }
+  if (result.contrast < o.min_contrast) {
+    result.reason = "the strongest curve has a contrast of " + std::to_string(result.contrast) +
+                    " (attenuation, −log units), below the " + std::to_string(o.min_contrast) +
+                    " of a device: no device in the image";
+    result.points.clear();
+    return result;
+  }
+  if (result.length_px < o.min_length_px) {
+    result.reason = "the strongest curve is " + std::to_string(static_cast<int>(result.length_px)) +
+                    " px long, shorter than " + std::to_string(static_cast<int>(o.min_length_px)) + " px";
+    result.points.clear();
+    return result;
+  }
+  result.found = true;
+  return result;
+}
+
+}  // namespace evar::geometry

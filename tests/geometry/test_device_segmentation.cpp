@@ -1,0 +1,163 @@
+#include <gtest/gtest.h>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include <cstdlib>
+
+#include "evar/geometry/device_segmentation.hpp"
+#include "synthetic_fluoro.hpp"
+
+using namespace evar;
+using geometry::SegmentationOptions;
+
+namespace {
+
+struct Case {
+  geometry::CArmView view = test::detector_view(30, 10);
+  sim::FluoroOptions render;
+  std::vector<geometry::Polyline> wires{test::iliac_guidewire()};
+};
+
+struct Outcome {
+  sim::FluoroFrame frame;
+  geometry::DeviceCurve2D found;
+  test::CurveMatch match;
+};
+
+Outcome run(const Case& c, SegmentationOptions so = {}) {
+  Outcome o;
+  o.frame = sim::render_fluoro(geometry::projection_matrix(c.view), c.view, c.wires, c.render);
+  so.device_width_px = test::shadow_width_px(c.view);
+  o.found = geometry::segment_device(o.frame.image, so);
+  // The searched region: the exposed field less the rim the ridge filter cannot see into.
+  const double rim = 3.0 * so.device_width_px;
+  const cv::Rect2d region(o.found.field.x + rim, o.found.field.y + rim, o.found.field.width - 2 * rim,
+                          o.found.field.height - 2 * rim);
+  o.match = test::match(o.found.points, o.frame.truth.front(), region);
+  // EVAR_TEST_PICTURES=dir: the frame with the truth (green) and the result (red).
+  if (const char* dir = std::getenv("EVAR_TEST_PICTURES")) {
+    cv::Mat f, vis;
+    o.frame.image.convertTo(f, CV_32F);
+    cv::log(f + 1.0f, f);
+    cv::normalize(f, f, 0, 255, cv::NORM_MINMAX);
+    f.convertTo(vis, CV_8U);
+    cv::cvtColor(vis, vis, cv::COLOR_GRAY2BGR);
+    for (const auto& t : o.frame.truth.front())
+      if (t.x() >= 0 && t.y() >= 0 && t.x() < vis.cols && t.y() < vis.rows) vis.at<cv::Vec3b>(int(t.y()), int(t.x())) = {0, 255, 0};
+    for (std::size_t i = 1; i < o.found.points.size(); ++i)
+      cv::line(vis, cv::Point2d(o.found.points[i - 1].x(), o.found.points[i - 1].y()),
+               cv::Point2d(o.found.points[i].x(), o.found.points[i].y()), {0, 0, 255}, 1);
+    cv::imwrite(std::string(dir) + "/" + ::testing::UnitTest::GetInstance()->current_test_info()->name() + ".png", vis);
+  }
+  return o;
+}
+
+}  // namespace
+
+// Tolerances are the issue's: mean distance to the true centreline under 1 px, more than
+// 90 % of the visible wire found.
+TEST(DeviceSegmentation, FindsAGuidewireOverSpineAndSoftTissueToSubPixelAccuracy) {
+  const auto o = run({});
+  ASSERT_TRUE(o.found.found) << o.found.reason;
+  EXPECT_LT(o.match.mean_distance_px, 1.0);
+  EXPECT_GT(o.match.coverage, 0.9);
+  EXPECT_TRUE(o.found.reaches_border);
+  EXPECT_GT(o.found.confidence, 0.8);
+  // Tip first: the first point is the wire's distal end (the truth runs tip first too).
+  EXPECT_LT((o.found.points.front() - o.frame.truth.front().front()).norm(), 5.0);
+}
+
+TEST(DeviceSegmentation, CopesWithLowDoseAndCollimation) {
+  Case c;
+  c.view = test::detector_view(-25, -15);
+  c.render.photons_per_pixel = 400;  // about an eighth of the default dose
+  c.render.collimation_px = 90;
+  c.render.seed = 7;
+  c.wires = {test::iliac_guidewire(-30.0)};
+  const auto o = run(c);
+  ASSERT_TRUE(o.found.found) << o.found.reason;
+  EXPECT_LT(o.match.mean_distance_px, 1.0);
+  EXPECT_GT(o.match.coverage, 0.9);
+  EXPECT_NEAR(o.found.field.x, 90, 2);  // the shutters were found
+  EXPECT_NEAR(o.found.field.width, 1024 - 180, 4);
+}
+
+TEST(DeviceSegmentation, LargeFieldOverSpineAndPelvisWithAThinShadow) {
+  Case c;
+  c.view = test::detector_view(10, -5, 1024, 0.6);  // the whole abdomen and pelvis, 2.2 px wide shadow
+  c.render.seed = 11;
+  c.wires = {test::iliac_guidewire(-20.0)};
+  const auto o = run(c);
+  ASSERT_TRUE(o.found.found) << o.found.reason;
+  EXPECT_LT(o.match.mean_distance_px, 1.0);
+  EXPECT_GT(o.match.coverage, 0.9);
+  EXPECT_FALSE(o.found.reaches_border);  // this wire ends over the pelvis, inside the field
+}
+
+TEST(DeviceSegmentation, AWireLeavingTheDetectorEndsAtTheBorder) {
+  Case c;
+  c.wires = {test::iliac_guidewire(60.0)};  // far to the patient's left: runs off the side
+  const auto o = run(c);
+  ASSERT_TRUE(o.found.found) << o.found.reason;
+  EXPECT_LT(o.match.mean_distance_px, 1.0);
+  EXPECT_GT(o.match.coverage, 0.9);
+  EXPECT_TRUE(o.found.reaches_border);
+}
+
+TEST(DeviceSegmentation, ASeedChoosesBetweenTwoDevices) {
+  Case c;
+  c.wires = {test::iliac_guidewire(), test::iliac_guidewire(-45.0)};
+  const auto frame = sim::render_fluoro(geometry::projection_matrix(c.view), c.view, c.wires, c.render);
+  SegmentationOptions so;
+  so.device_width_px = test::shadow_width_px(c.view);
+  for (std::size_t which = 0; which < 2; ++which) {
+    so.seed_px = frame.truth[which].front() + Eigen::Vector2d(3, -2);  // a click near the tip
+    const auto found = geometry::segment_device(frame.image, so);
+    ASSERT_TRUE(found.found) << found.reason;
+    const auto m = test::match(found.points, frame.truth[which], cv::Rect2d(20, 20, 984, 984));
+    EXPECT_LT(m.mean_distance_px, 1.0) << "wire " << which;
+    EXPECT_GT(m.coverage, 0.9) << "wire " << which;
+  }
+}
+
+TEST(DeviceSegmentation, EightBitInputWorksToo) {
+  const Case c;
+  auto frame = sim::render_fluoro(geometry::projection_matrix(c.view), c.view, c.wires, c.render);
+  cv::Mat eight;
+  frame.image.convertTo(eight, CV_8U, 255.0 / 4095.0);
+  SegmentationOptions so;
+  so.device_width_px = test::shadow_width_px(c.view);
+  const auto found = geometry::segment_device(eight, so);
+  ASSERT_TRUE(found.found) << found.reason;
+  EXPECT_LT(test::match(found.points, frame.truth.front(), cv::Rect2d(20, 20, 984, 984)).mean_distance_px, 1.0);
+}
+
+TEST(DeviceSegmentation, SaysClearlyWhenThereIsNothing) {
+  const Case c;
+  const auto frame = sim::render_fluoro(geometry::projection_matrix(c.view), c.view, {}, c.render);
+  SegmentationOptions so;
+  so.device_width_px = test::shadow_width_px(c.view);
+  const auto none = geometry::segment_device(frame.image, so);
+  EXPECT_FALSE(none.found);
+  EXPECT_FALSE(none.reason.empty());
+  EXPECT_TRUE(none.points.empty());
+
+  const auto dark = geometry::segment_device(cv::Mat(256, 256, CV_16UC1, cv::Scalar(0)));
+  EXPECT_FALSE(dark.found);
+  EXPECT_NE(dark.reason.find("no exposed field"), std::string::npos) << dark.reason;
+
+  cv::Mat flat(256, 256, CV_8UC1, cv::Scalar(128));
+  EXPECT_FALSE(geometry::segment_device(flat).found);
+}
+
+TEST(DeviceSegmentation, GarbageNeverCrashes) {
+  cv::Mat noise(300, 200, CV_32FC1);
+  cv::randu(noise, -1e6, 1e6);
+  noise.at<float>(10, 10) = std::numeric_limits<float>::quiet_NaN();
+  noise.at<float>(20, 10) = std::numeric_limits<float>::infinity();
+  EXPECT_NO_THROW(geometry::segment_device(noise));
+  EXPECT_NO_THROW(geometry::segment_device(cv::Mat(3, 3, CV_8UC1, cv::Scalar(9))));
+  EXPECT_THROW(geometry::segment_device(cv::Mat()), std::invalid_argument);
+  EXPECT_THROW(geometry::segment_device(cv::Mat(10, 10, CV_8UC3)), std::invalid_argument);
+}
