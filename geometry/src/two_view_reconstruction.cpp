@@ -1,0 +1,257 @@
+#include "evar/geometry/two_view_reconstruction.hpp"
+
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
+#include <algorithm>
+#include <cmath>
+#include <numbers>
+
+namespace evar::geometry {
+
+namespace {
+
+constexpr double kRadToDeg = 180.0 / std::numbers::pi;
+
+struct Curve2 {
+  std::vector<Eigen::Vector2d> p;
+  std::vector<double> s;  // arc length (px)
+};
+
+Curve2 resample2(const std::vector<Eigen::Vector2d>& in, double step) {
+  Curve2 c;
+  std::vector<double> s(in.size(), 0.0);
+  for (std::size_t i = 1; i < in.size(); ++i) s[i] = s[i - 1] + (in[i] - in[i - 1]).norm();
+  const double length = s.back();
+  const int n = std::max(2, static_cast<int>(std::round(length / step)) + 1);
+  std::size_t k = 0;
+  for (int i = 0; i < n; ++i) {
+    const double t = length * i / (n - 1);
+    while (k + 2 < in.size() && s[k + 1] < t) ++k;
+    const double seg = s[k + 1] - s[k];
+    const double u = seg > 0.0 ? std::clamp((t - s[k]) / seg, 0.0, 1.0) : 0.0;
+    c.p.push_back(in[k] + u * (in[k + 1] - in[k]));
+    c.s.push_back(t);
+  }
+  return c;
+}
+
+double line_distance(const Eigen::Vector3d& l, const Eigen::Vector2d& x) {
+  return std::abs(l.dot(x.homogeneous())) / std::max(l.head<2>().norm(), 1e-300);
+}
+
+double distance_to_curve(const Eigen::Vector2d& q, const std::vector<Eigen::Vector2d>& c) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i + 1 < c.size(); ++i) {
+    const Eigen::Vector2d d = c[i + 1] - c[i];
+    const double t = std::clamp((q - c[i]).dot(d) / std::max(d.squaredNorm(), 1e-300), 0.0, 1.0);
+    best = std::min(best, (q - c[i] - t * d).norm());
+  }
+  return best;
+}
+
+}  // namespace
+
+double view_separation_deg(const ProjectionMatrix& P1, const ProjectionMatrix& P2) {
+  const Eigen::Vector3d d1 = pinhole_camera(P1).direction, d2 = pinhole_camera(P2).direction;
+  return std::acos(std::clamp(d1.dot(d2), -1.0, 1.0)) * kRadToDeg;
+}
+
+Eigen::Matrix3d fundamental_matrix(const ProjectionMatrix& P1, const ProjectionMatrix& P2) {
+  const Eigen::Vector3d C1 = pinhole_camera(P1).source_mm;
+  const Eigen::Vector3d e2 = P2 * C1.homogeneous();
+  Eigen::Matrix3d ex;
+  ex << 0, -e2.z(), e2.y(), e2.z(), 0, -e2.x(), -e2.y(), e2.x(), 0;
+  const Eigen::Matrix<double, 4, 3> P1_pinv = P1.transpose() * (P1 * P1.transpose()).inverse();
+  return ex * P2 * P1_pinv;
+}
+
+Eigen::Vector3d triangulate(const ProjectionMatrix& P1, const Eigen::Vector2d& x1, const ProjectionMatrix& P2,
+                            const Eigen::Vector2d& x2) {
+  // Rows scaled to unit norm so pixels and millimetres weigh alike.
+  Eigen::Matrix4d A;
+  A.row(0) = x1.x() * P1.row(2) - P1.row(0);
+  A.row(1) = x1.y() * P1.row(2) - P1.row(1);
+  A.row(2) = x2.x() * P2.row(2) - P2.row(0);
+  A.row(3) = x2.y() * P2.row(2) - P2.row(1);
+  for (int r = 0; r < 4; ++r) A.row(r).normalize();
+  const Eigen::JacobiSVD<Eigen::Matrix4d> svd(A, Eigen::ComputeFullV);
+  const Eigen::Vector4d X = svd.matrixV().col(3);
+  return X.head<3>() / X.w();
+}
+
+Reconstruction reconstruct_two_view(const std::vector<Eigen::Vector2d>& curve1, const ProjectionMatrix& P1,
+                                    const std::vector<Eigen::Vector2d>& curve2, const ProjectionMatrix& P2,
+                                    const ReconstructionOptions& o) {
+  if (curve1.size() < 2 || curve2.size() < 2)
+    throw ReconstructionError("two-view reconstruction: each view needs a curve of at least 2 points (view " +
+                              std::string(curve1.size() < 2 ? "1" : "2") + " has " +
+                              std::to_string(std::min(curve1.size(), curve2.size())) + ")");
+  for (const auto* c : {&curve1, &curve2})
+    for (const auto& p : *c)
+      if (!p.allFinite()) throw ReconstructionError("two-view reconstruction: a curve point is not finite");
+  Reconstruction out;
+  out.separation_deg = view_separation_deg(P1, P2);
+  if (out.separation_deg < o.min_separation_deg)
+    throw ReconstructionError("the views are " + std::to_string(out.separation_deg).substr(0, 5) +
+                              " degrees apart; at least " + std::to_string(o.min_separation_deg).substr(0, 5) +
+                              " are needed to triangulate (rotate the C-arm further between the two frames)");
+
+  const Curve2 c1 = resample2(curve1, o.sample_step_px), c2 = resample2(curve2, o.sample_step_px);
+  const int N = static_cast<int>(c1.p.size()), M = static_cast<int>(c2.p.size());
+  const Eigen::Matrix3d F = fundamental_matrix(P1, P2);
+  std::vector<Eigen::Vector3d> l2(static_cast<std::size_t>(N)), l1(static_cast<std::size_t>(M));  // epipolar lines
+  for (int i = 0; i < N; ++i) l2[static_cast<std::size_t>(i)] = F * c1.p[static_cast<std::size_t>(i)].homogeneous();
+  for (int j = 0; j < M; ++j) l1[static_cast<std::size_t>(j)] = F.transpose() * c2.p[static_cast<std::size_t>(j)].homogeneous();
+
+  // Local alignment, both indices advancing: S(i,j) = reward(i,j) + max(0, S(i−1,j−1), S(i−1,j), S(i,j−1)).
+  const double beta = o.match_reward_px;
+  std::vector<float> S(static_cast<std::size_t>(N) * static_cast<std::size_t>(M));
+  std::vector<std::uint8_t> from(S.size());  // 0 start, 1 diagonal, 2 from i−1, 3 from j−1
+  float best = 0.0f;
+  int bi = -1, bj = -1;
+  for (int i = 0; i < N; ++i)
+    for (int j = 0; j < M; ++j) {
+      const double d = 0.5 * (line_distance(l2[static_cast<std::size_t>(i)], c2.p[static_cast<std::size_t>(j)]) +
+                              line_distance(l1[static_cast<std::size_t>(j)], c1.p[static_cast<std::size_t>(i)]));
+      const float reward = static_cast<float>(beta - std::min(d, 4.0 * beta));
+      float prev = 0.0f;
+      std::uint8_t f = 0;
+      const auto at = [&](int a, int b) { return S[static_cast<std::size_t>(a) * static_cast<std::size_t>(M) + static_cast<std::size_t>(b)]; };
+      if (i > 0 && j > 0 && at(i - 1, j - 1) > prev) prev = at(i - 1, j - 1), f = 1;
+      if (i > 0 && at(i - 1, j) > prev) prev = at(i - 1, j), f = 2;
+      if (j > 0 && at(i, j - 1) > prev) prev = at(i, j - 1), f = 3;
+      const std::size_t k = static_cast<std::size_t>(i) * static_cast<std::size_t>(M) + static_cast<std::size_t>(j);
+      S[k] = prev + reward;
+      from[k] = f;
+      if (S[k] > best) best = S[k], bi = i, bj = j;
+    }
+  if (bi < 0) throw ReconstructionError("the curves do not correspond in these views (no epipolar match)");
+  // Back-track: for each matched i, the mean of its matched j.
+  std::vector<double> j_of(static_cast<std::size_t>(N), -1.0);
+  std::vector<int> j_count(static_cast<std::size_t>(N), 0);
+  int i_first = bi, j_first = bj;
+  for (int i = bi, j = bj;;) {
+    j_of[static_cast<std::size_t>(i)] = (j_of[static_cast<std::size_t>(i)] < 0 ? 0.0 : j_of[static_cast<std::size_t>(i)]) + j;
+    ++j_count[static_cast<std::size_t>(i)];
+    i_first = i;
+    j_first = j;
+    const std::uint8_t f = from[static_cast<std::size_t>(i) * static_cast<std::size_t>(M) + static_cast<std::size_t>(j)];
+    if (f == 0) break;
+    if (f == 1) --i, --j;
+    else if (f == 2) --i;
+    else --j;
+  }
+  out.matched_fraction_1 = (c1.s[static_cast<std::size_t>(bi)] - c1.s[static_cast<std::size_t>(i_first)]) / std::max(c1.s.back(), 1e-9);
+  out.matched_fraction_2 = (c2.s[static_cast<std::size_t>(bj)] - c2.s[static_cast<std::size_t>(j_first)]) / std::max(c2.s.back(), 1e-9);
+  if (bi - i_first < 4)
+    throw ReconstructionError("the curves do not correspond in these views: fewer than 5 points of view 1 match view 2 "
+                              "(a different device, or geometry that does not belong to these frames?)");
+
+  // Sub-pixel crossings, reliability, triangulation (depth along view 1's rays).
+  const PinholeCamera cam1 = pinhole_camera(P1);
+  const double grazing_sin = std::sin(o.grazing_deg / kRadToDeg);
+  std::vector<double> depth, arc;
+  std::vector<char> ok;
+  std::vector<Eigen::Vector3d> rays;
+  for (int i = i_first; i <= bi; ++i) {
+    const auto& u = c1.p[static_cast<std::size_t>(i)];
+    const Eigen::Vector3d& l = l2[static_cast<std::size_t>(i)];
+    const double jm = j_of[static_cast<std::size_t>(i)] / j_count[static_cast<std::size_t>(i)];
+    const Eigen::Vector2d line_dir = Eigen::Vector2d(-l.y(), l.x()).normalized();
+    bool found = false, reliable = false;
+    Eigen::Vector2d v;
+    double best_gap = std::numeric_limits<double>::infinity();
+    const int k0 = std::max(0, static_cast<int>(std::floor(jm)) - 4), k1 = std::min(M - 2, static_cast<int>(std::ceil(jm)) + 4);
+    for (int k = k0; k <= k1; ++k) {
+      const Eigen::Vector2d a = c2.p[static_cast<std::size_t>(k)], b = c2.p[static_cast<std::size_t>(k + 1)];
+      const double fa = l.dot(a.homogeneous()), fb = l.dot(b.homogeneous());
+      if (fa * fb > 0.0 || fa == fb) continue;
+      const double t = fa / (fa - fb);
+      const double gap = std::abs(k + t - jm);
+      if (gap < best_gap) {
+        best_gap = gap;
+        v = a + t * (b - a);
+        found = true;
+        const Eigen::Vector2d tangent = (b - a).normalized();
+        reliable = std::abs(tangent.x() * line_dir.y() - tangent.y() * line_dir.x()) >= grazing_sin;
+      }
+    }
+    const Eigen::Vector3d ray = (cam1.M.inverse() * u.homogeneous()).normalized();
+    rays.push_back(ray);
+    arc.push_back(c1.s[static_cast<std::size_t>(i)]);
+    if (found && reliable) {
+      const Eigen::Vector3d X = triangulate(P1, u, P2, v);
+      depth.push_back((X - cam1.source_mm).dot(ray));
+      ok.push_back(X.allFinite() && depth.back() > 0.0);
+    } else {
+      depth.push_back(0.0);
+      ok.push_back(0);
+    }
+  }
+  const auto n = depth.size();
+  const auto reliable_count = static_cast<std::size_t>(std::count(ok.begin(), ok.end(), 1));
+  if (reliable_count == 0)
+    throw ReconstructionError("no reliable correspondence: in these two views the device runs along the epipolar lines "
+                              "everywhere (choose views whose rotation axis is not along the device)");
+  // Fill: depth interpolated along arc length between reliable neighbours, held at the ends.
+  for (std::size_t k = 0; k < n; ++k) {
+    if (ok[k]) continue;
+    std::size_t a = k, b = k;
+    while (a > 0 && !ok[a]) --a;
+    while (b + 1 < n && !ok[b]) ++b;
+    if (!ok[a]) depth[k] = depth[b];
+    else if (!ok[b]) depth[k] = depth[a];
+    else depth[k] = depth[a] + (depth[b] - depth[a]) * (arc[k] - arc[a]) / std::max(arc[b] - arc[a], 1e-12);
+  }
+  std::vector<Eigen::Vector3d> X(n);
+  for (std::size_t k = 0; k < n; ++k) X[k] = cam1.source_mm + depth[k] * rays[k];
+
+  // Smoothing along 3D arc length, the window shrinking towards the ends.
+  std::vector<double> s3(n, 0.0);
+  for (std::size_t k = 1; k < n; ++k) s3[k] = s3[k - 1] + (X[k] - X[k - 1]).norm();
+  std::vector<Eigen::Vector3d> Xs(n);
+  for (std::size_t k = 0; k < n; ++k) {
+    const double reach = std::min({3.0 * o.smoothing_mm, s3[k] - s3.front(), s3.back() - s3[k]});
+    Eigen::Vector3d acc = Eigen::Vector3d::Zero();
+    double wsum = 0.0;
+    for (std::size_t m = k; m < n && s3[m] - s3[k] <= reach; ++m) {
+      const double w = std::exp(-0.5 * std::pow((s3[m] - s3[k]) / o.smoothing_mm, 2));
+      acc += w * X[m];
+      wsum += w;
+    }
+    for (std::size_t m = k; m-- > 0 && s3[k] - s3[m] <= reach;) {
+      const double w = std::exp(-0.5 * std::pow((s3[k] - s3[m]) / o.smoothing_mm, 2));
+      acc += w * X[m];
+      wsum += w;
+    }
+    Xs[k] = acc / wsum;
+  }
+  // Even resampling, reliability from the nearest sample, residuals.
+  Polyline smoothed(Xs.begin(), Xs.end());
+  std::vector<double> ss(n, 0.0);
+  for (std::size_t k = 1; k < n; ++k) ss[k] = ss[k - 1] + (Xs[k] - Xs[k - 1]).norm();
+  out.points = resample(smoothed, o.output_step_mm);
+  std::size_t cursor = 0;
+  double s_out = 0.0;
+  for (std::size_t k = 0; k < out.points.size(); ++k) {
+    if (k > 0) s_out += (out.points[k] - out.points[k - 1]).norm();
+    while (cursor + 1 < n && ss[cursor + 1] <= s_out) ++cursor;
+    const std::size_t nearest = (cursor + 1 < n && ss[cursor + 1] - s_out < s_out - ss[cursor]) ? cursor + 1 : cursor;
+    out.reliable.push_back(ok[nearest]);
+    const auto x1 = project(P1, out.points[k]), x2 = project(P2, out.points[k]);
+    const double r = (x1 && x2) ? std::max(distance_to_curve(*x1, curve1), distance_to_curve(*x2, curve2))
+                                : std::numeric_limits<double>::infinity();
+    out.residual_px.push_back(r);
+  }
+  double sum = 0.0;
+  for (const double r : out.residual_px) {
+    sum += r;
+    out.max_residual_px = std::max(out.max_residual_px, r);
+  }
+  out.mean_residual_px = sum / static_cast<double>(out.residual_px.size());
+  out.reliable_fraction = static_cast<double>(std::count(out.reliable.begin(), out.reliable.end(), 1)) /
+                          static_cast<double>(out.reliable.size());
+  return out;
+}
+
+}  // namespace evar::geometry
