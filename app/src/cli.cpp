@@ -98,6 +98,51 @@ int run_cli(const std::vector<std::string>& args) {
   pr->add_option("--points", project.points, "points: any 3D Slicer markups file (.mrk.json), labels kept")->required();
   pr->add_option("--out", project.out, "also write the result as JSON");
 
+  const auto add_segment_params = [](CLI::App* c, SegmentParams& p) {
+    c->add_option("--device-diameter-mm", p.diameter_mm, "device diameter, for its shadow width with the geometry")
+        ->check(CLI::Range(0.1, 10.0))
+        ->capture_default_str();
+    c->add_option("--width-px", p.width_px, "shadow width in pixels (instead of diameter and geometry)")
+        ->check(CLI::Range(0.5, 100.0));
+    c->add_option("--min-contrast", p.min_contrast,
+                  "least device contrast, -log units of raw detector data; 0 for processed video")
+        ->check(CLI::Range(0.0, 10.0))
+        ->capture_default_str();
+  };
+  SegmentCommand segment;
+  auto* sg = app.add_subcommand("segment",
+                                "Find the guidewire or catheter in one fluoroscopy frame and write it as an\n"
+                                "ordered sub-pixel polyline, tip first, with a confidence (JSON). Exit code 3\n"
+                                "when the frame holds no device (the JSON then says why).");
+  sg->add_option("--image", segment.image, "frame: PNG or TIFF (8 or 16 bit, grey) or DICOM XA / Enhanced XA")->required();
+  sg->add_option("--geometry", segment.geometry, "view geometry JSON or DICOM (sets the expected device width)");
+  sg->add_option("--out", segment.out, "result JSON (format evarnode-device-2d)")->required();
+  sg->add_option("--overlay", segment.overlay, "also write the frame with the device drawn on it (PNG)");
+  sg->add_option("--seed", segment.params.seed, "u v: a click on or near the tip (pixels)")->expected(2);
+  add_segment_params(sg, segment.params);
+
+  ReconstructCommand reconstruct;
+  auto* rc = app.add_subcommand("reconstruct",
+                                "The device in 3D from two frames at different C-arm angulations: segments\n"
+                                "both, matches them along epipolar lines, triangulates. Writes a 3D Slicer Curve\n"
+                                "markup (tip first) that `evarnode deform --device` reads.");
+  rc->add_option("--image", reconstruct.images, "a frame (give twice): PNG/TIFF with --geometry, or DICOM XA")
+      ->required()
+      ->expected(1)
+      ->take_all();
+  rc->add_option("--geometry", reconstruct.geometries, "view geometry of each --image, in the same order (or none for DICOM)")
+      ->expected(1)
+      ->take_all();
+  rc->add_option("--registration", reconstruct.registration,
+                 "CT to C-arm registration JSON: the curve is written in CT LPS (else C-arm coordinates)");
+  rc->add_option("--out", reconstruct.out, "device curve (.mrk.json)")->required();
+  rc->add_option("--report", reconstruct.report, "JSON report: per-view segmentation, residuals, timings");
+  rc->add_option("--overlay-prefix", reconstruct.overlay_prefix, "write PREFIX1.png and PREFIX2.png with the curves drawn");
+  rc->add_option("--min-separation-deg", reconstruct.min_separation_deg, "refuse views closer than this")
+      ->check(CLI::Range(1.0, 90.0))
+      ->capture_default_str();
+  add_segment_params(rc, reconstruct.params);
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -111,6 +156,8 @@ int run_cli(const std::vector<std::string>& args) {
     if (a->parsed()) return run_arap(arap);
     if (e->parsed()) return run_example(example);
     if (pr->parsed()) return run_project(project);
+    if (sg->parsed()) return run_segment(segment);
+    if (rc->parsed()) return run_reconstruct(reconstruct);
   } catch (const geometry::InputError& err) {
     log().error("{}", err.what());
     return 1;

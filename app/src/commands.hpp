@@ -3,6 +3,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 namespace evar::app {
 
@@ -35,6 +36,28 @@ struct ExampleCommand {
   int iliac_vertices = 3500;
 };
 int run_example(const ExampleCommand& cmd);
+
+/// Options shared by segment and reconstruct.
+struct SegmentParams {
+  double diameter_mm = 0.89;             ///< device diameter (0.035" guidewire), for its shadow width
+  std::optional<double> width_px;        ///< shadow width, when no geometry is known
+  std::vector<double> seed;              ///< u v of a click on the tip
+  double min_contrast = 0.25;
+};
+
+struct SegmentCommand {
+  std::filesystem::path image, geometry, out, overlay;
+  SegmentParams params;
+};
+int run_segment(const SegmentCommand& cmd);
+
+struct ReconstructCommand {
+  std::vector<std::filesystem::path> images, geometries;
+  std::filesystem::path registration, out, report, overlay_prefix;
+  SegmentParams params;
+  double min_separation_deg = 20.0;
+};
+int run_reconstruct(const ReconstructCommand& cmd);
 
 struct ProjectCommand {
   std::filesystem::path geometry, registration, points, out;

@@ -9,6 +9,11 @@
 #include "evar/app/cli.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/xa_dicom.hpp"
+#include "evar/geometry/markups.hpp"
+#include "evar/geometry/polyline.hpp"
+#include "evar/sim/fluoro_render.hpp"
+
+#include <opencv2/imgcodecs.hpp>
 #include "evar/sim/example_scene.hpp"
 
 namespace fs = std::filesystem;
@@ -272,4 +277,89 @@ TEST_F(Cli, ProjectReadsTheGeometryOfADicomFile) {
   ASSERT_EQ(code, 0);
   const auto r = nlohmann::json::parse(std::ifstream(dir / "r.json"));
   EXPECT_DOUBLE_EQ(r["points"][0]["pixel"][0].get<double>(), 49.5);
+}
+
+namespace {
+// Two rendered frames of a known wire, 30 degrees LAO and RAO, as PNG + geometry and DICOM.
+struct TwoFrames {
+  fs::path dir;
+  evar::geometry::Polyline wire;
+};
+TwoFrames write_two_frames(const fs::path& dir, double separation_deg = 60.0) {
+  TwoFrames t{dir, {}};
+  for (int k = 60; k >= 0; --k) {
+    const double s = k / 60.0;
+    t.wire.emplace_back(-40.0 + 45.0 * s + 8.0 * std::sin(3.0 * s), 12.0 * std::sin(2.0 * s) - 5.0, -150.0 + 200.0 * s);
+  }
+  for (int k = 0; k < 2; ++k) {
+    evar::geometry::CArmView v;
+    v.primary_angle_deg = (k == 0 ? 0.5 : -0.5) * separation_deg;
+    v.source_to_detector_mm = 1200;
+    v.source_to_isocenter_mm = 800;
+    v.detector_cols = v.detector_rows = 768;
+    v.row_spacing_mm = v.col_spacing_mm = 0.4;
+    evar::sim::FluoroOptions o;
+    o.seed = static_cast<std::uint64_t>(k + 1);
+    const auto f = evar::sim::render_fluoro(evar::geometry::projection_matrix(v), v, {t.wire}, o);
+    const std::string n = std::to_string(k + 1);
+    cv::imwrite((dir / ("view" + n + ".png")).string(), f.image);
+    evar::geometry::write_view_geometry(dir / ("view" + n + ".json"), v);
+    evar::geometry::write_xa_dicom(dir / ("view" + n + ".dcm"), v, {f.image}, k == 1, 12);
+  }
+  return t;
+}
+}  // namespace
+
+TEST_F(Cli, SegmentWritesTheCurveAndSaysWhenThereIsNone) {
+  const auto dir = scratch("segment");
+  write_two_frames(dir);
+  ASSERT_EQ(evarnode({"segment", "--image", (dir / "view1.png").string(), "--geometry", (dir / "view1.json").string(),
+                      "--out", (dir / "d.json").string(), "--overlay", (dir / "o.png").string()})
+                .code,
+            0);
+  const auto j = nlohmann::json::parse(std::ifstream(dir / "d.json"));
+  EXPECT_TRUE(j["found"].get<bool>());
+  EXPECT_GT(j["points_px"].size(), 100u);
+  EXPECT_NEAR(j["device_width_px"].get<double>(), 0.89 * 1.5 / 0.4, 1e-9);
+  EXPECT_TRUE(fs::exists(dir / "o.png"));
+  cv::imwrite((dir / "blank.png").string(), cv::Mat(200, 200, CV_16UC1, cv::Scalar(3000)));
+  const auto none = evarnode({"segment", "--image", (dir / "blank.png").string(), "--out", (dir / "n.json").string()});
+  EXPECT_EQ(none.code, 3);
+  EXPECT_NE(none.err.find("no device found"), std::string::npos) << none.err;
+  EXPECT_FALSE(nlohmann::json::parse(std::ifstream(dir / "n.json"))["found"].get<bool>());
+  write_text(dir / "junk.png", "not an image");
+  EXPECT_EQ(evarnode({"segment", "--image", (dir / "junk.png").string(), "--out", (dir / "x.json").string()}).code, 1);
+}
+
+TEST_F(Cli, ReconstructFromPngsAndFromDicomMatchesTheWire) {
+  const auto dir = scratch("reconstruct");
+  const auto t = write_two_frames(dir);
+  for (const bool dicom : {false, true}) {
+    std::vector<std::string> args{"reconstruct", "--out", (dir / "device.mrk.json").string(), "--report",
+                                  (dir / "r.json").string()};
+    for (const char* n : {"1", "2"}) {
+      args.insert(args.end(), {"--image", (dir / (std::string("view") + n + (dicom ? ".dcm" : ".png"))).string()});
+      if (!dicom) args.insert(args.end(), {"--geometry", (dir / (std::string("view") + n + ".json")).string()});
+    }
+    const auto run = evarnode(args);
+    ASSERT_EQ(run.code, 0) << run.err;
+    const auto curve = evar::geometry::read_curve(dir / "device.mrk.json", 2);
+    double sum = 0.0;
+    for (const auto& p : curve.points) sum += evar::geometry::project_onto(t.wire, p.position_lps).distance_mm;
+    EXPECT_LT(sum / static_cast<double>(curve.points.size()), 1.0) << (dicom ? "DICOM" : "PNG");
+    EXPECT_LT((curve.points.front().position_lps - t.wire.front()).norm(), 3.0);  // tip first
+    const auto report = nlohmann::json::parse(std::ifstream(dir / "r.json"));
+    EXPECT_NEAR(report["separation_deg"].get<double>(), 60.0, 1e-6);
+  }
+}
+
+TEST_F(Cli, ReconstructRefusesViewsTooCloseTogether) {
+  const auto dir = scratch("reconstruct_close");
+  write_two_frames(dir, 12.0);
+  const auto run = evarnode({"reconstruct", "--image", (dir / "view1.dcm").string(), "--image", (dir / "view2.dcm").string(),
+                             "--out", (dir / "d.mrk.json").string(), "--report", (dir / "r.json").string()});
+  EXPECT_EQ(run.code, 1);
+  EXPECT_NE(run.err.find("degrees apart"), std::string::npos) << run.err;
+  EXPECT_FALSE(fs::exists(dir / "d.mrk.json"));
+  EXPECT_TRUE(nlohmann::json::parse(std::ifstream(dir / "r.json")).contains("error"));
 }

@@ -1,0 +1,68 @@
+#include "fluoro_input.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+
+#include "evar/geometry/input_error.hpp"
+#include "evar/geometry/xa_dicom.hpp"
+#include "view_input.hpp"
+
+namespace evar::app {
+
+FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesystem::path& geometry) {
+  FluoroInput in;
+  if (!std::filesystem::is_regular_file(image)) throw geometry::InputError(image.string() + ": no such file");
+  if (is_dicom_file(image)) {
+    auto frame = geometry::read_xa_dicom(image);
+    in.image = frame.pixels;
+    in.view = frame.view;
+  } else {
+    cv::Mat raw;
+    try {
+      raw = cv::imread(image.string(), cv::IMREAD_UNCHANGED);
+    } catch (const cv::Exception& e) {
+      throw geometry::InputError(image.string() + ": cannot decode the image (" + e.msg + ")");
+    }
+    if (raw.empty()) throw geometry::InputError(image.string() + ": not an image OpenCV can read (PNG, TIFF, ...)");
+    if (raw.channels() == 3 || raw.channels() == 4) {
+      cv::Mat grey;
+      cv::cvtColor(raw, grey, raw.channels() == 3 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGRA2GRAY);
+      raw = grey;
+    }
+    if (raw.channels() != 1 || (raw.depth() != CV_8U && raw.depth() != CV_16U))
+      throw geometry::InputError(image.string() + ": expected an 8- or 16-bit grey-level image");
+    in.image = raw;
+  }
+  if (!geometry.empty()) {
+    in.view = read_view(geometry);
+    if (in.view->detector_cols != in.image.cols || in.view->detector_rows != in.image.rows)
+      throw geometry::InputError(geometry.string() + ": detector_size_px is " + std::to_string(in.view->detector_cols) +
+                                 " x " + std::to_string(in.view->detector_rows) + " but " + image.string() + " is " +
+                                 std::to_string(in.image.cols) + " x " + std::to_string(in.image.rows));
+  }
+  return in;
+}
+
+double device_width_px(const geometry::CArmView& view, double diameter_mm) {
+  const double magnification = view.source_to_detector_mm / view.source_to_isocenter_mm;
+  return diameter_mm * magnification / std::min(view.row_spacing_mm, view.col_spacing_mm);
+}
+
+cv::Mat device_overlay(const cv::Mat& image, const std::vector<Eigen::Vector2d>& points, bool found) {
+  cv::Mat f, vis;
+  image.convertTo(f, CV_32F);
+  cv::normalize(f, f, 0, 255, cv::NORM_MINMAX);
+  f.convertTo(vis, CV_8U);
+  cv::cvtColor(vis, vis, cv::COLOR_GRAY2BGR);
+  const int thickness = std::max(1, image.cols / 512);
+  for (std::size_t i = 1; i < points.size(); ++i)
+    cv::line(vis, cv::Point2d(points[i - 1].x(), points[i - 1].y()), cv::Point2d(points[i].x(), points[i].y()),
+             {0, 200, 255}, thickness, cv::LINE_AA);
+  if (!points.empty())
+    cv::circle(vis, cv::Point2d(points.front().x(), points.front().y()), 4 * thickness, {0, 0, 255}, thickness, cv::LINE_AA);
+  if (!found)
+    cv::putText(vis, "no device found", {10, 30 * thickness}, cv::FONT_HERSHEY_SIMPLEX, thickness, {0, 0, 255}, thickness);
+  return vis;
+}
+
+}  // namespace evar::app
