@@ -1,6 +1,7 @@
 #include "evar/geometry/device_segmentation.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <limits>
 #include <numeric>
@@ -242,8 +243,17 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
     result.reason = "the exposed field is too small to search";
     return result;
   }
+  using Clock = std::chrono::steady_clock;
+  const auto t0 = Clock::now();
   const Ridge ridge = compute_ridge(f, inner, o);
   const cv::Mat& R = ridge.response;
+  const auto t1 = Clock::now();
+  result.ridge_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
+  struct PathTimer {
+    DeviceCurve2D& r;
+    Clock::time_point t;
+    ~PathTimer() { r.path_ms = std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+  } path_timer{result, t1};
 
   // Non-maximum suppression across the ridge, then hysteresis.
   cv::Mat ridge_px(H, W, CV_8U, cv::Scalar(0));

@@ -64,6 +64,8 @@ struct DeviceCurve2D {
   double side_step = 0.0;                ///< median difference of the background on its two sides (−log units)
   bool reaches_border = false;           ///< the path ends at the border of the exposed field
   cv::Rect field;                        ///< the exposed field found
+  double ridge_ms = 0.0;                 ///< attenuation, top-hat, Hessian scales, noise level
+  double path_ms = 0.0;                  ///< suppression, hysteresis, minimal path, checks
 };
 
 /// `image`: CV_8UC1 or CV_16UC1 (dark = attenuating) or CV_32FC1 intensities.
