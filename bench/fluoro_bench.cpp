@@ -25,11 +25,7 @@ const Pair& pair_of(int size_px) {
   auto it = cache.find(size_px);
   if (it != cache.end()) return it->second;
   Pair p;
-  geometry::Polyline wire;
-  for (int k = 60; k >= 0; --k) {
-    const double s = k / 60.0;
-    wire.emplace_back(-40.0 + 45.0 * s + 8.0 * std::sin(3.0 * s), 12.0 * std::sin(2.0 * s) - 5.0, -150.0 + 200.0 * s);
-  }
+  const geometry::Polyline wire = sim::iliac_guidewire();
   const double spacing = 0.3 * 1024.0 / size_px;
   for (int k = 0; k < 2; ++k) {
     auto& v = p.view[k];

@@ -64,6 +64,16 @@ struct WirePixel {
 
 }  // namespace
 
+geometry::Polyline iliac_guidewire(double shift_x_mm) {
+  geometry::Polyline w;
+  for (int k = 60; k >= 0; --k) {
+    const double s = k / 60.0;
+    w.emplace_back(shift_x_mm - 40.0 + 45.0 * s + 8.0 * std::sin(3.0 * s), 12.0 * std::sin(2.0 * s) - 5.0,
+                   -150.0 + 200.0 * s);
+  }
+  return w;
+}
+
 FluoroFrame render_fluoro(const geometry::ProjectionMatrix& P, const geometry::CArmView& view,
                           const std::vector<geometry::Polyline>& wires, const FluoroOptions& o) {
   const int W = view.detector_cols, H = view.detector_rows;

@@ -286,11 +286,7 @@ struct TwoFrames {
   evar::geometry::Polyline wire;
 };
 TwoFrames write_two_frames(const fs::path& dir, double separation_deg = 60.0) {
-  TwoFrames t{dir, {}};
-  for (int k = 60; k >= 0; --k) {
-    const double s = k / 60.0;
-    t.wire.emplace_back(-40.0 + 45.0 * s + 8.0 * std::sin(3.0 * s), 12.0 * std::sin(2.0 * s) - 5.0, -150.0 + 200.0 * s);
-  }
+  TwoFrames t{dir, evar::sim::iliac_guidewire()};
   for (int k = 0; k < 2; ++k) {
     evar::geometry::CArmView v;
     v.primary_angle_deg = (k == 0 ? 0.5 : -0.5) * separation_deg;

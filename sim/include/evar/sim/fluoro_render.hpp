@@ -35,6 +35,11 @@ struct FluoroFrame {
   std::vector<std::vector<Eigen::Vector2d>> truth;  ///< each wire's projected centreline (px), in order
 };
 
+/// A guidewire up the right iliac into an aneurysm sac centred on the isocenter (C-arm
+/// world mm), tip first, bending in depth as well as sideways; `shift_x_mm` moves it to
+/// the patient's left. The test and benchmark wire.
+geometry::Polyline iliac_guidewire(double shift_x_mm = 0.0);
+
 /// Renders the wires (3D polylines, world mm) as seen through projection P on a detector
 /// of view.detector_cols x view.detector_rows pixels of view's spacing.
 FluoroFrame render_fluoro(const geometry::ProjectionMatrix& P, const geometry::CArmView& view,
