@@ -81,3 +81,14 @@ void BM_SegmentAndReconstruct(benchmark::State& state) {
 BENCHMARK(BM_Segment)->Arg(512)->Arg(1024)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_Reconstruct)->Arg(1024)->Unit(benchmark::kMillisecond);
 BENCHMARK(BM_SegmentAndReconstruct)->Arg(1024)->Unit(benchmark::kMillisecond);
+
+#include <opencv2/imgproc.hpp>
+namespace {
+void BM_OpenCvBlur(benchmark::State& state) {
+  cv::Mat f(1024, 1024, CV_32F), g;
+  cv::randu(f, 0, 1);
+  const double sigma = static_cast<double>(state.range(0)) / 10.0;
+  for (auto _ : state) cv::GaussianBlur(f, g, cv::Size(0, 0), sigma, sigma, cv::BORDER_REFLECT);
+}
+}  // namespace
+BENCHMARK(BM_OpenCvBlur)->Arg(10)->Arg(22)->Arg(31)->Unit(benchmark::kMillisecond);

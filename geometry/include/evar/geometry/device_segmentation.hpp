@@ -56,7 +56,7 @@ struct DeviceCurve2D {
   bool found = false;
   std::string reason;                    ///< why nothing was found (empty when found)
   std::vector<Eigen::Vector2d> points;   ///< tip first, sub-pixel (px; (0,0) = centre of the top-left pixel)
-  double confidence = 0.0;               ///< (1 − gap_fraction) · min(1, median response / (2 · high threshold))
+  double confidence = 0.0;               ///< (1 − gap_fraction) · min(1, median response / high threshold)
   double length_px = 0.0;
   double gap_fraction = 0.0;             ///< share of the path below the low threshold (bridged)
   double median_response = 0.0;          ///< along the path, in noise units
