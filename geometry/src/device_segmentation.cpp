@@ -226,11 +226,13 @@ cv::Mat ridge_response(const cv::Mat& image, const SegmentationOptions& options)
   return compute_ridge(f, field, options).response;
 }
 
-DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o) {
+namespace {
+
+// The whole search on one grid (the frame, or the frame at half resolution).
+DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const SegmentationOptions& o) {
   DeviceCurve2D result;
-  const cv::Mat f = to_float(image);
   const int H = f.rows, W = f.cols;
-  result.field = exposed_field(f);
+  result.field = field;
   if (result.field.area() == 0) {
     result.reason = "the image has no exposed field (no row or column is brighter than the shutters)";
     return result;
@@ -413,8 +415,8 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
   cv::Mat R_local;
   cv::dilate(R, R_local, cv::Mat::ones(reach, reach, CV_8U));
   std::vector<float> score(dist.size(), -kInf);
-  std::vector<float> running(dist.size(), 0.0f), running_contrast(dist.size(), 0.0f);
-  std::vector<char> is_ridge(dist.size(), 0);
+  std::vector<float> running(dist.size(), 0.0f);
+  std::vector<float> running_contrast(dist.size(), 0.0f);
   for (const int q : order) {
     const int y = q / W, x = q % W;
     const int p = parent[static_cast<std::size_t>(q)];
@@ -425,7 +427,6 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
     // The contrast (Δp) too: noise is stronger over bone (fewer quanta), and a chain of
     // noise maxima there can pass on noise units but never has a device's Δp.
     const bool ridge = near_confident.at<std::uint8_t>(y, x) && r >= 0.35f * mean_so_far && c >= 0.5f * contrast_so_far;
-    is_ridge[static_cast<std::size_t>(q)] = ridge;
     // Only pixels that pass update the means, so a long faint line cannot drag them down.
     running[static_cast<std::size_t>(q)] =
         !ridge ? mean_so_far : (mean_so_far == 0.0f ? r : mean_so_far + (r - mean_so_far) / 30.0f);
@@ -540,6 +541,77 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
   }
   result.found = true;
   return result;
+}
+
+// Centre of the device's attenuation profile across the curve at each point, on the full
+// grid (the search ran at half resolution): the profile −log(I + 1) over ±0.75 device
+// widths along the normal, less the straight line through its two ends (the local
+// background), and its centroid. Twice, as the first move changes the window.
+void refine_on_full_grid(const cv::Mat& f, const SegmentationOptions& o, std::vector<Eigen::Vector2d>& points) {
+  const double reach = 0.75 * o.device_width_px + 1.0;
+  const int samples = 2 * static_cast<int>(std::ceil(reach / 0.25)) + 1;
+  std::vector<double> s(static_cast<std::size_t>(samples)), c(static_cast<std::size_t>(samples));
+  for (int k = 0; k < samples; ++k) s[static_cast<std::size_t>(k)] = -reach + 2.0 * reach * k / (samples - 1);
+  for (int pass = 0; pass < 2; ++pass) {
+    std::vector<Eigen::Vector2d> moved = points;
+    for (std::size_t i = 0; i < points.size(); ++i) {
+      const Eigen::Vector2d t = points[std::min(i + 1, points.size() - 1)] - points[i > 0 ? i - 1 : 0];
+      if (!(t.norm() > 0.0)) continue;
+      const Eigen::Vector2d n(-t.y() / t.norm(), t.x() / t.norm());
+      for (int k = 0; k < samples; ++k) {
+        const Eigen::Vector2d q = points[i] + s[static_cast<std::size_t>(k)] * n;
+        c[static_cast<std::size_t>(k)] = -std::log(bilinear(f, static_cast<float>(q.x()), static_cast<float>(q.y())) + 1.0);
+      }
+      const double left = (c[0] + c[1] + c[2]) / 3.0, right = (c[c.size() - 1] + c[c.size() - 2] + c[c.size() - 3]) / 3.0;
+      double sum = 0.0, weighted = 0.0;
+      for (int k = 0; k < samples; ++k) {
+        const double u = static_cast<double>(k) / (samples - 1);
+        const double above = c[static_cast<std::size_t>(k)] - (left + u * (right - left));
+        if (above <= 0.0) continue;
+        sum += above;
+        weighted += s[static_cast<std::size_t>(k)] * above;
+      }
+      if (sum > 0.0) moved[i] = points[i] + std::clamp(weighted / sum, -1.0, 1.0) * n;
+    }
+    points = std::move(moved);
+  }
+}
+
+}  // namespace
+
+DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o) {
+  const cv::Mat f = to_float(image);
+  if (!(o.device_width_px > 0.5 && o.device_width_px < 100.0))
+    throw std::invalid_argument("segment_device: device width must be 0.5 to 100 px");
+  const cv::Rect field = exposed_field(f);
+  // Shadows 4 px and wider are searched at half resolution (2 px and wider there: enough
+  // for the ridge measure), four times fewer pixels; the result is refined on the frame.
+  const int k = o.device_width_px >= 4.0 && f.cols >= 64 && f.rows >= 64 ? 2 : 1;
+  if (k == 1) return segment_on_grid(f, field, o);
+  cv::Mat half;
+  cv::resize(f, half, cv::Size(f.cols / 2, f.rows / 2), 0, 0, cv::INTER_AREA);
+  SegmentationOptions h = o;
+  h.device_width_px /= k;
+  for (auto& s : h.scales_px) s = std::max(0.8, s / k);
+  h.min_length_px /= k;
+  h.gap_radius_px /= k;
+  h.sample_step_px /= k;
+  h.smoothing_px /= k;
+  h.seed_radius_px /= k;
+  if (o.seed_px) h.seed_px = (*o.seed_px - Eigen::Vector2d::Constant(0.5)) / k;  // pixel centres: x = 2x' + 0.5
+  const cv::Rect half_field(field.x / k, field.y / k, field.width / k, field.height / k);
+  DeviceCurve2D r = segment_on_grid(half, half_field, h);
+  r.field = field;
+  r.length_px *= k;
+  if (!r.found) return r;
+  for (auto& p : r.points) p = k * p + Eigen::Vector2d::Constant(0.5);
+  const auto t0 = std::chrono::steady_clock::now();
+  refine_on_full_grid(f, o, r.points);
+  r.points = resample_and_smooth(r.points, o.sample_step_px, o.smoothing_px);
+  r.length_px = 0.0;
+  for (std::size_t i = 1; i < r.points.size(); ++i) r.length_px += (r.points[i] - r.points[i - 1]).norm();
+  r.path_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return r;
 }
 
 }  // namespace evar::geometry
