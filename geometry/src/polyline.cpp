@@ -115,6 +115,16 @@ PolylineProjection PolylineProjector::project(const Eigen::Vector3d& query, int 
   return best;
 }
 
+double distance_to_polyline_2d(const Eigen::Vector2d& p, const std::vector<Eigen::Vector2d>& line) {
+  double best = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i + 1 < line.size(); ++i) {
+    const Eigen::Vector2d d = line[i + 1] - line[i];
+    const double t = std::clamp((p - line[i]).dot(d) / std::max(d.squaredNorm(), 1e-300), 0.0, 1.0);
+    best = std::min(best, (p - line[i] - t * d).norm());
+  }
+  return best;
+}
+
 PolylineProjection project_onto(const Polyline& points, const Eigen::Vector3d& query) {
   return PolylineProjector(points).project(query);
 }

@@ -39,16 +39,6 @@ double line_distance(const Eigen::Vector3d& l, const Eigen::Vector2d& x) {
   return std::abs(l.dot(x.homogeneous())) / std::max(l.head<2>().norm(), 1e-300);
 }
 
-double distance_to_curve(const Eigen::Vector2d& q, const std::vector<Eigen::Vector2d>& c) {
-  double best = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i + 1 < c.size(); ++i) {
-    const Eigen::Vector2d d = c[i + 1] - c[i];
-    const double t = std::clamp((q - c[i]).dot(d) / std::max(d.squaredNorm(), 1e-300), 0.0, 1.0);
-    best = std::min(best, (q - c[i] - t * d).norm());
-  }
-  return best;
-}
-
 }  // namespace
 
 double view_separation_deg(const ProjectionMatrix& P1, const ProjectionMatrix& P2) {
@@ -239,7 +229,7 @@ Reconstruction reconstruct_two_view(const std::vector<Eigen::Vector2d>& curve1, 
     const std::size_t nearest = (cursor + 1 < n && ss[cursor + 1] - s_out < s_out - ss[cursor]) ? cursor + 1 : cursor;
     out.reliable.push_back(ok[nearest]);
     const auto x1 = project(P1, out.points[k]), x2 = project(P2, out.points[k]);
-    const double r = (x1 && x2) ? std::max(distance_to_curve(*x1, curve1), distance_to_curve(*x2, curve2))
+    const double r = (x1 && x2) ? std::max(distance_to_polyline_2d(*x1, curve1), distance_to_polyline_2d(*x2, curve2))
                                 : std::numeric_limits<double>::infinity();
     out.residual_px.push_back(r);
   }

@@ -42,6 +42,9 @@ class PolylineProjector {
   std::vector<double> length_, arc_;
 };
 
+/// Distance from a 2D point to a 2D polyline (image curves, px); infinity for fewer than 2 points.
+double distance_to_polyline_2d(const Eigen::Vector2d& p, const std::vector<Eigen::Vector2d>& line);
+
 /// Point and unit tangent at arc length s (clamped to [0, length]).
 Eigen::Vector3d point_at(const Polyline& points, const std::vector<double>& arc, double s);
 Eigen::Vector3d tangent_at(const Polyline& points, const std::vector<double>& arc, double s);

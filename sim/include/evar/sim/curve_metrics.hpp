@@ -7,9 +7,6 @@
 
 namespace evar::sim {
 
-/// Distance (px) from p to the polyline.
-double distance_to_polyline(const Eigen::Vector2d& p, const std::vector<Eigen::Vector2d>& line);
-
 struct CurveMatch {
   double mean_distance_px;  ///< of the found points to the truth (infinity if fewer than 2)
   double coverage;          ///< share of the truth inside `region` that lies within 2 px of the found curve
