@@ -14,6 +14,7 @@
 #include "evar/sim/fluoro_render.hpp"
 
 #include <opencv2/imgcodecs.hpp>
+#include <Eigen/Geometry>
 #include "evar/sim/example_scene.hpp"
 
 namespace fs = std::filesystem;
@@ -358,4 +359,48 @@ TEST_F(Cli, ReconstructRefusesViewsTooCloseTogether) {
   EXPECT_NE(run.err.find("degrees apart"), std::string::npos) << run.err;
   EXPECT_FALSE(fs::exists(dir / "d.mrk.json"));
   EXPECT_TRUE(nlohmann::json::parse(std::ifstream(dir / "r.json")).contains("error"));
+}
+
+// The whole chain on files: two simulated frames of the example's guidewire, registered to
+// the C-arm with its sac at the isocenter → reconstruct (into CT LPS) → deform.
+TEST_F(Cli, ReconstructedDeviceDrivesTheDeformation) {
+  const auto dir = scratch("chain");
+  evar::sim::ExampleSceneParams p;
+  p.aorta_vertices = 2500;
+  p.iliac_vertices = 1500;
+  const auto example = evar::sim::make_example_scene(p);
+  Eigen::Matrix4d T = Eigen::Matrix4d::Identity();
+  T.block<3, 1>(0, 3) = -Eigen::Vector3d(0, 0, p.aneurysm_centre_z_mm);  // CT → C-arm: sac centre at the isocenter
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r) rows.push_back({T(r, 0), T(r, 1), T(r, 2), T(r, 3)});
+  write_text(dir / "T.json", nlohmann::json{{"matrix", rows}}.dump());
+  evar::geometry::Polyline wire;
+  for (const auto& d : example.device) wire.push_back((T * d.homogeneous()).head<3>());
+  for (int k = 0; k < 2; ++k) {
+    evar::geometry::CArmView v;
+    v.primary_angle_deg = k == 0 ? 35 : -35;
+    v.source_to_detector_mm = 1200;
+    v.source_to_isocenter_mm = 800;
+    v.detector_cols = v.detector_rows = 768;
+    v.row_spacing_mm = v.col_spacing_mm = 0.4;
+    evar::sim::FluoroOptions o;
+    o.seed = static_cast<std::uint64_t>(k + 7);
+    const auto f = evar::sim::render_fluoro(evar::geometry::projection_matrix(v), v, {wire}, o);
+    evar::geometry::write_xa_dicom(dir / ("v" + std::to_string(k) + ".dcm"), v, {f.image}, false, 12);
+  }
+  const auto rec = evarnode({"reconstruct", "--image", (dir / "v0.dcm").string(), "--image", (dir / "v1.dcm").string(),
+                             "--registration", (dir / "T.json").string(), "--out", (dir / "device.mrk.json").string()});
+  ASSERT_EQ(rec.code, 0) << rec.err;
+  // In CT coordinates again, on the example's own device.
+  const auto curve = evar::geometry::read_curve(dir / "device.mrk.json", 2);
+  double sum = 0.0;
+  for (const auto& q : curve.points) sum += evar::geometry::project_onto(example.device, q.position_lps).distance_mm;
+  EXPECT_LT(sum / static_cast<double>(curve.points.size()), 1.0);
+  const auto def = evarnode({"deform", "--scene", scene().string(), "--device", (dir / "device.mrk.json").string(), "--out",
+                             (dir / "deformed").string(), "--no-preview"});
+  ASSERT_EQ(def.code, 0) << def.err;
+  const auto report = nlohmann::json::parse(std::ifstream(dir / "deformed" / "report.json"));
+  int control_points = 0;
+  for (const auto& v : report["vessels"]) control_points += v["control_points"].get<int>();
+  EXPECT_GT(control_points, 0);
 }
