@@ -386,7 +386,7 @@ TEST_F(Cli, ReconstructedDeviceDrivesTheDeformation) {
     evar::sim::FluoroOptions o;
     o.seed = static_cast<std::uint64_t>(k + 7);
     const auto f = evar::sim::render_fluoro(evar::geometry::projection_matrix(v), v, {wire}, o);
-    evar::geometry::write_xa_dicom(dir / ("v" + std::to_string(k) + ".dcm"), v, {f.image}, false, 12);
+    evar::geometry::write_xa_dicom(dir / (k == 0 ? "v0.dcm" : "v1.dcm"), v, {f.image}, false, 12);
   }
   const auto rec = evarnode({"reconstruct", "--image", (dir / "v0.dcm").string(), "--image", (dir / "v1.dcm").string(),
                              "--registration", (dir / "T.json").string(), "--out", (dir / "device.mrk.json").string()});
