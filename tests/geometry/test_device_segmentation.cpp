@@ -121,6 +121,17 @@ TEST(DeviceSegmentation, ASeedChoosesBetweenTwoDevices) {
   }
 }
 
+TEST(DeviceSegmentation, ACrossingDeviceDoesNotDerailThePath) {
+  Case c;
+  // A second, short straight wire crossing the guidewire about half way along it.
+  geometry::Polyline crossing{{-45.0, -5.0, -40.0}, {25.0, 5.0, -20.0}};
+  c.wires = {test::iliac_guidewire(), crossing};
+  const auto o = run(c);
+  ASSERT_TRUE(o.found.found) << o.found.reason;
+  EXPECT_LT(o.match.mean_distance_px, 1.0);  // no detour along the other wire
+  EXPECT_GT(o.match.coverage, 0.9);          // and straight on through the crossing
+}
+
 TEST(DeviceSegmentation, EightBitInputWorksToo) {
   const Case c;
   auto frame = sim::render_fluoro(geometry::projection_matrix(c.view), c.view, c.wires, c.render);
