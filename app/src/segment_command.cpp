@@ -15,6 +15,10 @@ geometry::SegmentationOptions segmentation_options(const SegmentParams& p, const
   geometry::SegmentationOptions o;
   if (p.width_px) o.device_width_px = *p.width_px;
   else if (in.view) o.device_width_px = device_width_px(*in.view, p.diameter_mm);
+  if (!(o.device_width_px > 0.5 && o.device_width_px < 100.0))
+    throw geometry::InputError("the device's shadow would be " + std::to_string(o.device_width_px) +
+                               " px wide with this geometry and --device-diameter-mm; 0.5 to 100 px can be searched "
+                               "(check the pixel spacing, or give --width-px)");
   if (p.seed.size() == 2) o.seed_px = Eigen::Vector2d(p.seed[0], p.seed[1]);
   o.min_contrast = p.min_contrast;
   return o;

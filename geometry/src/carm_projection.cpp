@@ -27,15 +27,16 @@ void check_view(const CArmView& v) {
     throw std::invalid_argument("C-arm view: pixel spacing must be positive");
 }
 
-// A calibrated matrix must be a finite camera that sees the isocenter in front of it.
-std::string projection_matrix_problem(const ProjectionMatrix& P) {
+// A camera: finite, with a non-singular left 3x3 block; a calibrated view's matrix must also
+// see the isocenter in front of its source.
+std::string projection_matrix_problem(const ProjectionMatrix& P, bool isocenter_in_front) {
   if (!P.allFinite()) return "not finite";
   const Eigen::Matrix3d M = P.leftCols<3>();
   const Eigen::JacobiSVD<Eigen::Matrix3d> svd(M);
   const auto s = svd.singularValues();
   if (!(s(2) > 1e-12 * s(0))) return "its left 3x3 block is singular (not a finite camera)";
   // w of the isocenter (the world origin) is P[2][3]: positive in front of the source.
-  if (!(P(2, 3) > 0.0))
+  if (isocenter_in_front && !(P(2, 3) > 0.0))
     return "the isocenter (world origin) is not in front of the source: P[2][3] must be > 0 "
            "(scale the matrix so that the third row gives positive depth)";
   return {};
@@ -50,7 +51,7 @@ Eigen::Matrix3d carm_rotation(double primary_angle_deg, double secondary_angle_d
 
 ProjectionMatrix projection_matrix(const CArmView& view) {
   if (view.projection_matrix) {
-    if (const auto problem = projection_matrix_problem(*view.projection_matrix); !problem.empty())
+    if (const auto problem = projection_matrix_problem(*view.projection_matrix, true); !problem.empty())
       throw std::invalid_argument("C-arm view: projection matrix " + problem);
     return *view.projection_matrix;
   }
@@ -76,7 +77,7 @@ ProjectionMatrix projection_matrix(const CArmView& view) {
 ProjectionMatrix registered(const ProjectionMatrix& P, const Eigen::Matrix4d& ct_to_carm) { return P * ct_to_carm; }
 
 PinholeCamera pinhole_camera(const ProjectionMatrix& P) {
-  if (const auto problem = projection_matrix_problem(P); !problem.empty())
+  if (const auto problem = projection_matrix_problem(P, false); !problem.empty())
     throw std::invalid_argument("projection matrix " + problem);
   PinholeCamera c;
   c.M = P.leftCols<3>();
@@ -139,7 +140,7 @@ CArmView read_view_geometry(const std::filesystem::path& path) {
     for (int r = 0; r < 3; ++r)
       P.row(r) = number_array(path, (*it)[static_cast<std::size_t>(r)], "projection_matrix[" + std::to_string(r) + "]", 4)
                      .transpose();
-    if (const auto problem = projection_matrix_problem(P); !problem.empty()) bad_field(path, "projection_matrix", problem);
+    if (const auto problem = projection_matrix_problem(P, true); !problem.empty()) bad_field(path, "projection_matrix", problem);
     v.projection_matrix = P;
   }
   return v;

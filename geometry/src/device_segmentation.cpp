@@ -71,7 +71,7 @@ Ridge compute_ridge(const cv::Mat& intensity, const cv::Rect& inner, const Segme
   p = -p;
   Ridge r;
   cv::GaussianBlur(p, r.attenuation, cv::Size(0, 0), 1.0);
-  // White top-hat: p minus its opening by a disc wider than any device, which removes the
+  // White top-hat: p minus its opening by a square wider than any device, which removes the
   // background and every structure wider than a device (vertebral bodies, pelvis, soft
   // tissue, step edges) and keeps thin curves at their full contrast.
   {
@@ -229,7 +229,8 @@ cv::Mat ridge_response(const cv::Mat& image, const SegmentationOptions& options)
 namespace {
 
 // The whole search on one grid (the frame, or the frame at half resolution).
-DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const SegmentationOptions& o) {
+// `k`: the grid's pixel in frame pixels (messages speak in frame pixels).
+DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const SegmentationOptions& o, int k = 1) {
   DeviceCurve2D result;
   const int H = f.rows, W = f.cols;
   result.field = field;
@@ -448,7 +449,7 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     if (tip < 0 || score[static_cast<std::size_t>(q)] > score[static_cast<std::size_t>(tip)]) tip = q;
   }
   if (tip < 0) {
-    result.reason = o.seed_px ? "nothing device-like within " + std::to_string(o.seed_radius_px) + " px of the seed"
+    result.reason = o.seed_px ? "nothing device-like within " + std::to_string(static_cast<int>(k * o.seed_radius_px)) + " px of the seed"
                               : "no confident ridge connects to the field";
     return result;
   }
@@ -534,8 +535,8 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     return result;
   }
   if (result.length_px < o.min_length_px) {
-    result.reason = "the strongest curve is " + std::to_string(static_cast<int>(result.length_px)) +
-                    " px long, shorter than " + std::to_string(static_cast<int>(o.min_length_px)) + " px";
+    result.reason = "the strongest curve is " + std::to_string(static_cast<int>(k * result.length_px)) +
+                    " px long, shorter than " + std::to_string(static_cast<int>(k * o.min_length_px)) + " px";
     result.points.clear();
     return result;
   }
@@ -583,13 +584,16 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
   const cv::Mat f = to_float(image);
   if (!(o.device_width_px > 0.5 && o.device_width_px < 100.0))
     throw std::invalid_argument("segment_device: device width must be 0.5 to 100 px");
+  for (const double sc : o.scales_px)
+    if (!(sc > 0.0 && sc < 100.0)) throw std::invalid_argument("segment_device: ridge scales must be 0 to 100 px");
   const cv::Rect field = exposed_field(f);
   // Shadows 4 px and wider are searched at half resolution (2 px and wider there: enough
   // for the ridge measure), four times fewer pixels; the result is refined on the frame.
   const int k = o.device_width_px >= 4.0 && f.cols >= 64 && f.rows >= 64 ? 2 : 1;
   if (k == 1) return segment_on_grid(f, field, o);
   cv::Mat half;
-  cv::resize(f, half, cv::Size(f.cols / 2, f.rows / 2), 0, 0, cv::INTER_AREA);
+  // Even size, so each half-resolution pixel is exactly 2 x 2 frame pixels: x = 2x' + 0.5.
+  cv::resize(f(cv::Rect(0, 0, f.cols & ~1, f.rows & ~1)), half, cv::Size(f.cols / 2, f.rows / 2), 0, 0, cv::INTER_AREA);
   SegmentationOptions h = o;
   h.device_width_px /= k;
   for (auto& s : h.scales_px) s = std::max(0.8, s / k);
@@ -599,8 +603,11 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
   h.smoothing_px /= k;
   h.seed_radius_px /= k;
   if (o.seed_px) h.seed_px = (*o.seed_px - Eigen::Vector2d::Constant(0.5)) / k;  // pixel centres: x = 2x' + 0.5
-  const cv::Rect half_field(field.x / k, field.y / k, field.width / k, field.height / k);
-  DeviceCurve2D r = segment_on_grid(half, half_field, h);
+  // Half pixels wholly inside the field (a half pixel straddling a shutter edge is out).
+  const int hx0 = (field.x + 1) / k, hy0 = (field.y + 1) / k;
+  const int hx1 = (field.x + field.width) / k, hy1 = (field.y + field.height) / k;
+  const cv::Rect half_field(hx0, hy0, std::max(0, hx1 - hx0), std::max(0, hy1 - hy0));
+  DeviceCurve2D r = segment_on_grid(half, half_field, h, k);
   r.field = field;
   r.length_px *= k;
   if (!r.found) return r;
@@ -611,6 +618,12 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
   r.length_px = 0.0;
   for (std::size_t i = 1; i < r.points.size(); ++i) r.length_px += (r.points[i] - r.points[i - 1]).norm();
   r.path_ms += std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (r.length_px < o.min_length_px) {  // judged again on the frame
+    r.found = false;
+    r.reason = "the strongest curve is " + std::to_string(static_cast<int>(r.length_px)) + " px long, shorter than " +
+               std::to_string(static_cast<int>(o.min_length_px)) + " px";
+    r.points.clear();
+  }
   return r;
 }
 

@@ -79,42 +79,79 @@ Reconstruction reconstruct_two_view(const std::vector<Eigen::Vector2d>& curve1, 
   for (const auto* c : {&curve1, &curve2})
     for (const auto& p : *c)
       if (!p.allFinite()) throw ReconstructionError("two-view reconstruction: a curve point is not finite");
+  if (!(o.sample_step_px > 0.0) || !(o.match_reward_px > 0.0) || !(o.output_step_mm > 0.0) || !(o.smoothing_mm >= 0.0))
+    throw std::invalid_argument("two-view reconstruction: sample step, match reward and output step must be > 0, smoothing >= 0");
   Reconstruction out;
   out.separation_deg = view_separation_deg(P1, P2);
-  if (out.separation_deg < o.min_separation_deg)
+  // Views facing each other (near 180°) triangulate as badly as views side by side.
+  const double effective = std::min(out.separation_deg, 180.0 - out.separation_deg);
+  if (effective < o.min_separation_deg)
     throw ReconstructionError("the views are " + std::to_string(out.separation_deg).substr(0, 5) +
-                              " degrees apart; at least " + std::to_string(o.min_separation_deg).substr(0, 5) +
-                              " are needed to triangulate (rotate the C-arm further between the two frames)");
+                              " degrees apart; their rays must cross at " + std::to_string(o.min_separation_deg).substr(0, 5) +
+                              " degrees or more (between that and 180 minus that) to triangulate: rotate the C-arm "
+                              "differently between the two frames");
 
-  const Curve2 c1 = resample2(curve1, o.sample_step_px), c2 = resample2(curve2, o.sample_step_px);
+  // Matching is N × M: refuse curves absurdly long for an image (a stray point).
+  double length1 = 0.0, length2 = 0.0;
+  for (std::size_t i = 1; i < curve1.size(); ++i) length1 += (curve1[i] - curve1[i - 1]).norm();
+  for (std::size_t i = 1; i < curve2.size(); ++i) length2 += (curve2[i] - curve2[i - 1]).norm();
+  if ((length1 / o.sample_step_px + 1.0) * (length2 / o.sample_step_px + 1.0) > 2e7)
+    throw ReconstructionError("two-view reconstruction: the curves are " + std::to_string(static_cast<long>(length1)) +
+                              " and " + std::to_string(static_cast<long>(length2)) +
+                              " px long; more than fits any detector (a stray point?)");
+
+  const Curve2 c1 = resample2(curve1, o.sample_step_px);
+  Curve2 c2 = resample2(curve2, o.sample_step_px);
   const int N = static_cast<int>(c1.p.size()), M = static_cast<int>(c2.p.size());
   const Eigen::Matrix3d F = fundamental_matrix(P1, P2);
   std::vector<Eigen::Vector3d> l2(static_cast<std::size_t>(N)), l1(static_cast<std::size_t>(M));  // epipolar lines
   for (int i = 0; i < N; ++i) l2[static_cast<std::size_t>(i)] = F * c1.p[static_cast<std::size_t>(i)].homogeneous();
-  for (int j = 0; j < M; ++j) l1[static_cast<std::size_t>(j)] = F.transpose() * c2.p[static_cast<std::size_t>(j)].homogeneous();
 
   // Local alignment, both indices advancing: S(i,j) = reward(i,j) + max(0, S(i−1,j−1), S(i−1,j), S(i,j−1)).
+  // Both curves should run tip first; if the second was traced the other way round, the
+  // alignment of its reverse scores higher, and that one is used.
   const double beta = o.match_reward_px;
   std::vector<float> S(static_cast<std::size_t>(N) * static_cast<std::size_t>(M));
   std::vector<std::uint8_t> from(S.size());  // 0 start, 1 diagonal, 2 from i−1, 3 from j−1
+  const auto align = [&](const Curve2& c, float& best, int& bi, int& bj) {
+    for (int j = 0; j < M; ++j) l1[static_cast<std::size_t>(j)] = F.transpose() * c.p[static_cast<std::size_t>(j)].homogeneous();
+    best = 0.0f;
+    bi = bj = -1;
+    for (int i = 0; i < N; ++i)
+      for (int j = 0; j < M; ++j) {
+        const double d = 0.5 * (line_distance(l2[static_cast<std::size_t>(i)], c.p[static_cast<std::size_t>(j)]) +
+                                line_distance(l1[static_cast<std::size_t>(j)], c1.p[static_cast<std::size_t>(i)]));
+        const float reward = static_cast<float>(beta - std::min(d, 4.0 * beta));
+        float prev = 0.0f;
+        std::uint8_t f = 0;
+        const auto at = [&](int a, int b) { return S[static_cast<std::size_t>(a) * static_cast<std::size_t>(M) + static_cast<std::size_t>(b)]; };
+        if (i > 0 && j > 0 && at(i - 1, j - 1) > prev) prev = at(i - 1, j - 1), f = 1;
+        if (i > 0 && at(i - 1, j) > prev) prev = at(i - 1, j), f = 2;
+        if (j > 0 && at(i, j - 1) > prev) prev = at(i, j - 1), f = 3;
+        const std::size_t k = static_cast<std::size_t>(i) * static_cast<std::size_t>(M) + static_cast<std::size_t>(j);
+        S[k] = prev + reward;
+        from[k] = f;
+        if (S[k] > best) best = S[k], bi = i, bj = j;
+      }
+  };
   float best = 0.0f;
   int bi = -1, bj = -1;
-  for (int i = 0; i < N; ++i)
-    for (int j = 0; j < M; ++j) {
-      const double d = 0.5 * (line_distance(l2[static_cast<std::size_t>(i)], c2.p[static_cast<std::size_t>(j)]) +
-                              line_distance(l1[static_cast<std::size_t>(j)], c1.p[static_cast<std::size_t>(i)]));
-      const float reward = static_cast<float>(beta - std::min(d, 4.0 * beta));
-      float prev = 0.0f;
-      std::uint8_t f = 0;
-      const auto at = [&](int a, int b) { return S[static_cast<std::size_t>(a) * static_cast<std::size_t>(M) + static_cast<std::size_t>(b)]; };
-      if (i > 0 && j > 0 && at(i - 1, j - 1) > prev) prev = at(i - 1, j - 1), f = 1;
-      if (i > 0 && at(i - 1, j) > prev) prev = at(i - 1, j), f = 2;
-      if (j > 0 && at(i, j - 1) > prev) prev = at(i, j - 1), f = 3;
-      const std::size_t k = static_cast<std::size_t>(i) * static_cast<std::size_t>(M) + static_cast<std::size_t>(j);
-      S[k] = prev + reward;
-      from[k] = f;
-      if (S[k] > best) best = S[k], bi = i, bj = j;
+  align(c2, best, bi, bj);
+  // A good alignment rewards about β per matched point; below half of that over the shorter
+  // curve, try the second curve the other way round.
+  if (best < 0.5 * beta * std::min(N, M)) {
+    Curve2 reversed{{c2.p.rbegin(), c2.p.rend()}, c2.s};  // still evenly spaced from 0
+    float best_reversed = 0.0f;
+    int ri = -1, rj = -1;
+    align(reversed, best_reversed, ri, rj);
+    if (best_reversed > best) {
+      c2 = std::move(reversed);
+      out.second_curve_reversed = true;
+      best = best_reversed, bi = ri, bj = rj;
+    } else {
+      align(c2, best, bi, bj);  // S and from of the forward curve again
     }
+  }
   if (bi < 0) throw ReconstructionError("the curves do not correspond in these views (no epipolar match)");
   // Back-track: for each matched i, the mean of its matched j.
   std::vector<double> j_of(static_cast<std::size_t>(N), -1.0);
@@ -201,6 +238,10 @@ Reconstruction reconstruct_two_view(const std::vector<Eigen::Vector2d>& curve1, 
   for (std::size_t k = 1; k < n; ++k) s3[k] = s3[k - 1] + (X[k] - X[k - 1]).norm();
   std::vector<Eigen::Vector3d> Xs(n);
   for (std::size_t k = 0; k < n; ++k) {
+    if (!(o.smoothing_mm > 0.0)) {
+      Xs[k] = X[k];
+      continue;
+    }
     const double reach = std::min({3.0 * o.smoothing_mm, s3[k] - s3.front(), s3.back() - s3[k]});
     Eigen::Vector3d acc = Eigen::Vector3d::Zero();
     double wsum = 0.0;
@@ -229,7 +270,7 @@ Reconstruction reconstruct_two_view(const std::vector<Eigen::Vector2d>& curve1, 
     const std::size_t nearest = (cursor + 1 < n && ss[cursor + 1] - s_out < s_out - ss[cursor]) ? cursor + 1 : cursor;
     out.reliable.push_back(ok[nearest]);
     const auto x1 = project(P1, out.points[k]), x2 = project(P2, out.points[k]);
-    const double r = (x1 && x2) ? std::max(distance_to_polyline_2d(*x1, curve1), distance_to_polyline_2d(*x2, curve2))
+    const double r = (x1 && x2) ? std::max(distance_to_polyline_2d(*x1, curve1), distance_to_polyline_2d(*x2, c2.p))
                                 : std::numeric_limits<double>::infinity();
     out.residual_px.push_back(r);
   }

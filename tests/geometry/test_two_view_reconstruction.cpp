@@ -1,6 +1,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 
 #include "evar/geometry/device_segmentation.hpp"
 #include "evar/geometry/two_view_reconstruction.hpp"
@@ -122,4 +123,34 @@ TEST(TwoViewReconstruction, RefusesCurvesThatDoNotCorrespond) {
   std::vector<Eigen::Vector2d> bad = a;
   bad[3].x() = std::nan("");
   EXPECT_THROW(geometry::reconstruct_two_view(bad, P1, a, P2), geometry::ReconstructionError);
+}
+
+TEST(TwoViewReconstruction, RefusesViewsFacingEachOther) {
+  const auto truth = test::iliac_guidewire();
+  const auto P1 = geometry::projection_matrix(test::detector_view(89, 0));
+  const auto P2 = geometry::projection_matrix(test::detector_view(-85, 0));  // 174° apart
+  EXPECT_THROW(geometry::reconstruct_two_view(projected(P1, truth), P1, projected(P2, truth), P2),
+               geometry::ReconstructionError);
+}
+
+TEST(TwoViewReconstruction, ASecondCurveTracedBackwardsIsMatchedReversed) {
+  const auto truth = test::iliac_guidewire();
+  const auto P1 = geometry::projection_matrix(test::detector_view(30, 0));
+  const auto P2 = geometry::projection_matrix(test::detector_view(-30, 0));
+  auto backwards = projected(P2, truth);
+  std::reverse(backwards.begin(), backwards.end());
+  const auto r = geometry::reconstruct_two_view(projected(P1, truth), P1, backwards, P2);
+  EXPECT_TRUE(r.second_curve_reversed);
+  EXPECT_LT(error_to_truth(r, truth).mean, 0.05);
+  EXPECT_LT((r.points.front() - truth.front()).norm(), 1.0);  // still tip first (view 1 decides)
+}
+
+TEST(TwoViewReconstruction, RefusesAbsurdCurvesAndOptions) {
+  const auto P1 = geometry::projection_matrix(test::detector_view(30, 0));
+  const auto P2 = geometry::projection_matrix(test::detector_view(-30, 0));
+  const std::vector<Eigen::Vector2d> huge{{0, 0}, {1e7, 0}}, small{{0, 0}, {100, 0}};
+  EXPECT_THROW(geometry::reconstruct_two_view(huge, P1, huge, P2), geometry::ReconstructionError);
+  geometry::ReconstructionOptions bad;
+  bad.sample_step_px = 0.0;
+  EXPECT_THROW(geometry::reconstruct_two_view(small, P1, small, P2, bad), std::invalid_argument);
 }

@@ -55,7 +55,9 @@ struct PinholeCamera {
   Eigen::Vector3d direction;      ///< unit principal axis, towards the detector
   Eigen::Matrix3d M;              ///< left 3x3 block of P (for back-projection)
 };
-/// Throws std::invalid_argument if P's left 3x3 block is singular (not a camera).
+/// Throws std::invalid_argument if P is not finite or its left 3x3 block is singular (not a
+/// camera). Any P = K[R | −RS] works, registered ones included; `direction` assumes the
+/// scale gives positive depth in front of the source (as projection_matrix() does).
 PinholeCamera pinhole_camera(const ProjectionMatrix& P);
 
 /// Pixel position of a world point; nullopt when the point is at or behind the source.

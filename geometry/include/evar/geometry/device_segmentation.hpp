@@ -3,7 +3,7 @@
 // ordered, sub-pixel polyline from the tip to the image (field) border.
 //
 //   1. attenuation image p = −log(I + 1) (a wire adds the same Δp over bright and dark
-//      background), its white top-hat with a disc 2.5x the device's width (background and
+//      background), its white top-hat with a square 2.5x the device's width (background and
 //      wider structures removed), and the exposed field (collimator shutters found from
 //      row and column profiles);
 //   2. multi-scale Hessian ridge measure for thin attenuating curves: σ²·(−λ₂) where λ₂ < 0
@@ -34,7 +34,7 @@ namespace evar::geometry {
 struct SegmentationOptions {
   /// Expected width of the device's shadow (px): its diameter × magnification / pixel
   /// spacing (a 0.89 mm guidewire at magnification 1.5 on 0.3 mm pixels: 4.5 px). Sets the
-  /// ridge scales (0.35, 0.5 and 0.7 of it) and the top-hat disc (2.5 times it), which
+  /// ridge scales (0.35, 0.5 and 0.7 of it) and the top-hat square (2.5 times it), which
   /// removes everything wider: bodies, rims and edges of bone wider than the device.
   double device_width_px = 3.0;
   std::vector<double> scales_px;  ///< Gaussian σ of the ridge measure; empty = from device_width_px

@@ -26,7 +26,7 @@
 namespace evar::geometry {
 
 struct ReconstructionOptions {
-  double min_separation_deg = 20.0;  ///< refuse view pairs closer than this
+  double min_separation_deg = 20.0;  ///< refuse views whose rays cross at less than this (or more than 180 minus this)
   double sample_step_px = 2.0;       ///< resampling of the 2D curves for matching
   double match_reward_px = 2.0;      ///< epipolar distances below this count in favour of a match
   double grazing_deg = 15.0;         ///< epipolar line within this of the curve: unreliable
@@ -44,6 +44,7 @@ struct Reconstruction {
   double reliable_fraction = 0.0;
   double matched_fraction_1 = 0.0;   ///< share of curve 1 (and 2) that found a partner in the other view
   double matched_fraction_2 = 0.0;
+  bool second_curve_reversed = false;  ///< curve 2 ran proximal-first and was matched reversed
 };
 
 /// Thrown for view pairs or curves that cannot give a 3D curve; what() says why.
@@ -62,8 +63,9 @@ Eigen::Matrix3d fundamental_matrix(const ProjectionMatrix& P1, const ProjectionM
 Eigen::Vector3d triangulate(const ProjectionMatrix& P1, const Eigen::Vector2d& x1, const ProjectionMatrix& P2,
                             const Eigen::Vector2d& x2);
 
-/// Throws ReconstructionError when the views are closer than min_separation_deg, a curve
-/// has fewer than 2 points, or too little of the curves can be matched.
+/// Throws ReconstructionError when the views are closer than min_separation_deg (or that
+/// close to facing each other), a curve has fewer than 2 points or is far longer than any
+/// detector, or too little of the curves can be matched; std::invalid_argument for bad options.
 Reconstruction reconstruct_two_view(const std::vector<Eigen::Vector2d>& curve1, const ProjectionMatrix& P1,
                                     const std::vector<Eigen::Vector2d>& curve2, const ProjectionMatrix& P2,
                                     const ReconstructionOptions& options = {});
