@@ -160,6 +160,12 @@ XaFrame read_xa_dicom(const std::filesystem::path& path, int frame) {
   const Reader r(path, scopes);
 
   CArmView& v = out.view;
+  // A rotational run gives each frame's angles as increments (0018,1520/1521); their
+  // reference is not handled yet, so such frames are refused rather than misplaced.
+  for (const DcmTagKey& inc : {DCM_PositionerPrimaryAngleIncrement, DCM_PositionerSecondaryAngleIncrement})
+    if (const auto step = scopes.find(inc, static_cast<unsigned long>(frame)); step && *step != 0.0)
+      detail::fail(path, tag_name(inc) + ": frame " + std::to_string(frame) +
+                             " of a rotational run; per-frame angle increments are not supported yet");
   v.primary_angle_deg = r.require(DCM_PositionerPrimaryAngle, -180.0, 180.0, "degrees");
   v.secondary_angle_deg = r.require(DCM_PositionerSecondaryAngle, -90.0, 90.0, "degrees");
   v.source_to_detector_mm = r.require(DCM_DistanceSourceToDetector, 1.0, 5000.0, "mm");
@@ -190,6 +196,12 @@ XaFrame read_xa_dicom(const std::filesystem::path& path, int frame) {
   if (allocated != 8 && allocated != 16)
     detail::fail(path, tag_name(DCM_BitsAllocated) + ": " + std::to_string(allocated) + " (8 or 16 are supported)");
   out.bits_stored = static_cast<int>(top.require(DCM_BitsStored, 1, allocated, "bits"));
+  int high_bit = out.bits_stored - 1;
+  if (const auto hb = number_of(*ds, DCM_HighBit, 0, false)) {
+    top.check(DCM_HighBit, *hb, out.bits_stored - 1, allocated - 1, "(bits stored - 1 to bits allocated - 1)");
+    high_bit = static_cast<int>(*hb);
+  }
+  const int shift = high_bit + 1 - out.bits_stored;
   if (const auto sign = scopes.find(DCM_PixelRepresentation); sign && *sign != 0)
     detail::fail(path, tag_name(DCM_PixelRepresentation) + ": signed pixels (X-ray images are unsigned)");
 
@@ -215,7 +227,7 @@ XaFrame read_xa_dicom(const std::filesystem::path& path, int frame) {
     const Uint8* src = data + frame_bytes * static_cast<std::size_t>(frame);
     for (int i = 0; i < rows; ++i)
       for (int j = 0; j < cols; ++j) {
-        const unsigned x = src[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j)] & mask;
+        const unsigned x = (static_cast<unsigned>(src[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j)]) >> shift) & mask;
         out.pixels.at<std::uint8_t>(i, j) = static_cast<std::uint8_t>(invert ? mask - x : x);
       }
   } else {
@@ -225,7 +237,7 @@ XaFrame read_xa_dicom(const std::filesystem::path& path, int frame) {
     const Uint16* src = data + static_cast<std::size_t>(rows) * static_cast<std::size_t>(cols) * static_cast<std::size_t>(frame);
     for (int i = 0; i < rows; ++i)
       for (int j = 0; j < cols; ++j) {
-        const unsigned x = src[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j)] & mask;
+        const unsigned x = (static_cast<unsigned>(src[static_cast<std::size_t>(i) * static_cast<std::size_t>(cols) + static_cast<std::size_t>(j)]) >> shift) & mask;
         out.pixels.at<std::uint16_t>(i, j) = static_cast<std::uint16_t>(invert ? mask - x : x);
       }
   }
@@ -244,6 +256,12 @@ void write_xa_dicom(const std::filesystem::path& path, const CArmView& view, con
   if (bits_stored <= 0) bits_stored = allocated;
   if (bits_stored > allocated) throw std::invalid_argument("write_xa_dicom: bits stored exceed bits allocated");
   const int rows = frames.front().rows, cols = frames.front().cols;
+  for (const auto& f : frames) {
+    double largest = 0.0;
+    cv::minMaxLoc(f, nullptr, &largest);
+    if (largest > static_cast<double>((1u << bits_stored) - 1u))
+      throw std::invalid_argument("write_xa_dicom: a pixel value exceeds " + std::to_string(bits_stored) + " bits stored");
+  }
 
   DcmFileFormat file;
   DcmDataset* ds = file.getDataset();

@@ -182,3 +182,26 @@ TEST(XaDicom, GarbageIsAClearErrorNotACrash) {
     EXPECT_THROW(read_xa_dicom(dir.path / "cut.dcm"), InputError) << "cut at " << n;
   }
 }
+
+TEST(XaDicom, HighBitShiftsTheStoredBitsDown) {
+  TempDir dir;
+  const fs::path p = dir.path / "hb.dcm";
+  cv::Mat shifted;
+  ramp16(0).convertTo(shifted, CV_16UC1, 16.0);  // 12 significant bits stored in bits 4..15
+  write_xa_dicom(p, view(), {shifted}, false, 16);
+  rewrite(p, [](DcmDataset& ds) {
+    ds.putAndInsertUint16(DCM_BitsStored, 12);
+    ds.putAndInsertUint16(DCM_HighBit, 15);
+  });
+  EXPECT_EQ(cv::norm(read_xa_dicom(p).pixels, ramp16(0), cv::NORM_INF), 0.0);
+  EXPECT_THROW(write_xa_dicom(p, view(), {shifted}, false, 12), std::invalid_argument);  // values above 12 bits
+}
+
+TEST(XaDicom, RotationalRunFramesAreRefusedNotMisplaced) {
+  TempDir dir;
+  const fs::path p = dir.path / "rot.dcm";
+  write_xa_dicom(p, view(), {ramp16(0), ramp16(1)}, false, 12);
+  rewrite(p, [](DcmDataset& ds) { ds.putAndInsertString(DCM_PositionerPrimaryAngleIncrement, "0\\1.5"); });
+  EXPECT_NO_THROW(read_xa_dicom(p, 0));
+  EXPECT_NE(error_of(p, 1).find("PositionerPrimaryAngleIncrement (0018,1520)"), std::string::npos) << error_of(p, 1);
+}
