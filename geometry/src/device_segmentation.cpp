@@ -10,6 +10,8 @@
 
 #include <opencv2/imgproc.hpp>
 
+#include "evar/geometry/polyline.hpp"
+
 namespace evar::geometry {
 
 namespace {
@@ -183,20 +185,14 @@ float bilinear(const cv::Mat& m, float x, float y) {
 
 std::vector<Eigen::Vector2d> resample_and_smooth(const std::vector<Eigen::Vector2d>& pts, double step, double sigma) {
   if (pts.size() < 2) return pts;
-  std::vector<double> s(pts.size(), 0.0);
-  for (std::size_t i = 1; i < pts.size(); ++i) s[i] = s[i - 1] + (pts[i] - pts[i - 1]).norm();
-  const double length = s.back();
-  if (!(length > 0.0)) return {pts.front()};
-  const int n = std::max(2, static_cast<int>(std::ceil(length / step)) + 1);
-  std::vector<Eigen::Vector2d> even(static_cast<std::size_t>(n));
-  std::size_t k = 0;
-  for (int i = 0; i < n; ++i) {
-    const double t = length * i / (n - 1);
-    while (k + 2 < s.size() && s[k + 1] < t) ++k;
-    const double seg = s[k + 1] - s[k];
-    const double u = seg > 0.0 ? std::clamp((t - s[k]) / seg, 0.0, 1.0) : 0.0;
-    even[static_cast<std::size_t>(i)] = pts[k] + u * (pts[k + 1] - pts[k]);
-  }
+  const std::vector<Eigen::Vector2d> even = resample_2d(pts, step);
+  const int n = static_cast<int>(even.size());
+  if (n < 2) return even;
+  const double length = [&] {
+    double l = 0.0;
+    for (std::size_t i = 1; i < even.size(); ++i) l += (even[i] - even[i - 1]).norm();
+    return l;
+  }();
   // Gaussian along arc length; the window shrinks symmetrically at the ends, so the tip and
   // the border point are not pulled inwards.
   const double sig = sigma / (length / (n - 1));

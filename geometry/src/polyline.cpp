@@ -115,6 +115,26 @@ PolylineProjection PolylineProjector::project(const Eigen::Vector3d& query, int 
   return best;
 }
 
+std::vector<Eigen::Vector2d> resample_2d(const std::vector<Eigen::Vector2d>& pts, double step) {
+  if (pts.size() < 2) return pts;
+  if (!(step > 0.0)) throw std::invalid_argument("resample_2d: step must be > 0");
+  std::vector<double> s(pts.size(), 0.0);
+  for (std::size_t i = 1; i < pts.size(); ++i) s[i] = s[i - 1] + (pts[i] - pts[i - 1]).norm();
+  const double length = s.back();
+  if (!(length > 0.0)) return {pts.front()};
+  const int n = std::max(2, static_cast<int>(std::ceil(length / step)) + 1);
+  std::vector<Eigen::Vector2d> even(static_cast<std::size_t>(n));
+  std::size_t k = 0;
+  for (int i = 0; i < n; ++i) {
+    const double t = length * i / (n - 1);
+    while (k + 2 < s.size() && s[k + 1] < t) ++k;
+    const double seg = s[k + 1] - s[k];
+    const double u = seg > 0.0 ? std::clamp((t - s[k]) / seg, 0.0, 1.0) : 0.0;
+    even[static_cast<std::size_t>(i)] = pts[k] + u * (pts[k + 1] - pts[k]);
+  }
+  return even;
+}
+
 double distance_to_polyline_2d(const Eigen::Vector2d& p, const std::vector<Eigen::Vector2d>& line) {
   double best = std::numeric_limits<double>::infinity();
   for (std::size_t i = 0; i + 1 < line.size(); ++i) {

@@ -18,19 +18,11 @@ struct Curve2 {
 };
 
 Curve2 resample2(const std::vector<Eigen::Vector2d>& in, double step) {
-  Curve2 c;
-  std::vector<double> s(in.size(), 0.0);
-  for (std::size_t i = 1; i < in.size(); ++i) s[i] = s[i - 1] + (in[i] - in[i - 1]).norm();
-  const double length = s.back();
-  const int n = std::max(2, static_cast<int>(std::round(length / step)) + 1);
-  std::size_t k = 0;
-  for (int i = 0; i < n; ++i) {
-    const double t = length * i / (n - 1);
-    while (k + 2 < in.size() && s[k + 1] < t) ++k;
-    const double seg = s[k + 1] - s[k];
-    const double u = seg > 0.0 ? std::clamp((t - s[k]) / seg, 0.0, 1.0) : 0.0;
-    c.p.push_back(in[k] + u * (in[k + 1] - in[k]));
-    c.s.push_back(t);
+  Curve2 c{resample_2d(in, step), {}};
+  double s = 0.0;
+  for (std::size_t i = 0; i < c.p.size(); ++i) {
+    if (i > 0) s += (c.p[i] - c.p[i - 1]).norm();
+    c.s.push_back(s);
   }
   return c;
 }

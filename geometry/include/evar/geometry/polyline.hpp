@@ -42,6 +42,10 @@ class PolylineProjector {
   std::vector<double> length_, arc_;
 };
 
+/// Image curves (px): points evenly spaced along arc length, at most `step_px` apart, ends
+/// kept; a curve of zero length gives its first point.
+std::vector<Eigen::Vector2d> resample_2d(const std::vector<Eigen::Vector2d>& points, double step_px);
+
 /// Distance from a 2D point to a 2D polyline (image curves, px); infinity for fewer than 2 points.
 double distance_to_polyline_2d(const Eigen::Vector2d& p, const std::vector<Eigen::Vector2d>& line);
 
