@@ -55,7 +55,7 @@ bool newton_rotation(const Eigen::Matrix3d& An, const Eigen::Matrix3d& warm, int
     const double m3 = H(0, 0) * adj(0, 0) + H(0, 1) * adj(1, 0) + H(0, 2) * adj(2, 0);
     constexpr double kMargin = 1e-6;
     if (!(m1 > kMargin && m2 > kMargin && m3 > kMargin)) return false;
-    const Eigen::Vector3d w = adj * g / m3;  // ω = H⁻¹ g
+    const Eigen::Vector3d w = adj * g * (1.0 / m3);  // ω = H⁻¹ g
     const double w2 = w.squaredNorm();
     if (!(w2 < 1.0)) return false;  // a long step: far from the maximum, not Newton's regime
     // Cayley: unit quaternion ∝ (1, ω/2).
@@ -84,7 +84,7 @@ Eigen::Matrix3d closest_rotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d
 Eigen::Matrix3d refine_rotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d& warm) {
   const double scale = A.norm();
   if (!(scale > 0.0) || !A.allFinite()) return warm;
-  if (Eigen::Matrix3d R; newton_rotation(A / scale, warm, 1, 0.1, R)) return R;
+  if (Eigen::Matrix3d R; newton_rotation(A * (1.0 / scale), warm, 1, 0.1, R)) return R;
   return closest_rotation(A, warm);
 }
 
