@@ -3,6 +3,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
+#include <vector>
+
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "view_input.hpp"
@@ -49,9 +52,19 @@ double device_width_px(const geometry::CArmView& view, double diameter_mm) {
 }
 
 cv::Mat device_overlay(const cv::Mat& image, const std::vector<Eigen::Vector2d>& points, bool found) {
+  // Displayed on a log scale (like the attenuation the segmentation sees), 1st to 99th
+  // percentile stretched, so bone and soft tissue both stay readable.
   cv::Mat f, vis;
   image.convertTo(f, CV_32F);
-  cv::normalize(f, f, 0, 255, cv::NORM_MINMAX);
+  cv::log(f + 1.0f, f);
+  std::vector<float> v(f.begin<float>(), f.end<float>());
+  if (!v.empty()) {
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() / 100), v.end());
+    const float lo = v[v.size() / 100];
+    std::nth_element(v.begin(), v.begin() + static_cast<long>(v.size() * 99 / 100), v.end());
+    const float hi = v[v.size() * 99 / 100];
+    f = (f - lo) * (255.0f / std::max(hi - lo, 1e-6f));
+  }
   f.convertTo(vis, CV_8U);
   cv::cvtColor(vis, vis, cv::COLOR_GRAY2BGR);
   const int thickness = std::max(1, image.cols / 512);
