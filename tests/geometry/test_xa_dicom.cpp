@@ -6,6 +6,7 @@
 #include <dcmtk/dcmdata/dcrleerg.h>
 #include <dcmtk/dcmjpeg/djencode.h>
 #include <dcmtk/dcmjpeg/djrplol.h>
+#include <dcmtk/dcmjpls/djencode.h>
 
 #include <filesystem>
 #include <fstream>
@@ -127,7 +128,8 @@ TEST(XaDicom, CompressedPixelDataIsDecoded) {
   TempDir dir;
   DcmRLEEncoderRegistration::registerCodecs();
   DJEncoderRegistration::registerCodecs();
-  for (const E_TransferSyntax xfer : {EXS_RLELossless, EXS_JPEGProcess14SV1}) {
+  DJLSEncoderRegistration::registerCodecs();
+  for (const E_TransferSyntax xfer : {EXS_RLELossless, EXS_JPEGProcess14SV1, EXS_JPEGLSLossless}) {
     const fs::path p = dir.path / ("c" + std::to_string(static_cast<int>(xfer)) + ".dcm");
     write_xa_dicom(p, view(), {ramp16(3), ramp16(4)}, false, 12);
     rewrite(p, [](DcmDataset&) {}, xfer);
