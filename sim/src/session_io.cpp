@@ -1,0 +1,248 @@
+#include "evar/sim/session.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+#include <nlohmann/json.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include "evar/geometry/carm_projection.hpp"
+#include "evar/geometry/input_error.hpp"
+
+namespace evar::sim {
+
+namespace {
+
+namespace fs = std::filesystem;
+using geometry::InputError;
+
+constexpr const char* kFormat = "evarnode-session";
+constexpr int kVersion = 1;
+constexpr const char* kFramesHeader = "frame,timestamp_ns,source,file";
+constexpr const char* kCArmHeader =
+    "timestamp_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving";
+
+[[noreturn]] void fail(const fs::path& file, std::size_t line, const std::string& what) {
+  throw InputError(file.string() + (line ? ":" + std::to_string(line) : std::string()) + ": " + what);
+}
+
+std::string read_text(const fs::path& file) {
+  if (!fs::is_regular_file(file)) fail(file, 0, "missing (or not a regular file)");
+  std::ifstream in(file, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  if (!in && !in.eof()) fail(file, 0, "cannot be read");
+  return s.str();
+}
+
+// Lines without their end (LF or CRLF).
+std::vector<std::string> lines_of(const std::string& text) {
+  std::vector<std::string> lines;
+  std::size_t start = 0;
+  while (start < text.size()) {
+    std::size_t end = text.find('\n', start);
+    if (end == std::string::npos) end = text.size();
+    std::string line = text.substr(start, end - start);
+    if (!line.empty() && line.back() == '\r') line.pop_back();
+    lines.push_back(std::move(line));
+    start = end + 1;
+  }
+  return lines;
+}
+
+std::vector<std::string> split(const std::string& line) {
+  std::vector<std::string> fields;
+  std::size_t start = 0;
+  for (;;) {
+    const std::size_t comma = line.find(',', start);
+    fields.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return fields;
+}
+
+template <class T>
+T number(const fs::path& file, std::size_t line, const char* field, const std::string& text) {
+  T value{};
+  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
+  if (ec != std::errc() || end != text.data() + text.size() || text.empty())
+    fail(file, line, std::string(field) + ": '" + text + "' is not a number");
+  if constexpr (std::is_floating_point_v<T>)
+    if (!std::isfinite(value)) fail(file, line, std::string(field) + ": '" + text + "' is not finite");
+  return value;
+}
+
+bool flag(const fs::path& file, std::size_t line, const char* field, const std::string& text) {
+  if (text == "0") return false;
+  if (text == "1") return true;
+  fail(file, line, std::string(field) + ": '" + text + "' (expected 0 or 1)");
+}
+
+bool plain_name(const std::string& s) {
+  if (s.empty()) return false;
+  for (const char c : s)
+    if (!(std::isalnum(static_cast<unsigned char>(c)) || c == '_' || c == '-' || c == '.')) return false;
+  return true;
+}
+
+// The shortest text that reads back to the same double.
+std::string exact(double v) {
+  char buf[64];
+  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
+  if (ec != std::errc()) throw std::runtime_error("cannot format a number");
+  return std::string(buf, end);
+}
+
+void write_text(const fs::path& file, const std::string& text) {
+  std::ofstream out(file, std::ios::binary);
+  out << text;
+  if (!out) throw std::runtime_error(file.string() + ": cannot write");
+}
+
+}  // namespace
+
+Session read_session(const std::filesystem::path& directory) {
+  Session s;
+  s.directory = directory;
+  const fs::path json_path = directory / "session.json";
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(read_text(json_path));
+  } catch (const nlohmann::json::exception& e) {
+    fail(json_path, 0, std::string("invalid JSON: ") + e.what());
+  }
+  const auto field = [&](const char* key) -> const nlohmann::json& {
+    if (!j.is_object() || !j.contains(key)) fail(json_path, 0, std::string(key) + ": missing");
+    return j[key];
+  };
+  if (field("format") != kFormat) fail(json_path, 0, std::string("format: expected \"") + kFormat + "\"");
+  if (!field("version").is_number_integer() || field("version").get<long long>() != kVersion)
+    fail(json_path, 0, "version: unsupported " + field("version").dump() + " (this build reads version 1)");
+  const auto path_field = [&](const char* key) {
+    if (!field(key).is_string() || field(key).get<std::string>().empty())
+      fail(json_path, 0, std::string(key) + ": expected a file name");
+    return fs::path(field(key).get<std::string>());
+  };
+  s.scene = path_field("scene");
+  s.ct_to_carm = geometry::read_registration(directory / path_field("registration"));
+  if (!field("device_thickness_mm").is_number()) fail(json_path, 0, "device_thickness_mm: expected a number");
+  s.device_thickness_mm = field("device_thickness_mm").get<double>();
+  if (!(s.device_thickness_mm >= 0.0 && s.device_thickness_mm <= 15.0))
+    fail(json_path, 0, "device_thickness_mm: must be 0 to 15 (mm)");
+  const auto& streams = field("streams");
+  if (!streams.is_object() || !streams.contains("frames") || !streams.contains("carm") || !streams["frames"].is_string() ||
+      !streams["carm"].is_string())
+    fail(json_path, 0, "streams: expected {\"frames\": \"frames/index.csv\", \"carm\": \"carm.csv\"}");
+
+  // Frames.
+  const fs::path index = directory / streams["frames"].get<std::string>();
+  const auto frame_lines = lines_of(read_text(index));
+  if (frame_lines.empty() || frame_lines[0] != kFramesHeader)
+    fail(index, 1, std::string("header: expected '") + kFramesHeader + "'");
+  for (std::size_t n = 1; n < frame_lines.size(); ++n) {
+    const std::size_t line = n + 1;
+    if (frame_lines[n].empty()) continue;
+    const auto f = split(frame_lines[n]);
+    if (f.size() != 4) fail(index, line, "expected 4 fields, found " + std::to_string(f.size()));
+    FrameRecord r;
+    r.frame = number<std::int64_t>(index, line, "frame", f[0]);
+    r.timestamp_ns = number<std::int64_t>(index, line, "timestamp_ns", f[1]);
+    if (!plain_name(f[2])) fail(index, line, "source: '" + f[2] + "' (letters, digits, '_', '-', '.')");
+    r.source = f[2];
+    const fs::path file(f[3]);
+    if (f[3].empty() || file.is_absolute() || f[3].find("..") != std::string::npos)
+      fail(index, line, "file: '" + f[3] + "' must be a relative path inside the frames folder");
+    r.file = file;
+    if (!s.frames.empty()) {
+      if (r.frame <= s.frames.back().frame) fail(index, line, "frame: " + f[0] + " does not increase");
+      if (r.timestamp_ns < s.frames.back().timestamp_ns) fail(index, line, "timestamp_ns: goes back in time");
+    }
+    if (!fs::is_regular_file(index.parent_path() / file)) fail(index, line, "file: " + f[3] + " is missing");
+    s.frames.push_back(std::move(r));
+  }
+
+  // C-arm geometry stream.
+  const fs::path carm = directory / streams["carm"].get<std::string>();
+  const auto carm_lines = lines_of(read_text(carm));
+  if (carm_lines.empty() || carm_lines[0] != kCArmHeader) fail(carm, 1, std::string("header: expected '") + kCArmHeader + "'");
+  for (std::size_t n = 1; n < carm_lines.size(); ++n) {
+    const std::size_t line = n + 1;
+    if (carm_lines[n].empty()) continue;
+    const auto f = split(carm_lines[n]);
+    if (f.size() != 10) fail(carm, line, "expected 10 fields, found " + std::to_string(f.size()));
+    CArmSample c;
+    c.timestamp_ns = number<std::int64_t>(carm, line, "timestamp_ns", f[0]);
+    c.primary_deg = number<double>(carm, line, "primary_deg", f[1]);
+    c.secondary_deg = number<double>(carm, line, "secondary_deg", f[2]);
+    c.sid_mm = number<double>(carm, line, "sid_mm", f[3]);
+    c.sod_mm = number<double>(carm, line, "sod_mm", f[4]);
+    for (int k = 0; k < 3; ++k)
+      c.table_mm(k) = number<double>(carm, line, k == 0 ? "table_x_mm" : k == 1 ? "table_y_mm" : "table_z_mm", f[5 + static_cast<std::size_t>(k)]);
+    c.fluoro_on = flag(carm, line, "fluoro_on", f[8]);
+    c.moving = flag(carm, line, "moving", f[9]);
+    if (std::abs(c.primary_deg) > 180.0) fail(carm, line, "primary_deg: " + f[1] + " is outside -180 to 180");
+    if (std::abs(c.secondary_deg) > 90.0) fail(carm, line, "secondary_deg: " + f[2] + " is outside -90 to 90");
+    if (!(c.sod_mm > 0.0 && c.sod_mm < c.sid_mm && c.sid_mm <= 5000.0))
+      fail(carm, line, "sid_mm, sod_mm: need 0 < SOD < SID <= 5000");
+    if (!s.carm.empty() && c.timestamp_ns < s.carm.back().timestamp_ns) fail(carm, line, "timestamp_ns: goes back in time");
+    s.carm.push_back(c);
+  }
+  return s;
+}
+
+cv::Mat read_session_frame(const Session& session, std::size_t index) {
+  if (index >= session.frames.size()) throw std::out_of_range("read_session_frame: no frame " + std::to_string(index));
+  const fs::path file = session.directory / "frames" / session.frames[index].file;
+  cv::Mat image;
+  try {
+    image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    fail(file, 0, "cannot decode (" + e.msg + ")");
+  }
+  if (image.empty()) fail(file, 0, "not a readable PNG");
+  if (image.type() != CV_16UC1) fail(file, 0, "expected a 16-bit single-channel PNG");
+  return image;
+}
+
+void write_session(const std::filesystem::path& directory, const Session& session, const std::vector<cv::Mat>& images) {
+  if (images.size() != session.frames.size())
+    throw std::invalid_argument("write_session: one image per frame record is required");
+  fs::create_directories(directory / "frames");
+  std::string index = std::string(kFramesHeader) + "\n";
+  for (std::size_t i = 0; i < session.frames.size(); ++i) {
+    const auto& f = session.frames[i];
+    if (images[i].type() != CV_16UC1) throw std::invalid_argument("write_session: frames must be CV_16UC1");
+    if (!plain_name(f.source) || f.file.empty() || f.file.is_absolute())
+      throw std::invalid_argument("write_session: frame " + std::to_string(f.frame) + " has a bad source or file name");
+    if (i > 0 && (f.frame <= session.frames[i - 1].frame || f.timestamp_ns < session.frames[i - 1].timestamp_ns))
+      throw std::invalid_argument("write_session: frames must have increasing numbers and non-decreasing times");
+    const fs::path out = directory / "frames" / f.file;
+    fs::create_directories(out.parent_path());
+    if (!cv::imwrite(out.string(), images[i])) throw std::runtime_error(out.string() + ": cannot write");
+    index += std::to_string(f.frame) + "," + std::to_string(f.timestamp_ns) + "," + f.source + "," + f.file.generic_string() + "\n";
+  }
+  write_text(directory / "frames" / "index.csv", index);
+  std::string carm = std::string(kCArmHeader) + "\n";
+  for (const auto& c : session.carm)
+    carm += std::to_string(c.timestamp_ns) + "," + exact(c.primary_deg) + "," + exact(c.secondary_deg) + "," + exact(c.sid_mm) +
+            "," + exact(c.sod_mm) + "," + exact(c.table_mm.x()) + "," + exact(c.table_mm.y()) + "," + exact(c.table_mm.z()) +
+            "," + (c.fluoro_on ? "1" : "0") + "," + (c.moving ? "1" : "0") + "\n";
+  write_text(directory / "carm.csv", carm);
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r)
+    rows.push_back({session.ct_to_carm(r, 0), session.ct_to_carm(r, 1), session.ct_to_carm(r, 2), session.ct_to_carm(r, 3)});
+  write_text(directory / "registration.json", nlohmann::json{{"matrix", rows}}.dump(2) + "\n");
+  const nlohmann::json j{{"format", kFormat},
+                         {"version", kVersion},
+                         {"scene", session.scene.generic_string()},
+                         {"registration", "registration.json"},
+                         {"device_thickness_mm", session.device_thickness_mm},
+                         {"streams", {{"frames", "frames/index.csv"}, {"carm", "carm.csv"}}}};
+  write_text(directory / "session.json", j.dump(2) + "\n");
+}
+
+}  // namespace evar::sim
