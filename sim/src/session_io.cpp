@@ -1,6 +1,8 @@
 #include "evar/sim/session.hpp"
 
+#include <algorithm>
 #include <charconv>
+#include <cstdio>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -243,6 +245,59 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
                          {"device_thickness_mm", session.device_thickness_mm},
                          {"streams", {{"frames", "frames/index.csv"}, {"carm", "carm.csv"}}}};
   write_text(directory / "session.json", j.dump(2) + "\n");
+}
+
+const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns) {
+  if (session.carm.empty()) return nullptr;
+  const auto after = std::upper_bound(session.carm.begin(), session.carm.end(), timestamp_ns,
+                                      [](std::int64_t t, const CArmSample& c) { return t < c.timestamp_ns; });
+  return after == session.carm.begin() ? &session.carm.front() : &*(after - 1);
+}
+
+void export_plus_sequence(const Session& session, const std::filesystem::path& mha) {
+  if (session.frames.empty()) throw std::invalid_argument("export_plus_sequence: the session has no frames");
+  std::vector<cv::Mat> images;
+  for (std::size_t i = 0; i < session.frames.size(); ++i) {
+    images.push_back(read_session_frame(session, i));
+    if (images.back().size() != images.front().size())
+      throw InputError((session.directory / "frames" / session.frames[i].file).string() + ": " +
+                       std::to_string(images.back().cols) + " x " + std::to_string(images.back().rows) +
+                       " differs from the first frame's size; a sequence metafile needs one size");
+  }
+  const int W = images.front().cols, H = images.front().rows;
+  std::ostringstream h;
+  h << "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\nCompressedData = False\n"
+    << "Kinds = domain domain list\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nDimSize = " << W << " " << H << " "
+    << images.size() << "\nOffset = 0 0 0\nCenterOfRotation = 0 0 0\nAnatomicalOrientation = RAI\n"
+    << "ElementSpacing = 1 1 1\nElementType = MET_USHORT\nUltrasoundImageOrientation = MF\n";
+  const std::int64_t t0 = session.frames.front().timestamp_ns;
+  char name[32];
+  for (std::size_t i = 0; i < session.frames.size(); ++i) {
+    const auto& f = session.frames[i];
+    std::snprintf(name, sizeof name, "Seq_Frame%04zu_", i);
+    h << name << "FrameNumber = " << f.frame << "\n";
+    h << name << "Timestamp = " << exact(static_cast<double>(f.timestamp_ns - t0) * 1e-9) << "\n";
+    h << name << "ImageStatus = OK\n";
+    h << name << "Source = " << f.source << "\n";
+    if (const CArmSample* c = carm_at(session, f.timestamp_ns)) {
+      h << name << "PrimaryAngleDeg = " << exact(c->primary_deg) << "\n";
+      h << name << "SecondaryAngleDeg = " << exact(c->secondary_deg) << "\n";
+      h << name << "SidMm = " << exact(c->sid_mm) << "\n";
+      h << name << "SodMm = " << exact(c->sod_mm) << "\n";
+      h << name << "CArmMoving = " << (c->moving ? 1 : 0) << "\n";
+    }
+  }
+  h << "ElementDataFile = LOCAL\n";
+  std::ofstream out(mha, std::ios::binary);
+  out << h.str();
+  for (const auto& image : images)
+    for (int r = 0; r < H; ++r)
+      for (int c = 0; c < W; ++c) {
+        const std::uint16_t v = image.at<std::uint16_t>(r, c);
+        const char bytes[2] = {static_cast<char>(v & 0xff), static_cast<char>(v >> 8)};  // little endian
+        out.write(bytes, 2);
+      }
+  if (!out) throw std::runtime_error(mha.string() + ": cannot write");
 }
 
 }  // namespace evar::sim

@@ -148,3 +148,43 @@ TEST(Session, TruncatedFilesAreClearErrorsAtEveryLength) {
   const auto r = sim::read_session(dir.path);
   EXPECT_THROW(sim::read_session_frame(r, 0), geometry::InputError);
 }
+
+TEST(Session, ExportsAPlusSequenceMetafileForSlicer) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  sim::write_session(dir.path / "s", s, images);
+  const auto r = sim::read_session(dir.path / "s");
+  sim::export_plus_sequence(r, dir.path / "run.seq.mha");
+  std::ifstream in(dir.path / "run.seq.mha", std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  const std::string marker = "ElementDataFile = LOCAL\n";
+  const auto header_end = bytes.find(marker);
+  ASSERT_NE(header_end, std::string::npos);
+  const std::string header = bytes.substr(0, header_end);
+  EXPECT_NE(header.find("DimSize = 60 40 3\n"), std::string::npos);
+  EXPECT_NE(header.find("ElementType = MET_USHORT\n"), std::string::npos);
+  EXPECT_NE(header.find("Seq_Frame0001_Timestamp = 0.066666667\n"), std::string::npos) << header;
+  EXPECT_NE(header.find("Seq_Frame0002_Source = dsa\n"), std::string::npos);
+  // Frame 0 (t = 1.0 s) falls under the sample at 0.99 s; frame 2 (1.133 s) under 1.089 s.
+  EXPECT_NE(header.find("Seq_Frame0000_CArmMoving = 0\n"), std::string::npos);
+  EXPECT_NE(header.find("Seq_Frame0000_PrimaryAngleDeg = 30.0000000000001\n"), std::string::npos) << header;
+  const std::string payload = bytes.substr(header_end + marker.size());
+  ASSERT_EQ(payload.size(), 60u * 40u * 3u * 2u);
+  for (int k = 0; k < 3; ++k)  // little endian, frame after frame, row after row
+    for (const auto& [r0, c0] : {std::pair{0, 0}, std::pair{39, 59}, std::pair{17, 23}}) {
+      const std::size_t at = 2 * (static_cast<std::size_t>(k) * 2400 + static_cast<std::size_t>(r0) * 60 + static_cast<std::size_t>(c0));
+      const unsigned v = static_cast<unsigned char>(payload[at]) | (static_cast<unsigned char>(payload[at + 1]) << 8);
+      EXPECT_EQ(v, images[static_cast<std::size_t>(k)].at<std::uint16_t>(r0, c0));
+    }
+}
+
+TEST(Session, TheCArmSampleInForceIsTheLastOneBefore) {
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  EXPECT_EQ(sim::carm_at(s, 0), &s.carm[0]);                   // before all: the first
+  EXPECT_EQ(sim::carm_at(s, 1'023'333'333LL), &s.carm[1]);     // exactly at a sample
+  EXPECT_EQ(sim::carm_at(s, 1'050'000'000LL), &s.carm[1]);
+  EXPECT_EQ(sim::carm_at(s, 9'000'000'000LL), &s.carm[3]);     // after all: the last
+  EXPECT_EQ(sim::carm_at(sim::Session{}, 5), nullptr);
+}

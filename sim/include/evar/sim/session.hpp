@@ -56,4 +56,15 @@ cv::Mat read_session_frame(const Session& session, std::size_t index);
 /// back bit-exactly. std::invalid_argument for inconsistent input.
 void write_session(const std::filesystem::path& directory, const Session& session, const std::vector<cv::Mat>& images);
 
+/// The C-arm sample in force at time t: the last one at or before t (the first if t is
+/// earlier than all). nullptr when the session has none.
+const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns);
+
+/// Writes the session's frames as a PLUS toolkit sequence metafile (an uncompressed .mha
+/// whose third axis is time) that 3D Slicer's Sequences module loads: per frame its
+/// Timestamp (seconds from the first frame), FrameNumber, ImageStatus, and the C-arm
+/// geometry in force then (PrimaryAngleDeg, SecondaryAngleDeg, SidMm, SodMm, CArmMoving) as
+/// custom frame fields. All frames must share one size. Name it *.seq.mha for Slicer.
+void export_plus_sequence(const Session& session, const std::filesystem::path& mha);
+
 }  // namespace evar::sim
