@@ -269,7 +269,7 @@ void export_plus_sequence(const Session& session, const std::filesystem::path& m
   h << "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\nCompressedData = False\n"
     << "Kinds = domain domain list\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nDimSize = " << W << " " << H << " "
     << images.size() << "\nOffset = 0 0 0\nCenterOfRotation = 0 0 0\nAnatomicalOrientation = RAI\n"
-    << "ElementSpacing = 1 1 1\nElementType = MET_USHORT\nUltrasoundImageOrientation = MF\n";
+    << "ElementSpacing = 1 1 1\nElementType = MET_USHORT\nUltrasoundImageOrientation = MFA\n";
   const std::int64_t t0 = session.frames.front().timestamp_ns;
   char name[32];
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
