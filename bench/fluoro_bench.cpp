@@ -40,7 +40,7 @@ const Pair& pair_of(int size_px) {
     o.seed = static_cast<std::uint64_t>(k + 1);
     p.frame[k] = sim::render_fluoro(p.P[k], v, {wire}, o);
   }
-  p.options.device_width_px = 0.89 * 1.5 / spacing;
+  p.options.device_width_px = geometry::device_shadow_width_px(p.view[0], 0.89);
   return cache.emplace(size_px, std::move(p)).first->second;
 }
 

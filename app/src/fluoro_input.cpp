@@ -46,11 +46,6 @@ FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesyste
   return in;
 }
 
-double device_width_px(const geometry::CArmView& view, double diameter_mm) {
-  const double magnification = view.source_to_detector_mm / view.source_to_isocenter_mm;
-  return diameter_mm * magnification / std::min(view.row_spacing_mm, view.col_spacing_mm);
-}
-
 cv::Mat device_overlay(const cv::Mat& image, const std::vector<Eigen::Vector2d>& points, bool found) {
   // Displayed on a log scale (like the attenuation the segmentation sees), 1st to 99th
   // percentile stretched, so bone and soft tissue both stay readable.

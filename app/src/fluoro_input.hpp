@@ -18,9 +18,6 @@ struct FluoroInput {
 /// InputError naming the file when it cannot be read, is empty, or is not grey-level.
 FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesystem::path& geometry = {});
 
-/// Shadow width (px) of a device of `diameter_mm` at the isocenter of the view.
-double device_width_px(const geometry::CArmView& view, double diameter_mm);
-
 /// The frame with the device drawn over it (tip marked), for --overlay pictures.
 cv::Mat device_overlay(const cv::Mat& image, const std::vector<Eigen::Vector2d>& points, bool found);
 

@@ -9,13 +9,11 @@
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/two_view_reconstruction.hpp"
 #include "fluoro_input.hpp"
+#include "segmentation_setup.hpp"
 #include "json_file.hpp"
 #include "logging.hpp"
 
 namespace evar::app {
-
-geometry::SegmentationOptions segmentation_options(const SegmentParams& p, const FluoroInput& in);
-nlohmann::json segmentation_json(const geometry::DeviceCurve2D& d, const geometry::SegmentationOptions& o);
 
 int run_reconstruct(const ReconstructCommand& cmd) {
   if (cmd.images.size() != 2) throw geometry::InputError("reconstruct: give --image exactly twice");

@@ -53,7 +53,7 @@ Row study(double separation, double photons, int seeds) {
     o.seed += 1000;
     const auto f2 = sim::render_fluoro(P2, v2, {truth}, o);
     geometry::SegmentationOptions so;
-    so.device_width_px = 0.89 * 1.5 / 0.3;
+    so.device_width_px = geometry::device_shadow_width_px(v1, 0.89);
     const auto s1 = geometry::segment_device(f1.image, so), s2 = geometry::segment_device(f2.image, so);
     if (!s1.found || !s2.found) {
       row.failure = s1.found ? s2.reason : s1.reason;

@@ -169,7 +169,7 @@ ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int
       S_.compute(0.5 * (S + S.transpose()));
       if (S_.info() != Eigen::Success || !W_.allFinite())
         throw std::runtime_error("ARAP: the capacitance matrix of the constraint set is not positive definite");
-      capacitance_ = true;
+      prefactored_ = A;
       factor_ms_ = ms_since(t1);
       return;
     }
@@ -191,10 +191,10 @@ Eigen::MatrixXd ArapSolver::global_step(const std::vector<Eigen::Matrix3d>& R, c
                                         const Eigen::MatrixXd& X_C_full) const {
   Eigen::MatrixXd rhs;
   system_->right_hand_side(R, rhs);
-  if (capacitance_) {
+  if (prefactored_) {
     // x = A⁻¹(b + E μ) with Eᵀx = x_C:  S μ = x_C − Eᵀ A⁻¹ b,  x = A⁻¹b + W μ.
     // Rows F of A x = b + E μ are those of A_FF x_F + A_FC x_C = b_F.
-    Eigen::MatrixXd x = system_->prefactored()->solve(rhs);
+    Eigen::MatrixXd x = prefactored_->solve(rhs);
     Eigen::MatrixXd r(static_cast<Eigen::Index>(constrained_.size()), 3);
     for (std::size_t c = 0; c < constrained_.size(); ++c)
       r.row(static_cast<Eigen::Index>(c)) = X_C_full.row(constrained_[c]) - x.row(constrained_[c]);
@@ -222,7 +222,7 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   const auto t_init = Clock::now();
   Eigen::MatrixXd X_C_full = Eigen::MatrixXd::Zero(n, 3);
   for (std::size_t c = 0; c < constrained_.size(); ++c) X_C_full.row(constrained_[c]) = targets.row(static_cast<Eigen::Index>(c));
-  const Eigen::MatrixXd coupling = capacitance_ ? Eigen::MatrixXd() : Eigen::MatrixXd(system_->matrix() * X_C_full);
+  const Eigen::MatrixXd coupling = prefactored_ ? Eigen::MatrixXd() : Eigen::MatrixXd(system_->matrix() * X_C_full);
   Positions& X = result.X;
   std::vector<Eigen::Matrix3d> R(static_cast<std::size_t>(system_->terms().num_cells), Eigen::Matrix3d::Identity());
   Eigen::MatrixXd x(n, 3);

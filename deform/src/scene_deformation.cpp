@@ -312,10 +312,12 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
     // Only vertices near the proximal end can be within bind_length of it along the
     // centerline (a vertex is at most a few radii from its foot): skip the rest cheaply.
     const double reach = options.bind_length_mm + 3.0 * m.radius.at(0.0);
+    const geometry::PolylineProjector onto_centerline(v.centerline);
+    int segment = -1;
     for (Eigen::Index k = 0; k < mesh.V.rows(); ++k) {
       const Eigen::Vector3d p = mesh.V.row(k).transpose();
       if ((p - v.centerline.front()).squaredNorm() > reach * reach) continue;
-      const auto foot = geometry::project_onto(v.centerline, p);
+      const auto foot = onto_centerline.project(p, segment, &segment);
       if (foot.arc_length_mm > options.bind_length_mm) continue;
       const int a = geometry::nearest_vertex(aorta_mesh.V, p);
       const Eigen::Vector3d shift = (aorta_deformed.row(a) - aorta_mesh.V.row(a)).transpose();

@@ -93,7 +93,9 @@ void solve_ldlt_xyz(const int* outer, const int* inner, const double* value, con
     y[3 * j + 2] = s2;
   }
 }
-// The same for k columns (row-major n by k): the prefactored path's A⁻¹E.
+// The same for k columns (row-major n by k): the prefactored path's A⁻¹E. Kept apart from
+// the three-column sweep on purpose: one template for both made an ARAP iteration 15 %
+// slower (1.57 -> 1.80 ms at 7.5k), as the fixed-width version keeps its row in registers.
 void solve_ldlt_rows(const int* outer, const int* inner, const double* value, const double* d, Eigen::Index n,
                      Eigen::Index k, double* y) {
   for (Eigen::Index j = 0; j < n; ++j) {

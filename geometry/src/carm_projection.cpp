@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/LU>
 #include <Eigen/SVD>
+#include <algorithm>
 #include <cmath>
 #include <numbers>
 #include <stdexcept>
@@ -80,8 +81,8 @@ PinholeCamera pinhole_camera(const ProjectionMatrix& P) {
   if (const auto problem = projection_matrix_problem(P, false); !problem.empty())
     throw std::invalid_argument("projection matrix " + problem);
   PinholeCamera c;
-  c.M = P.leftCols<3>();
-  c.source_mm = -c.M.inverse() * P.col(3);
+  c.M_inverse = P.leftCols<3>().inverse();
+  c.source_mm = -c.M_inverse * P.col(3);
   c.direction = P.row(2).head<3>().transpose().normalized();  // w grows along it
   return c;
 }
@@ -98,7 +99,12 @@ double depth_mm(const ProjectionMatrix& P, const Eigen::Vector3d& X_mm) {
 }
 
 Eigen::Vector3d back_projected_ray(const PinholeCamera& camera, const Eigen::Vector2d& pixel) {
-  return (camera.M.inverse() * pixel.homogeneous()).normalized();
+  return (camera.M_inverse * pixel.homogeneous()).normalized();
+}
+
+double device_shadow_width_px(const CArmView& view, double diameter_mm) {
+  return diameter_mm * view.source_to_detector_mm / view.source_to_isocenter_mm /
+         std::min(view.row_spacing_mm, view.col_spacing_mm);
 }
 
 CArmView read_view_geometry(const std::filesystem::path& path) {

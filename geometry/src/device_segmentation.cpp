@@ -303,13 +303,6 @@ std::vector<Eigen::Vector2d> resample_and_smooth(const std::vector<Eigen::Vector
 
 }  // namespace
 
-cv::Mat ridge_response(const cv::Mat& image, const SegmentationOptions& options) {
-  const cv::Mat f = to_float(image);
-  const cv::Rect field = exposed_field(f);
-  if (field.area() == 0) return cv::Mat(f.size(), CV_32F, cv::Scalar(0.0f));
-  return compute_ridge(f, field, options).response;
-}
-
 namespace {
 
 // The whole search on one grid (the frame, or the frame at half resolution).
@@ -323,8 +316,6 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     return result;
   }
   // Drop the field's rim: the shutter edge itself is the strongest structure there.
-  if (!(o.device_width_px > 0.5 && o.device_width_px < 100.0))
-    throw std::invalid_argument("segment_device: device width must be 0.5 to 100 px");
   const auto scales = scales_of(o);
   const int rim = static_cast<int>(std::ceil(2.0 * *std::max_element(scales.begin(), scales.end()) + o.device_width_px)) + 2;
   cv::Rect inner(result.field.x + rim, result.field.y + rim, result.field.width - 2 * rim, result.field.height - 2 * rim);

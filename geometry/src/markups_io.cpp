@@ -95,7 +95,7 @@ Markup parse_markup(const fs::path& file, const json& root, const json& j, const
   const json* type = find(j, "type");
   if (!type) bad(file, field + ".type", "missing");
   m.type = get_string(file, *type, field + ".type");
-  // null is read as "" for the free-text fields: some scripts write null placeholders.
+  // null is read as "" for the free-text fields: some scripts write null there.
   if (const json* name = find(j, "name"); name && !name->is_null()) {
     m.name = get_string(file, *name, field + ".name");
   }

@@ -195,7 +195,7 @@ Reconstruction reconstruct_two_view(const std::vector<Eigen::Vector2d>& curve1, 
         reliable = std::abs(tangent.x() * line_dir.y() - tangent.y() * line_dir.x()) >= grazing_sin;
       }
     }
-    const Eigen::Vector3d ray = (cam1.M.inverse() * u.homogeneous()).normalized();
+    const Eigen::Vector3d ray = back_projected_ray(cam1, u);
     rays.push_back(ray);
     arc.push_back(c1.s[static_cast<std::size_t>(i)]);
     if (found && reliable) {

@@ -40,31 +40,34 @@ std::string read_text(const fs::path& file) {
   return s.str();
 }
 
-// Lines without their end (LF or CRLF).
-std::vector<std::string> lines_of(const std::string& text) {
-  std::vector<std::string> lines;
-  std::size_t start = 0;
-  while (start < text.size()) {
+// Calls row(line number, fields) for every non-empty line after the header, checking the
+// header and the field count; lines end in LF or CRLF.
+template <class Row>
+void for_each_row(const fs::path& file, const char* header, std::size_t fields, Row row) {
+  const std::string text = read_text(file);
+  std::size_t start = 0, line = 0;
+  while (start < text.size() || line == 0) {
     std::size_t end = text.find('\n', start);
     if (end == std::string::npos) end = text.size();
-    std::string line = text.substr(start, end - start);
-    if (!line.empty() && line.back() == '\r') line.pop_back();
-    lines.push_back(std::move(line));
+    std::string content = text.substr(start, end - start);
+    if (!content.empty() && content.back() == '\r') content.pop_back();
     start = end + 1;
+    if (++line == 1) {
+      if (content != header) fail(file, 1, std::string("header: expected '") + header + "'");
+      continue;
+    }
+    if (content.empty()) continue;
+    std::vector<std::string> f;
+    for (std::size_t from = 0;;) {
+      const std::size_t comma = content.find(',', from);
+      f.push_back(content.substr(from, comma == std::string::npos ? std::string::npos : comma - from));
+      if (comma == std::string::npos) break;
+      from = comma + 1;
+    }
+    if (f.size() != fields)
+      fail(file, line, "expected " + std::to_string(fields) + " fields, found " + std::to_string(f.size()));
+    row(line, f);
   }
-  return lines;
-}
-
-std::vector<std::string> split(const std::string& line) {
-  std::vector<std::string> fields;
-  std::size_t start = 0;
-  for (;;) {
-    const std::size_t comma = line.find(',', start);
-    fields.push_back(line.substr(start, comma == std::string::npos ? std::string::npos : comma - start));
-    if (comma == std::string::npos) break;
-    start = comma + 1;
-  }
-  return fields;
 }
 
 template <class T>
@@ -142,14 +145,7 @@ Session read_session(const std::filesystem::path& directory) {
 
   // Frames.
   const fs::path index = directory / streams["frames"].get<std::string>();
-  const auto frame_lines = lines_of(read_text(index));
-  if (frame_lines.empty() || frame_lines[0] != kFramesHeader)
-    fail(index, 1, std::string("header: expected '") + kFramesHeader + "'");
-  for (std::size_t n = 1; n < frame_lines.size(); ++n) {
-    const std::size_t line = n + 1;
-    if (frame_lines[n].empty()) continue;
-    const auto f = split(frame_lines[n]);
-    if (f.size() != 4) fail(index, line, "expected 4 fields, found " + std::to_string(f.size()));
+  for_each_row(index, kFramesHeader, 4, [&](std::size_t line, const std::vector<std::string>& f) {
     FrameRecord r;
     r.frame = number<std::int64_t>(index, line, "frame", f[0]);
     r.timestamp_ns = number<std::int64_t>(index, line, "timestamp_ns", f[1]);
@@ -165,17 +161,11 @@ Session read_session(const std::filesystem::path& directory) {
     }
     if (!fs::is_regular_file(index.parent_path() / file)) fail(index, line, "file: " + f[3] + " is missing");
     s.frames.push_back(std::move(r));
-  }
+  });
 
   // C-arm geometry stream.
   const fs::path carm = directory / streams["carm"].get<std::string>();
-  const auto carm_lines = lines_of(read_text(carm));
-  if (carm_lines.empty() || carm_lines[0] != kCArmHeader) fail(carm, 1, std::string("header: expected '") + kCArmHeader + "'");
-  for (std::size_t n = 1; n < carm_lines.size(); ++n) {
-    const std::size_t line = n + 1;
-    if (carm_lines[n].empty()) continue;
-    const auto f = split(carm_lines[n]);
-    if (f.size() != 10) fail(carm, line, "expected 10 fields, found " + std::to_string(f.size()));
+  for_each_row(carm, kCArmHeader, 10, [&](std::size_t line, const std::vector<std::string>& f) {
     CArmSample c;
     c.timestamp_ns = number<std::int64_t>(carm, line, "timestamp_ns", f[0]);
     c.primary_deg = number<double>(carm, line, "primary_deg", f[1]);
@@ -192,7 +182,7 @@ Session read_session(const std::filesystem::path& directory) {
       fail(carm, line, "sid_mm, sod_mm: need 0 < SOD < SID <= 5000");
     if (!s.carm.empty() && c.timestamp_ns < s.carm.back().timestamp_ns) fail(carm, line, "timestamp_ns: goes back in time");
     s.carm.push_back(c);
-  }
+  });
   return s;
 }
 

@@ -26,9 +26,7 @@ inline geometry::CArmView detector_view(double primary_deg, double secondary_deg
 using sim::iliac_guidewire;
 
 /// Expected shadow width (px) of a wire of `diameter_mm` at the isocenter.
-inline double shadow_width_px(const geometry::CArmView& v, double diameter_mm = 0.89) {
-  return diameter_mm * v.source_to_detector_mm / v.source_to_isocenter_mm / v.col_spacing_mm;
-}
+inline double shadow_width_px(const geometry::CArmView& v) { return geometry::device_shadow_width_px(v, 0.89); }
 
 using sim::CurveMatch;
 inline CurveMatch match(const std::vector<Eigen::Vector2d>& found, const std::vector<Eigen::Vector2d>& truth,

@@ -127,8 +127,8 @@ class ArapSolver {
   const std::vector<int>& constrained() const { return constrained_; }
   double assemble_ms() const { return system_->assemble_ms() + masking_ms_; }
   double factor_ms() const { return factor_ms_; }
-  CholeskyBackend backend() const { return cholesky_ ? cholesky_->backend() : system_->prefactored()->backend(); }
-  ConstraintMethod method() const { return capacitance_ ? ConstraintMethod::Capacitance : ConstraintMethod::Refactor; }
+  CholeskyBackend backend() const { return cholesky_ ? cholesky_->backend() : prefactored_->backend(); }
+  ConstraintMethod method() const { return prefactored_ ? ConstraintMethod::Capacitance : ConstraintMethod::Refactor; }
 
  private:
   Eigen::MatrixXd global_step(const std::vector<Eigen::Matrix3d>& R, const Eigen::MatrixXd& coupling,
@@ -139,8 +139,8 @@ class ArapSolver {
   std::vector<char> is_constrained_;
   double masking_ms_ = 0.0, factor_ms_ = 0.0;
   std::optional<SparseCholesky> cholesky_;
-  // Capacitance method: W = A⁻¹E (n by k), S = EᵀW factored.
-  bool capacitance_ = false;
+  // Capacitance method: the system's factor of A, W = A⁻¹E (n by k), S = EᵀW factored.
+  const SparseCholesky* prefactored_ = nullptr;
   Eigen::MatrixXd W_;
   Eigen::LLT<Eigen::MatrixXd> S_;
 };

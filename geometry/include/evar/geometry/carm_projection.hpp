@@ -53,7 +53,7 @@ ProjectionMatrix registered(const ProjectionMatrix& P, const Eigen::Matrix4d& ct
 struct PinholeCamera {
   Eigen::Vector3d source_mm;      ///< centre of projection (null space of P)
   Eigen::Vector3d direction;      ///< unit principal axis, towards the detector
-  Eigen::Matrix3d M;              ///< left 3x3 block of P (for back-projection)
+  Eigen::Matrix3d M_inverse;      ///< inverse of P's left 3x3 block (back-projection)
 };
 /// Throws std::invalid_argument if P is not finite or its left 3x3 block is singular (not a
 /// camera). Any P = K[R | −RS] works, registered ones included; `direction` assumes the
@@ -69,6 +69,10 @@ double depth_mm(const ProjectionMatrix& P, const Eigen::Vector3d& X_mm);
 
 /// The unit direction from the source through pixel (u, v).
 Eigen::Vector3d back_projected_ray(const PinholeCamera& camera, const Eigen::Vector2d& pixel);
+
+/// Width (px) of the shadow a device of `diameter_mm` casts when it lies at the view's
+/// isocenter: diameter × SID/SOD / pixel spacing (the finer of the two spacings).
+double device_shadow_width_px(const CArmView& view, double diameter_mm);
 
 /// Reads a view geometry JSON file; InputError names the file and the field.
 CArmView read_view_geometry(const std::filesystem::path& path);

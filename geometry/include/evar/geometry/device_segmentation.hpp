@@ -72,7 +72,4 @@ struct DeviceCurve2D {
 /// Never throws on image content; std::invalid_argument for another type or empty image.
 DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& options = {});
 
-/// The ridge measure in noise units (CV_32FC1), as used above; for overlays and tuning.
-cv::Mat ridge_response(const cv::Mat& image, const SegmentationOptions& options = {});
-
 }  // namespace evar::geometry
