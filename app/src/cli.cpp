@@ -143,6 +143,30 @@ int run_cli(const std::vector<std::string>& args) {
       ->capture_default_str();
   add_segment_params(rc, reconstruct.params);
 
+  auto* sim = app.add_subcommand("sim", "Synthetic material for development and evaluation (docs/SYNTHETIC_PATIENTS.md).");
+  sim->require_subcommand(1);
+  SimPatientCommand sim_patient;
+  auto* sp = sim->add_subcommand(
+      "patient",
+      "Write a synthetic aorto-iliac patient drawn from adult ranges by a seed: the preoperative\n"
+      "scene (OUT/scene.json, meshes, centerlines, landmarks.mrk.json), the inserted device\n"
+      "(OUT/device.mrk.json), the ground truth of how the device distorts the vessels (OUT/truth/,\n"
+      "a scene of the same layout with the same vertex order, made by a model other than the\n"
+      "product's ARAP) and OUT/patient.json (parameters and a summary). Then, e.g.:\n"
+      "  evarnode deform --scene OUT/scene.json --device OUT/device.mrk.json --out RESULT\n"
+      "and compare RESULT with OUT/truth/.");
+  sp->add_option("--seed", sim_patient.seed, "patient seed (the same seed gives the same patient)")->capture_default_str();
+  sp->add_option("--out", sim_patient.out, "output directory (created if missing)")->required();
+  sp->add_option("--format", sim_patient.format, "mesh format: stl, ply or obj")
+      ->check(CLI::IsMember({"stl", "ply", "obj"}))
+      ->capture_default_str();
+  sp->add_option("--aorta-vertices", sim_patient.aorta_vertices, "approximate aortic mesh size")
+      ->check(CLI::Range(500, 2000000))
+      ->capture_default_str();
+  sp->add_option("--iliac-vertices", sim_patient.iliac_vertices, "approximate size of each iliac mesh")
+      ->check(CLI::Range(300, 2000000))
+      ->capture_default_str();
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -158,6 +182,7 @@ int run_cli(const std::vector<std::string>& args) {
     if (pr->parsed()) return run_project(project);
     if (sg->parsed()) return run_segment(segment);
     if (rc->parsed()) return run_reconstruct(reconstruct);
+    if (sp->parsed()) return run_sim_patient(sim_patient);
   } catch (const geometry::InputError& err) {
     log().error("{}", err.what());
     return 1;

@@ -37,6 +37,15 @@ struct ExampleCommand {
 };
 int run_example(const ExampleCommand& cmd);
 
+struct SimPatientCommand {
+  std::filesystem::path out;
+  unsigned long long seed = 1;
+  std::string format = "stl";
+  int aorta_vertices = 7500;
+  int iliac_vertices = 3500;
+};
+int run_sim_patient(const SimPatientCommand& cmd);
+
 /// Options shared by segment and reconstruct.
 struct SegmentParams {
   double diameter_mm = 0.89;             ///< device diameter (0.035" guidewire), for its shadow width

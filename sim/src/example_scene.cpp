@@ -249,7 +249,7 @@ void mesh_vessel(ExampleVessel& vessel, int target_vertices) {
   vessel.mesh = tube_mesh(vessel.centerline, vessel.radii_mm, options);
 }
 
-// The wire follows the lumen path (aorta from the tip down, then the right iliac) only
+// The wire follows the lumen path (aorta from the tip down, then the access iliac) only
 // in the large: stiffened, it cuts across the iliac bends as a stiff wire straightens a
 // tortuous artery, and across the corner at the bifurcation.
 Polyline make_device(const ExampleSceneParams& p, const ExampleVessel& aorta, const ExampleVessel& iliac) {
@@ -368,7 +368,7 @@ ExampleScene make_example_scene(const ExampleSceneParams& params) {
                                      iliac == &left ? "internal_iliac_left" : "internal_iliac_right"));
   }
 
-  scene.device = make_device(params, aorta, right);
+  scene.device = make_device(params, aorta, params.device_in_left_iliac ? left : right);
   scene.vessels = {std::move(aorta), std::move(left), std::move(right)};
   for (const auto& v : scene.vessels) {
     scene.device_clearance.push_back(measure_device_clearance(scene.device, v.centerline, v.radii_mm));

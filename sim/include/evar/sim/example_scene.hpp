@@ -50,7 +50,8 @@ struct ExampleSceneParams {
   double iliac_tortuosity_y_mm = 10.0;        ///< amplitude of the antero-posterior bends
   double internal_iliac_arc_mm = 55.0;        ///< ostium distance along the iliac centerline
 
-  // Device: guidewire through the right iliac, tip in the aorta.
+  // Device: guidewire through one iliac (right unless device_in_left_iliac), tip in the aorta.
+  bool device_in_left_iliac = false;
   double device_tip_z_mm = 100.0;
   double device_stiffness_length_mm = 40.0;   ///< bending stiffness as a length: the wire
                                               ///< follows bends much longer than 2 pi times
@@ -85,7 +86,7 @@ struct ExampleScene {
                                                 ///< internal_iliac_left, internal_iliac_right;
                                                 ///< each exactly on its vessel's surface
   std::vector<Eigen::Vector3d> device;          ///< tip (in the aorta) first, access point
-                                                ///< (right iliac distal end) last; 1 mm apart
+                                                ///< (that iliac's distal end) last; 1 mm apart
   double device_thickness_mm = 0.9;
   std::vector<DeviceClearance> device_clearance;  ///< one per vessel, same order; for a
                                                   ///< vessel the device does not run in

@@ -1,0 +1,48 @@
+#pragma once
+// Synthetic aorto-iliac patients for development and evaluation: anatomy drawn from adult
+// ranges by a seed, a stiff device through one iliac, and the ground-truth distortion the
+// device causes (device_distortion.hpp, a model other than the product's ARAP).
+#include <cstdint>
+#include <filesystem>
+#include <string>
+
+#include "evar/geometry/mesh_io.hpp"
+#include "evar/sim/device_distortion.hpp"
+#include "evar/sim/example_scene.hpp"
+
+namespace evar::sim {
+
+/// Anatomy and device drawn uniformly from adult ranges (documented in
+/// docs/SYNTHETIC_PATIENTS.md): suprarenal aortic radius 10–13 mm, infrarenal aneurysm
+/// 50–75 mm across with a 15–30 mm neck below the renal ostia, common+external iliacs of
+/// 9–14 mm proximal diameter with 4–20 mm lateral and 3–15 mm antero-posterior tortuosity,
+/// the internal iliac ostium 45–65 mm down the iliac; a 0.035" or 0.038" stiff wire
+/// (bending length 30–60 mm) through the left or right iliac, tip 10 mm below the renal
+/// ostia to 10 mm below the aortic top. Deterministic: the same seed gives the same
+/// parameters on any platform. Mesh resolution is left at the defaults.
+ExampleSceneParams draw_patient_params(std::uint64_t seed);
+
+struct SyntheticPatient {
+  std::uint64_t seed = 0;
+  ExampleSceneParams params;
+  ExampleScene preoperative;  ///< what CT shows: undistorted vessels, landmarks, and the device
+  DeviceDistortion truth;     ///< the vessels as the device really bends them
+};
+
+/// draw_patient_params(seed) with `aorta_vertices`/`iliac_vertices`, the scene and its
+/// ground truth. Throws like make_example_scene and distort_by_device, and
+/// std::runtime_error naming the seed when the ground truth does not hold the device
+/// (distortion.device_points_outside > 0; a few percent of seeds, see
+/// docs/SYNTHETIC_PATIENTS.md): such a seed is refused, never written.
+SyntheticPatient make_patient(std::uint64_t seed, int aorta_vertices = 7500, int iliac_vertices = 3500,
+                              const DistortionOptions& distortion = {});
+
+/// Writes the preoperative scene as write_example_scene does (dir/scene.json, meshes,
+/// centerlines, landmarks.mrk.json, device.mrk.json), the ground truth under dir/truth/
+/// (the distorted meshes under the same file names, <vessel>.centerline.mrk.json,
+/// landmarks.mrk.json, device.mrk.json) and dir/patient.json (seed, parameters, carrier
+/// iliac, distortion summary). Returns nothing; throws std::runtime_error on write errors.
+void write_patient(const SyntheticPatient& patient, const std::filesystem::path& dir,
+                   geometry::MeshFormat format = geometry::MeshFormat::StlBinary);
+
+}  // namespace evar::sim

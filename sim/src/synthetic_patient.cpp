@@ -1,0 +1,137 @@
+#include "evar/sim/synthetic_patient.hpp"
+
+#include <algorithm>
+#include <fstream>
+#include <random>
+#include <stdexcept>
+#include <string>
+
+#include <nlohmann/json.hpp>
+
+namespace evar::sim {
+namespace {
+
+// Uniform draws from a fixed engine with our own int -> double mapping (std::
+// distributions may differ between standard libraries).
+class Draw {
+ public:
+  explicit Draw(std::uint64_t seed) : engine_(seed ^ 0x5eed'a0e7'11ac'0001ULL) {}
+  double operator()(double lo, double hi) {
+    const double u = static_cast<double>(engine_() >> 11) * 0x1.0p-53;
+    return lo + u * (hi - lo);
+  }
+  bool coin() { return (engine_() >> 63) != 0; }
+
+ private:
+  std::mt19937_64 engine_;
+};
+
+}  // namespace
+
+ExampleSceneParams draw_patient_params(std::uint64_t seed) {
+  Draw draw(seed);
+  ExampleSceneParams p;
+  p.seed = seed;
+  p.variation = 0.0;  // the draws below are the variation
+  // Fixed draw order: changing it changes every patient.
+  p.aorta_top_z_mm = draw(140.0, 165.0);
+  p.renal_z_mm = p.aorta_top_z_mm - draw(25.0, 40.0);
+  const double neck = draw(15.0, 30.0);
+  const double sac_top = p.renal_z_mm - neck;
+  p.aneurysm_length_mm = std::min(draw(50.0, 85.0), sac_top - 12.0);  // ends >= 12 mm above the bifurcation
+  p.aneurysm_centre_z_mm = sac_top - 0.5 * p.aneurysm_length_mm;
+  p.aneurysm_max_radius_mm = draw(25.0, 37.5);
+  p.aorta_radius_top_mm = draw(10.0, 13.0);
+  p.aorta_radius_bifurcation_mm = std::min(draw(8.0, 10.5), p.aorta_radius_top_mm - 0.5);
+  p.aorta_bow_anterior_mm = draw(2.0, 12.0);
+  p.aorta_bow_left_mm = draw(-3.0, 8.0);
+  p.iliac_start_lateral_mm = draw(3.0, 5.0);
+  p.iliac_end_z_mm = draw(-165.0, -125.0);
+  p.iliac_end_lateral_mm = draw(55.0, 80.0);
+  p.iliac_end_anterior_mm = draw(5.0, 25.0);
+  p.iliac_radius_proximal_mm = draw(4.5, 7.0);
+  p.iliac_radius_distal_mm = std::min(draw(3.5, 5.0), p.iliac_radius_proximal_mm - 0.5);
+  p.iliac_tortuosity_x_mm = draw(4.0, 20.0);
+  p.iliac_tortuosity_y_mm = draw(3.0, 15.0);
+  p.internal_iliac_arc_mm = draw(45.0, 65.0);
+  p.device_in_left_iliac = draw.coin();
+  p.device_tip_z_mm = draw(p.renal_z_mm - 10.0, p.aorta_top_z_mm - 10.0);
+  p.device_stiffness_length_mm = draw(30.0, 60.0);
+  p.device_thickness_mm = draw.coin() ? 0.97 : 0.89;  // 0.038" or 0.035"
+  return p;
+}
+
+SyntheticPatient make_patient(std::uint64_t seed, int aorta_vertices, int iliac_vertices,
+                              const DistortionOptions& distortion) {
+  SyntheticPatient patient;
+  patient.seed = seed;
+  patient.params = draw_patient_params(seed);
+  patient.params.aorta_vertices = aorta_vertices;
+  patient.params.iliac_vertices = iliac_vertices;
+  patient.preoperative = make_example_scene(patient.params);
+  patient.truth = distort_by_device(patient.preoperative, distortion);
+  if (patient.truth.device_points_outside > 0)
+    throw std::runtime_error("synthetic patient seed " + std::to_string(seed) + ": the ground-truth distortion leaves " +
+                             std::to_string(patient.truth.device_points_outside) + " device points outside the vessels (worst " +
+                             std::to_string(patient.truth.worst_outside_mm) + " mm, device point " +
+                             std::to_string(patient.truth.worst_outside_point) + "); this anatomy is refused, use another seed");
+  return patient;
+}
+
+void write_patient(const SyntheticPatient& patient, const std::filesystem::path& dir, geometry::MeshFormat format) {
+  write_example_scene(patient.preoperative, dir, format);
+  ExampleScene truth = patient.preoperative;
+  for (std::size_t i = 0; i < truth.vessels.size(); ++i) {
+    truth.vessels[i].mesh = patient.truth.vessels[i].mesh;
+    truth.vessels[i].centerline = patient.truth.vessels[i].centerline;
+  }
+  truth.landmarks = patient.truth.landmarks;
+  write_example_scene(truth, dir / "truth", format);
+
+  const ExampleSceneParams& p = patient.params;
+  nlohmann::ordered_json j;
+  j["format"] = "evarnode-synthetic-patient";
+  j["version"] = 1;
+  j["seed"] = patient.seed;
+  j["coordinate_system"] = "LPS";
+  j["units"] = "mm";
+  j["anatomy"] = {{"aorta_top_z_mm", p.aorta_top_z_mm},
+                  {"renal_z_mm", p.renal_z_mm},
+                  {"aneurysm_centre_z_mm", p.aneurysm_centre_z_mm},
+                  {"aneurysm_length_mm", p.aneurysm_length_mm},
+                  {"aneurysm_max_radius_mm", p.aneurysm_max_radius_mm},
+                  {"aorta_radius_top_mm", p.aorta_radius_top_mm},
+                  {"aorta_radius_bifurcation_mm", p.aorta_radius_bifurcation_mm},
+                  {"aorta_bow_anterior_mm", p.aorta_bow_anterior_mm},
+                  {"aorta_bow_left_mm", p.aorta_bow_left_mm},
+                  {"iliac_start_lateral_mm", p.iliac_start_lateral_mm},
+                  {"iliac_end_z_mm", p.iliac_end_z_mm},
+                  {"iliac_end_lateral_mm", p.iliac_end_lateral_mm},
+                  {"iliac_end_anterior_mm", p.iliac_end_anterior_mm},
+                  {"iliac_radius_proximal_mm", p.iliac_radius_proximal_mm},
+                  {"iliac_radius_distal_mm", p.iliac_radius_distal_mm},
+                  {"iliac_tortuosity_x_mm", p.iliac_tortuosity_x_mm},
+                  {"iliac_tortuosity_y_mm", p.iliac_tortuosity_y_mm},
+                  {"internal_iliac_arc_mm", p.internal_iliac_arc_mm}};
+  j["device"] = {{"iliac", p.device_in_left_iliac ? "iliac_left" : "iliac_right"},
+                 {"tip_z_mm", p.device_tip_z_mm},
+                 {"bending_length_mm", p.device_stiffness_length_mm},
+                 {"thickness_mm", p.device_thickness_mm},
+                 {"file", "device.mrk.json"}};
+  nlohmann::ordered_json vessels = nlohmann::ordered_json::array();
+  for (const auto& v : patient.truth.vessels)
+    vessels.push_back({{"name", v.name},
+                       {"max_centerline_displacement_mm", v.max_displacement_mm},
+                       {"contact_sections", v.contact_sections}});
+  j["ground_truth"] = {{"directory", "truth"},
+                       {"model", "centerline beams on elastic foundation, device contact, rigid re-sweep of sections"},
+                       {"carrier", patient.truth.carrier},
+                       {"contact_rounds", patient.truth.rounds},
+                       {"max_intrusion_mm", patient.truth.max_intrusion_mm},
+                       {"vessels", vessels}};
+  std::ofstream f(dir / "patient.json");
+  f << j.dump(2) << '\n';
+  if (!f) throw std::runtime_error("write_patient: cannot write " + (dir / "patient.json").string());
+}
+
+}  // namespace evar::sim
