@@ -404,3 +404,37 @@ TEST_F(Cli, ReconstructedDeviceDrivesTheDeformation) {
   for (const auto& v : report["vessels"]) control_points += v["control_points"].get<int>();
   EXPECT_GT(control_points, 0);
 }
+
+// The evaluation loop a research user runs: a synthetic patient, deform it, compare with
+// its truth. The carrier's internal iliac ostium must end closer to its true position.
+TEST_F(Cli, SimPatientFeedsDeformAndItsTruthIsComparable) {
+  const auto out = scratch("sim_patient");
+  ASSERT_EQ(evarnode({"sim", "patient", "--seed", "5", "--out", (out / "p").string(), "--aorta-vertices", "3000",
+                      "--iliac-vertices", "1500"}).code, 0);
+  for (const char* f : {"scene.json", "device.mrk.json", "patient.json", "truth/scene.json", "truth/landmarks.mrk.json"})
+    EXPECT_TRUE(fs::exists(out / "p" / f)) << f;
+  ASSERT_EQ(evarnode({"deform", "--scene", (out / "p/scene.json").string(), "--device", (out / "p/device.mrk.json").string(),
+                      "--out", (out / "r").string(), "--no-preview"}).code, 0);
+  const auto carrier = nlohmann::json::parse(std::ifstream(out / "p/patient.json"))["ground_truth"]["carrier"].get<std::string>();
+  const std::string label = carrier == "iliac_left" ? "internal_iliac_left" : "internal_iliac_right";
+  const auto at = [&](const fs::path& file) {
+    for (const auto& m : evar::geometry::read_markups(file))
+      for (const auto& p : m.points)
+        if (p.label == label) return p.position_lps;
+    ADD_FAILURE() << label << " not in " << file;
+    return Eigen::Vector3d::Zero().eval();
+  };
+  const Eigen::Vector3d truth = at(out / "p/truth/landmarks.mrk.json");
+  const double before = (at(out / "p/landmarks.mrk.json") - truth).norm();
+  const double after = (at(out / "r/landmarks.mrk.json") - truth).norm();
+  EXPECT_GT(before, 2.0);  // the device really moves it
+  EXPECT_LT(after, 0.5 * before);
+}
+
+TEST_F(Cli, SimPatientRefusesASeedItsTruthCannotHold) {
+  const auto out = scratch("sim_patient_refused");
+  const auto r = evarnode({"sim", "patient", "--seed", "7", "--out", out.string()});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("seed 7"), std::string::npos) << r.err;
+  EXPECT_FALSE(fs::exists(out / "scene.json"));
+}
