@@ -11,6 +11,7 @@
 
 #include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/ray_caster.hpp"
+#include "evar/sim/tube_mesh.hpp"
 
 namespace evar::sim {
 namespace {
@@ -68,16 +69,6 @@ std::optional<Eigen::Vector3d> device_crossing(const Polyline& device, const Eig
   return best;
 }
 
-double radius_at(const std::vector<double>& arc, const std::vector<double>& radii, double s) {
-  const auto it = std::upper_bound(arc.begin(), arc.end(), s);
-  if (it == arc.begin()) return radii.front();
-  if (it == arc.end()) return radii.back();
-  const auto i = static_cast<std::size_t>(it - arc.begin());
-  const double len = arc[i] - arc[i - 1];
-  const double u = len > 0.0 ? (s - arc[i - 1]) / len : 1.0;
-  return (1.0 - u) * radii[i - 1] + u * radii[i];
-}
-
 // Is x inside the tube of radii `radii` (per point, along the rest arc lengths `arc`)
 // around `centerline`, by at least `margin`?
 bool inside_tube(const Polyline& centerline, const std::vector<double>& arc, const std::vector<double>& radii,
@@ -85,7 +76,7 @@ bool inside_tube(const Polyline& centerline, const std::vector<double>& arc, con
   const auto proj = geometry::project_onto(centerline, x);
   if (proj.beyond_start || proj.beyond_end) return false;
   const double s = proj.arc_length_mm * arc.back() / geometry::arc_lengths(centerline).back();  // back to rest arc
-  return proj.distance_mm <= radius_at(arc, radii, s) - margin;
+  return proj.distance_mm <= interpolate_along(arc, radii, s) - margin;
 }
 
 // Elastic beams through centerline points (1 mm apart, nearly), several chains in one
@@ -195,7 +186,7 @@ std::size_t stub_length(const ExampleVessel& iliac, const ExampleVessel& aorta, 
   for (; n < iliac.centerline.size(); ++n) {
     const auto proj = projector.project(iliac.centerline[n]);
     if (n == 0) *start_arc_on_aorta = proj.arc_length_mm;
-    if (n > 0 && (proj.beyond_end || proj.distance_mm > radius_at(aorta_arc, aorta.radii_mm, proj.arc_length_mm)))
+    if (n > 0 && (proj.beyond_end || proj.distance_mm > interpolate_along(aorta_arc, aorta.radii_mm, proj.arc_length_mm)))
       break;
   }
   return std::max<std::size_t>(n, 1);
@@ -381,7 +372,7 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
     double best_gap = std::numeric_limits<double>::infinity();
     for (std::size_t vi = 0; vi < scene.vessels.size(); ++vi) {
       const auto proj = geometry::project_onto(scene.vessels[vi].centerline, lm.position_lps);
-      const double gap = std::abs(proj.distance_mm - radius_at(arcs[vi], scene.vessels[vi].radii_mm, proj.arc_length_mm));
+      const double gap = std::abs(proj.distance_mm - interpolate_along(arcs[vi], scene.vessels[vi].radii_mm, proj.arc_length_mm));
       if (gap < best_gap) {
         best_gap = gap;
         best = vi;

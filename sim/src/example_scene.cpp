@@ -45,16 +45,6 @@ void require(bool ok, const char* what) {
   if (!ok) throw std::invalid_argument(std::string("make_example_scene: ") + what);
 }
 
-double interpolate(const std::vector<double>& arc, const std::vector<double>& values, double s) {
-  const auto it = std::upper_bound(arc.begin(), arc.end(), s);
-  if (it == arc.begin()) return values.front();
-  if (it == arc.end()) return values.back();
-  const auto i = static_cast<std::size_t>(it - arc.begin());
-  const double len = arc[i] - arc[i - 1];
-  const double u = len > 0.0 ? (s - arc[i - 1]) / len : 1.0;
-  return (1.0 - u) * values[i - 1] + u * values[i];
-}
-
 double mean_radius(const Polyline& centerline, const std::vector<double>& radii) {
   const auto arc = geometry::arc_lengths(centerline);
   double integral = 0.0;
@@ -329,7 +319,7 @@ DeviceClearance measure_device_clearance(const std::vector<Eigen::Vector3d>& dev
   for (std::size_t i = 0; i < device.size(); ++i) {
     const auto proj = geometry::project_onto(centerline, device[i]);
     if (proj.beyond_start || proj.beyond_end) continue;
-    c[i] = proj.distance_mm - interpolate(arc, radii_mm, proj.arc_length_mm);
+    c[i] = proj.distance_mm - interpolate_along(arc, radii_mm, proj.arc_length_mm);
     out.max_outside_mm = std::max(out.max_outside_mm, c[i]);
   }
   for (std::size_t i = 1; i < device.size(); ++i) {

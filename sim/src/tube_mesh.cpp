@@ -136,15 +136,7 @@ geometry::TriangleMesh tube_mesh(const std::vector<Eigen::Vector3d>& centerline,
                                 std::to_string(centerline.size()) + " centerline points");
   // Arc length of every input point (duplicates included) so radii stay paired with points.
   const std::vector<double> arc = geometry::arc_lengths(centerline);
-  auto profile = [&arc, &radii](double s) {
-    const auto it = std::upper_bound(arc.begin(), arc.end(), s);
-    if (it == arc.begin()) return radii.front();
-    if (it == arc.end()) return radii.back();
-    const auto i = static_cast<std::size_t>(it - arc.begin());
-    const double len = arc[i] - arc[i - 1];
-    const double u = len > 0.0 ? (s - arc[i - 1]) / len : 1.0;
-    return (1.0 - u) * radii[i - 1] + u * radii[i];
-  };
+  auto profile = [&arc, &radii](double s) { return interpolate_along(arc, radii, s); };
   return tube_mesh(centerline, RadiusProfile(profile), options);
 }
 
@@ -193,6 +185,16 @@ double enclosed_volume(const geometry::TriangleMesh& mesh) {
     six_v += a.dot(b.cross(c));
   }
   return six_v / 6.0;
+}
+
+double interpolate_along(const std::vector<double>& arc, const std::vector<double>& values, double s) {
+  const auto it = std::upper_bound(arc.begin(), arc.end(), s);
+  if (it == arc.begin()) return values.front();
+  if (it == arc.end()) return values.back();
+  const auto i = static_cast<std::size_t>(it - arc.begin());
+  const double len = arc[i] - arc[i - 1];
+  const double u = len > 0.0 ? (s - arc[i - 1]) / len : 1.0;
+  return (1.0 - u) * values[i - 1] + u * values[i];
 }
 
 }  // namespace evar::sim

@@ -3,6 +3,7 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
+#include <sstream>
 
 #include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/markups.hpp"
@@ -29,8 +30,11 @@ std::string device_points_outside(const std::vector<Eigen::Vector3d>& device,
     if (in) continue;
     double gap = 1e9;
     for (const auto* m : meshes) gap = std::min(gap, geometry::closest_point_on_mesh(*m, device[i]).distance_mm);
-    if (gap > slack_mm)
-      outside += " " + std::to_string(i) + "/" + std::to_string(device.size()) + " (" + std::to_string(gap) + " mm out)";
+    if (gap > slack_mm) {
+      std::ostringstream item;
+      item << ' ' << i << '/' << device.size() << " (" << gap << " mm out)";
+      outside += item.str();
+    }
   }
   return outside;
 }

@@ -41,6 +41,10 @@ geometry::TriangleMesh tube_mesh(const std::vector<Eigen::Vector3d>& centerline,
 geometry::TriangleMesh tube_mesh(const std::vector<Eigen::Vector3d>& centerline,
                                  const std::vector<double>& radii, const TubeOptions& options = {});
 
+/// values[i] given at arc lengths arc[i] (non-decreasing), linearly interpolated at s and
+/// held constant beyond either end: radii along a centerline.
+double interpolate_along(const std::vector<double>& arc, const std::vector<double>& values, double s);
+
 /// Number of vertices tube_mesh produces for a centerline of `length_mm` with `options`.
 int tube_vertex_count(double length_mm, const TubeOptions& options);
 
