@@ -1,0 +1,128 @@
+#include "evar/sim/body_phantom.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <random>
+
+#include "evar/geometry/carm_projection.hpp"
+
+namespace evar::sim {
+namespace {
+
+// Chord of the ray through the quadric Σ ((x_k - c_k)/a_k)² <= 1 over the first `dims` axes.
+double quadric_chord(const double* centre, const double* semi, const double* origin, const double* dir, int dims) {
+  double A = 0.0, B = 0.0, C = -1.0;
+  for (int k = 0; k < dims; ++k) {
+    const double o = (origin[k] - centre[k]) / semi[k], d = dir[k] / semi[k];
+    A += d * d;
+    B += 2.0 * o * d;
+    C += o * o;
+  }
+  if (A <= 0.0) return 0.0;
+  const double disc = B * B - 4.0 * A * C;
+  if (disc <= 0.0) return 0.0;
+  const double root = std::sqrt(disc);
+  const double t0 = std::max((-B - root) / (2.0 * A), 0.0), t1 = (-B + root) / (2.0 * A);
+  return std::max(t1 - t0, 0.0);
+}
+
+}  // namespace
+
+double ellipsoid_chord(const Eigen::Vector3d& centre, const Eigen::Vector3d& semi_axes, const Eigen::Vector3d& origin,
+                       const Eigen::Vector3d& direction) {
+  return quadric_chord(centre.data(), semi_axes.data(), origin.data(), direction.data(), 3);
+}
+
+BodyPhantom default_body_phantom(unsigned seed) {
+  BodyPhantom p;
+  constexpr double kCancellous = 0.022, kCortical = 0.045;  // added to tissue, per mm
+  // Lumbar vertebrae L5 (lowest) to L1, bodies centred 38 mm behind the bifurcation.
+  for (int k = 0; k < 5; ++k) {
+    const double z = 25.0 + 33.0 * k;
+    const Eigen::Vector3d c(0.0, 38.0, z);
+    p.parts.push_back({c, {24.0, 17.0, 12.5}, kCancellous});
+    // Cortical shell: the outer ellipsoid minus a slightly smaller one.
+    p.parts.push_back({c, {24.0, 17.0, 12.5}, kCortical - kCancellous});
+    p.parts.push_back({c, {22.5, 15.5, 11.0}, -(kCortical - kCancellous)});
+    for (const double side : {-1.0, 1.0}) {  // pedicles and posterior arch
+      p.parts.push_back({{side * 16.0, 62.0, z + 3.0}, {5.5, 9.0, 7.0}, kCortical});
+      p.parts.push_back({{side * 28.0, 70.0, z}, {9.0, 5.0, 5.0}, kCancellous});  // transverse process
+    }
+  }
+  p.parts.push_back({{0.0, 55.0, -40.0}, {45.0, 22.0, 45.0}, kCancellous});  // sacrum
+  for (const double side : {-1.0, 1.0}) {
+    // Iliac wing: a thin, wide plate (outer minus inner) with a dense rim.
+    p.parts.push_back({{side * 95.0, 45.0, -50.0}, {62.0, 14.0, 50.0}, kCortical});
+    p.parts.push_back({{side * 95.0, 45.0, -50.0}, {59.0, 10.0, 47.0}, -kCortical + 0.008});
+    p.parts.push_back({{side * 90.0, 5.0, -150.0}, {24.0, 24.0, 24.0}, kCortical});  // femoral head
+    p.parts.push_back({{side * 55.0, 10.0, -115.0}, {30.0, 15.0, 12.0}, kCancellous});  // pubic ramus
+  }
+  // Bowel gas: a few pockets in front of the spine, placed by the seed.
+  std::mt19937 rng(seed);
+  const auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * (static_cast<double>(rng() >> 8) * 0x1.0p-24); };
+  for (int k = 0; k < 4; ++k)
+    p.parts.push_back({{uniform(-90.0, 90.0), uniform(-80.0, -30.0), uniform(-60.0, 150.0)},
+                       {uniform(12.0, 35.0), uniform(8.0, 18.0), uniform(10.0, 25.0)},
+                       -p.tissue_mu_per_mm});
+  return p;
+}
+
+double line_integral(const BodyPhantom& phantom, const Eigen::Matrix4d& patient_to_world, const Eigen::Vector3d& origin_world,
+                     const Eigen::Vector3d& direction_world) {
+  // Into patient coordinates (rigid: the direction stays unit).
+  const Eigen::Matrix3d R = patient_to_world.topLeftCorner<3, 3>();
+  const Eigen::Vector3d o = R.transpose() * (origin_world - patient_to_world.topRightCorner<3, 1>());
+  const Eigen::Vector3d d = R.transpose() * direction_world;
+  double sum = phantom.tissue_mu_per_mm *
+               quadric_chord(phantom.body_centre_mm.data(), phantom.body_semi_axes_mm.data(), o.data(), d.data(), 2);
+  for (const auto& e : phantom.parts) sum += e.mu_per_mm * ellipsoid_chord(e.centre_mm, e.semi_axes_mm, o, d);
+  return sum;
+}
+
+void add_line_integrals(const BodyPhantom& phantom, const Eigen::Matrix4d& patient_to_world,
+                        const Eigen::Matrix<double, 3, 4>& P, cv::Mat& A) {
+  const int W = A.cols, H = A.rows;
+  const geometry::PinholeCamera camera = geometry::pinhole_camera(P);
+  const Eigen::Matrix3d R = patient_to_world.topLeftCorner<3, 3>();
+  const Eigen::Vector3d t = patient_to_world.topRightCorner<3, 1>();
+  const Eigen::Vector3d o = R.transpose() * (camera.source_mm - t);  // source in patient coordinates
+  // Ray directions in patient coordinates, once per pixel.
+  std::vector<Eigen::Vector3d> dirs(static_cast<std::size_t>(W) * static_cast<std::size_t>(H));
+  for (int v = 0; v < H; ++v)
+    for (int u = 0; u < W; ++u)
+      dirs[static_cast<std::size_t>(v) * W + u] = R.transpose() * geometry::back_projected_ray(camera, Eigen::Vector2d(u, v));
+  const auto add = [&](int u0, int u1, int v0, int v1, auto&& chord) {
+    for (int v = v0; v <= v1; ++v) {
+      double* row = A.ptr<double>(v);
+      for (int u = u0; u <= u1; ++u) row[u] += chord(dirs[static_cast<std::size_t>(v) * W + u]);
+    }
+  };
+  add(0, W - 1, 0, H - 1, [&](const Eigen::Vector3d& d) {
+    return phantom.tissue_mu_per_mm *
+           quadric_chord(phantom.body_centre_mm.data(), phantom.body_semi_axes_mm.data(), o.data(), d.data(), 2);
+  });
+  for (const auto& e : phantom.parts) {
+    // Pixel box of the part's bounding box; the whole detector if a corner is behind the source.
+    double u0 = W, u1 = -1, v0 = H, v1 = -1;
+    bool whole = false;
+    for (int c = 0; c < 8; ++c) {
+      const Eigen::Vector3d corner = e.centre_mm + Eigen::Vector3d((c & 1 ? 1 : -1) * e.semi_axes_mm.x(),
+                                                                   (c & 2 ? 1 : -1) * e.semi_axes_mm.y(),
+                                                                   (c & 4 ? 1 : -1) * e.semi_axes_mm.z());
+      const auto px = geometry::project(P, R * corner + t);
+      if (!px) {
+        whole = true;
+        break;
+      }
+      u0 = std::min(u0, px->x()), u1 = std::max(u1, px->x()), v0 = std::min(v0, px->y()), v1 = std::max(v1, px->y());
+    }
+    const int iu0 = whole ? 0 : std::max(0, static_cast<int>(std::floor(u0)) - 1);
+    const int iu1 = whole ? W - 1 : std::min(W - 1, static_cast<int>(std::ceil(u1)) + 1);
+    const int iv0 = whole ? 0 : std::max(0, static_cast<int>(std::floor(v0)) - 1);
+    const int iv1 = whole ? H - 1 : std::min(H - 1, static_cast<int>(std::ceil(v1)) + 1);
+    if (iu0 > iu1 || iv0 > iv1) continue;
+    add(iu0, iu1, iv0, iv1, [&](const Eigen::Vector3d& d) { return e.mu_per_mm * ellipsoid_chord(e.centre_mm, e.semi_axes_mm, o, d); });
+  }
+}
+
+}  // namespace evar::sim
