@@ -24,6 +24,7 @@ using geometry::InputError;
 constexpr const char* kFormat = "evarnode-session";
 constexpr int kVersion = 1;
 constexpr const char* kFramesHeader = "frame,timestamp_ns,source,file";
+constexpr const char* kOstiaHeader = "frame,label,u_px,v_px";
 constexpr const char* kCArmHeader =
     "timestamp_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving";
 
@@ -138,6 +139,20 @@ Session read_session(const std::filesystem::path& directory) {
   s.device_thickness_mm = field("device_thickness_mm").get<double>();
   if (!(s.device_thickness_mm >= 0.0 && s.device_thickness_mm <= 15.0))
     fail(json_path, 0, "device_thickness_mm: must be 0 to 15 (mm)");
+  const auto& det = field("detector");
+  const auto positive = [&](const char* key) {
+    if (!det.is_object() || !det.contains(key) || !det[key].is_number() || !(det[key].get<double>() > 0.0))
+      fail(json_path, 0, std::string("detector.") + key + ": expected a positive number");
+    return det[key].get<double>();
+  };
+  for (const char* key : {"cols", "rows"})
+    if (!det.is_object() || !det.contains(key) || !det[key].is_number_integer() || det[key].get<long long>() <= 0 ||
+        det[key].get<long long>() > 16384)
+      fail(json_path, 0, std::string("detector.") + key + ": expected an integer from 1 to 16384");
+  s.detector.cols = det["cols"].get<int>();
+  s.detector.rows = det["rows"].get<int>();
+  s.detector.row_spacing_mm = positive("row_spacing_mm");
+  s.detector.col_spacing_mm = positive("col_spacing_mm");
   const auto& streams = field("streams");
   if (!streams.is_object() || !streams.contains("frames") || !streams.contains("carm") || !streams["frames"].is_string() ||
       !streams["carm"].is_string())
@@ -183,6 +198,38 @@ Session read_session(const std::filesystem::path& directory) {
     if (!s.carm.empty() && c.timestamp_ns < s.carm.back().timestamp_ns) fail(carm, line, "timestamp_ns: goes back in time");
     s.carm.push_back(c);
   });
+
+  // Ground truth (optional).
+  if (j.contains("ground_truth")) {
+    const auto& g = j["ground_truth"];
+    SessionTruth truth;
+    const auto truth_file = [&](const char* key) {
+      if (!g.is_object() || !g.contains(key) || !g[key].is_string() || g[key].get<std::string>().empty())
+        fail(json_path, 0, std::string("ground_truth.") + key + ": expected a file name");
+      const fs::path p = g[key].get<std::string>();
+      if (!fs::is_regular_file(directory / p)) fail(json_path, 0, std::string("ground_truth.") + key + ": " + p.string() + " is missing");
+      return p;
+    };
+    truth.scene = truth_file("scene");
+    truth.device = truth_file("device");
+    truth.ostia_2d = truth_file("ostia_2d");
+    const fs::path ostia = directory / truth.ostia_2d;
+    for_each_row(ostia, kOstiaHeader, 4, [&](std::size_t line, const std::vector<std::string>& f) {
+      OstiumTruth o;
+      o.frame = number<std::int64_t>(ostia, line, "frame", f[0]);
+      const bool known = std::binary_search(s.frames.begin(), s.frames.end(), o.frame,
+                                            [](const auto& a, const auto& b) {
+                                              if constexpr (std::is_same_v<std::decay_t<decltype(a)>, FrameRecord>) return a.frame < b;
+                                              else return a < b.frame;
+                                            });
+      if (!known) fail(ostia, line, "frame: " + f[0] + " is not in the frames index");
+      if (!plain_name(f[1])) fail(ostia, line, "label: '" + f[1] + "' (letters, digits, '_', '-', '.')");
+      o.label = f[1];
+      o.pixel = {number<double>(ostia, line, "u_px", f[2]), number<double>(ostia, line, "v_px", f[3])};
+      truth.ostia.push_back(std::move(o));
+    });
+    s.truth = std::move(truth);
+  }
   return s;
 }
 
@@ -197,24 +244,33 @@ cv::Mat read_session_frame(const Session& session, std::size_t index) {
   }
   if (image.empty()) fail(file, 0, "not a readable PNG");
   if (image.type() != CV_16UC1) fail(file, 0, "expected a 16-bit single-channel PNG");
+  if (image.cols != session.detector.cols || image.rows != session.detector.rows)
+    fail(file, 0, std::to_string(image.cols) + " x " + std::to_string(image.rows) + " pixels, but the detector is " +
+                      std::to_string(session.detector.cols) + " x " + std::to_string(session.detector.rows));
   return image;
 }
 
-void write_session(const std::filesystem::path& directory, const Session& session, const std::vector<cv::Mat>& images) {
-  if (images.size() != session.frames.size())
-    throw std::invalid_argument("write_session: one image per frame record is required");
+void write_session_frame(const std::filesystem::path& directory, const FrameRecord& f, const cv::Mat& image) {
+  if (image.type() != CV_16UC1) throw std::invalid_argument("write_session: frames must be CV_16UC1");
+  if (!plain_name(f.source) || f.file.empty() || f.file.is_absolute())
+    throw std::invalid_argument("write_session: frame " + std::to_string(f.frame) + " has a bad source or file name");
+  const fs::path out = directory / "frames" / f.file;
+  fs::create_directories(out.parent_path());
+  if (!cv::imwrite(out.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 1})) throw std::runtime_error(out.string() + ": cannot write");
+}
+
+void write_session_files(const std::filesystem::path& directory, const Session& session) {
+  const DetectorSpec& d = session.detector;
+  if (d.cols <= 0 || d.rows <= 0 || !(d.row_spacing_mm > 0.0) || !(d.col_spacing_mm > 0.0))
+    throw std::invalid_argument("write_session: the detector needs a positive size and spacing");
   fs::create_directories(directory / "frames");
   std::string index = std::string(kFramesHeader) + "\n";
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const auto& f = session.frames[i];
-    if (images[i].type() != CV_16UC1) throw std::invalid_argument("write_session: frames must be CV_16UC1");
-    if (!plain_name(f.source) || f.file.empty() || f.file.is_absolute())
-      throw std::invalid_argument("write_session: frame " + std::to_string(f.frame) + " has a bad source or file name");
     if (i > 0 && (f.frame <= session.frames[i - 1].frame || f.timestamp_ns < session.frames[i - 1].timestamp_ns))
       throw std::invalid_argument("write_session: frames must have increasing numbers and non-decreasing times");
-    const fs::path out = directory / "frames" / f.file;
-    fs::create_directories(out.parent_path());
-    if (!cv::imwrite(out.string(), images[i])) throw std::runtime_error(out.string() + ": cannot write");
+    if (!fs::is_regular_file(directory / "frames" / f.file))
+      throw std::invalid_argument("write_session: frame " + std::to_string(f.frame) + " has no image written");
     index += std::to_string(f.frame) + "," + std::to_string(f.timestamp_ns) + "," + f.source + "," + f.file.generic_string() + "\n";
   }
   write_text(directory / "frames" / "index.csv", index);
@@ -228,13 +284,53 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
   for (int r = 0; r < 4; ++r)
     rows.push_back({session.ct_to_carm(r, 0), session.ct_to_carm(r, 1), session.ct_to_carm(r, 2), session.ct_to_carm(r, 3)});
   write_text(directory / "registration.json", nlohmann::json{{"matrix", rows}}.dump(2) + "\n");
-  const nlohmann::json j{{"format", kFormat},
-                         {"version", kVersion},
-                         {"scene", session.scene.generic_string()},
-                         {"registration", "registration.json"},
-                         {"device_thickness_mm", session.device_thickness_mm},
-                         {"streams", {{"frames", "frames/index.csv"}, {"carm", "carm.csv"}}}};
+  nlohmann::ordered_json j{{"format", kFormat},
+                           {"version", kVersion},
+                           {"scene", session.scene.generic_string()},
+                           {"registration", "registration.json"},
+                           {"device_thickness_mm", session.device_thickness_mm},
+                           {"detector",
+                            {{"cols", d.cols}, {"rows", d.rows}, {"row_spacing_mm", d.row_spacing_mm}, {"col_spacing_mm", d.col_spacing_mm}}},
+                           {"streams", {{"frames", "frames/index.csv"}, {"carm", "carm.csv"}}}};
+  if (session.truth) {
+    const SessionTruth& t = *session.truth;
+    std::string ostia = std::string(kOstiaHeader) + "\n";
+    for (const auto& o : t.ostia) {
+      if (!plain_name(o.label)) throw std::invalid_argument("write_session: bad ostium label '" + o.label + "'");
+      ostia += std::to_string(o.frame) + "," + o.label + "," + exact(o.pixel.x()) + "," + exact(o.pixel.y()) + "\n";
+    }
+    fs::create_directories((directory / t.ostia_2d).parent_path());
+    write_text(directory / t.ostia_2d, ostia);
+    j["ground_truth"] = {{"scene", t.scene.generic_string()}, {"device", t.device.generic_string()}, {"ostia_2d", t.ostia_2d.generic_string()}};
+  }
+  // session.json last: a reader never finds it naming files not yet written.
   write_text(directory / "session.json", j.dump(2) + "\n");
+}
+
+void write_session(const std::filesystem::path& directory, const Session& session, const std::vector<cv::Mat>& images) {
+  if (images.size() != session.frames.size())
+    throw std::invalid_argument("write_session: one image per frame record is required");
+  for (std::size_t i = 0; i < session.frames.size(); ++i) write_session_frame(directory, session.frames[i], images[i]);
+  write_session_files(directory, session);
+}
+
+geometry::CArmView view_of(const Session& session, const CArmSample& c) {
+  geometry::CArmView v;
+  v.primary_angle_deg = c.primary_deg;
+  v.secondary_angle_deg = c.secondary_deg;
+  v.source_to_detector_mm = c.sid_mm;
+  v.source_to_isocenter_mm = c.sod_mm;
+  v.detector_cols = session.detector.cols;
+  v.detector_rows = session.detector.rows;
+  v.row_spacing_mm = session.detector.row_spacing_mm;
+  v.col_spacing_mm = session.detector.col_spacing_mm;
+  return v;
+}
+
+Eigen::Matrix4d patient_to_carm(const Session& session, const CArmSample& c) {
+  Eigen::Matrix4d T = session.ct_to_carm;
+  T.topRightCorner<3, 1>() += c.table_mm;
+  return T;
 }
 
 const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns) {

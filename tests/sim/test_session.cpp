@@ -26,6 +26,7 @@ sim::Session small_session(std::vector<cv::Mat>& images) {
   s.scene = "patient/scene.json";
   s.ct_to_carm.block<3, 1>(0, 3) = Eigen::Vector3d(1.25, -2.5, -60.125);
   s.device_thickness_mm = 0.89;
+  s.detector = {60, 40, 0.3, 0.3 + 1e-14};
   for (int k = 0; k < 3; ++k) {
     s.frames.push_back({k + 1, 1'000'000'000LL + k * 66'666'667LL, k == 2 ? "dsa" : "fluoro", "f" + std::to_string(k) + ".png"});
     cv::Mat img(40, 60, CV_16UC1);
@@ -91,6 +92,49 @@ TEST(Session, RoundTripsBitExactly) {
     EXPECT_EQ(r.carm[i].table_mm, s.carm[i].table_mm);
     EXPECT_EQ(r.carm[i].fluoro_on, s.carm[i].fluoro_on);
     EXPECT_EQ(r.carm[i].moving, s.carm[i].moving);
+  }
+  EXPECT_EQ(r.detector.cols, 60);
+  EXPECT_EQ(r.detector.rows, 40);
+  EXPECT_EQ(r.detector.col_spacing_mm, s.detector.col_spacing_mm);  // bit-exact
+  EXPECT_FALSE(r.truth.has_value());
+}
+
+TEST(Session, GroundTruthRoundTripsAndItsErrorsAreNamed) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  auto s = small_session(images);
+  fs::create_directories(dir.path / "patient" / "truth");
+  std::ofstream(dir.path / "patient" / "truth" / "scene.json") << "{}";
+  std::ofstream(dir.path / "patient" / "device.mrk.json") << "{}";
+  s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
+                              {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 1e-9}}}};
+  sim::write_session(dir.path, s, images);
+  const auto r = sim::read_session(dir.path);
+  ASSERT_TRUE(r.truth.has_value());
+  ASSERT_EQ(r.truth->ostia.size(), 2u);
+  EXPECT_EQ(r.truth->ostia[0].pixel, s.truth->ostia[0].pixel);
+  EXPECT_EQ(r.truth->ostia[1].label, "internal_iliac_right");
+  EXPECT_EQ(r.truth->scene, s.truth->scene);
+  replace_in(dir.path / "truth" / "ostia_2d.csv", "3,internal", "7,internal");
+  EXPECT_NE(error_reading(dir.path).find("ostia_2d.csv:3: frame: 7 is not in the frames index"), std::string::npos)
+      << error_reading(dir.path);
+  fs::remove(dir.path / "patient" / "device.mrk.json");
+  EXPECT_NE(error_reading(dir.path).find("ground_truth.device: patient/device.mrk.json is missing"), std::string::npos)
+      << error_reading(dir.path);
+}
+
+TEST(Session, AFrameOfAnotherSizeThanTheDetectorIsRefused) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  auto s = small_session(images);
+  images[1] = cv::Mat(41, 60, CV_16UC1, cv::Scalar(5));
+  sim::write_session(dir.path, s, images);
+  const auto r = sim::read_session(dir.path);
+  try {
+    sim::read_session_frame(r, 1);
+    FAIL() << "no error";
+  } catch (const geometry::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("f1.png: 60 x 41 pixels, but the detector is 60 x 40"), std::string::npos) << e.what();
   }
 }
 

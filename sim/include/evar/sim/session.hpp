@@ -7,15 +7,19 @@
 //                      relative to frames/);
 //   carm.csv           timestamp_ns,primary_deg,secondary_deg,sid_mm,sod_mm,
 //                      table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving
-//                      (the C-arm geometry stream).
+//                      (the C-arm geometry stream);
+//   optionally a ground truth (distorted vessels, true device, true 2D ostia per frame).
 // Readers check everything and name the file and line of any problem.
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include <opencv2/core.hpp>
+
+#include "evar/geometry/carm_projection.hpp"
 
 namespace evar::sim {
 
@@ -35,26 +39,62 @@ struct CArmSample {
   bool moving = false;            ///< the C-arm is moving (geometry not settled)
 };
 
+/// The flat-panel detector every frame comes from (frames must have its size).
+struct DetectorSpec {
+  int cols = 0, rows = 0;                              ///< pixels
+  double row_spacing_mm = 0.0, col_spacing_mm = 0.0;   ///< at the detector
+};
+
+/// Where a true ostium projects in one frame (ground truth of simulated sessions).
+struct OstiumTruth {
+  std::int64_t frame = 0;
+  std::string label;   ///< landmark label, e.g. "internal_iliac_right"
+  Eigen::Vector2d pixel = Eigen::Vector2d::Zero();
+};
+
+/// Optional ground truth: the distorted vessels, the true device, true 2D ostia per frame.
+struct SessionTruth {
+  std::filesystem::path scene;    ///< the distorted vessels as a scene.json (relative to the session)
+  std::filesystem::path device;   ///< the true device, a Curve markup (CT LPS)
+  std::filesystem::path ostia_2d; ///< CSV frame,label,u_px,v_px
+  std::vector<OstiumTruth> ostia;
+};
+
 struct Session {
   std::filesystem::path directory;
   std::filesystem::path scene;               ///< scene.json, relative to the session directory
-  Eigen::Matrix4d ct_to_carm = Eigen::Matrix4d::Identity();
+  Eigen::Matrix4d ct_to_carm = Eigen::Matrix4d::Identity();  ///< registration at table position 0
   double device_thickness_mm = 0.9;
+  DetectorSpec detector;
   std::vector<FrameRecord> frames;
   std::vector<CArmSample> carm;
+  std::optional<SessionTruth> truth;
 };
 
 /// Reads and checks a session directory (not the frame images: see read_session_frame).
 /// Throws geometry::InputError "<file>:<line>: <field>: <problem>".
 Session read_session(const std::filesystem::path& directory);
 
-/// A frame's image (CV_16UC1), checked to be a 16-bit single-channel PNG.
+/// A frame's image (CV_16UC1), checked to be a 16-bit single-channel PNG of the detector's size.
 cv::Mat read_session_frame(const Session& session, std::size_t index);
 
-/// Writes session.json, frames/index.csv and carm.csv into `directory` (created), and
-/// `images[i]` as frames/<file of frames[i]> (CV_16UC1). Numbers are written so they read
-/// back bit-exactly. std::invalid_argument for inconsistent input.
+/// Writes session.json, registration.json, frames/index.csv, carm.csv (and the ostia CSV of
+/// the ground truth, when present) into `directory` (created), and `images[i]` as
+/// frames/<file of frames[i]> (CV_16UC1). Numbers are written so they read back
+/// bit-exactly. std::invalid_argument for inconsistent input.
 void write_session(const std::filesystem::path& directory, const Session& session, const std::vector<cv::Mat>& images);
+
+/// The same in two steps, for sessions too long to hold in memory: each frame's image as it
+/// is made, then the files describing them (which check that every frame file exists).
+void write_session_frame(const std::filesystem::path& directory, const FrameRecord& record, const cv::Mat& image);
+void write_session_files(const std::filesystem::path& directory, const Session& session);
+
+/// The C-arm view of a sample on the session's detector.
+geometry::CArmView view_of(const Session& session, const CArmSample& sample);
+
+/// CT → C-arm world at a sample: the registration holds at table position 0; moving the
+/// table by t moves the patient by t in C-arm coordinates.
+Eigen::Matrix4d patient_to_carm(const Session& session, const CArmSample& sample);
 
 /// The C-arm sample in force at time t: the last one at or before t (the first if t is
 /// earlier than all). nullptr when the session has none.
