@@ -167,6 +167,25 @@ int run_cli(const std::vector<std::string>& args) {
       ->check(CLI::Range(300, 2000000))
       ->capture_default_str();
 
+  SimSessionCommand sim_session;
+  auto* ss = sim->add_subcommand(
+      "session",
+      "Write a whole simulated intervention as a recorded session (docs/SESSION_FORMAT.md): a\n"
+      "synthetic patient (as `sim patient`, under OUT/patient/), fluoroscopy of the inserted device in\n"
+      "AP, LAO 35 and the carrier's bifurcation view with the C-arm moving between them, DSA-like\n"
+      "contrast frames of the iliac bifurcation, and the ground truth (true 2D ostia per frame).\n"
+      "Play it with `evarnode replay OUT`.");
+  ss->add_option("--seed", sim_session.seed, "patient and noise seed")->capture_default_str();
+  ss->add_option("--out", sim_session.out, "session directory (created if missing)")->required();
+  ss->add_option("--detector-px", sim_session.detector_px, "square detector size in pixels (0.3 mm pixels at 1024)")
+      ->check(CLI::Range(64, 4096))
+      ->capture_default_str();
+  ss->add_option("--fluoro-seconds", sim_session.fluoro_seconds, "length of each fluoroscopy run")
+      ->check(CLI::Range(0.1, 600.0))
+      ->capture_default_str();
+  ss->add_option("--fps", sim_session.fluoro_fps, "pulsed fluoroscopy rate")->check(CLI::Range(1.0, 60.0))->capture_default_str();
+  ss->add_flag("!--no-progress", sim_session.progress, "no progress bar");
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -183,6 +202,7 @@ int run_cli(const std::vector<std::string>& args) {
     if (sg->parsed()) return run_segment(segment);
     if (rc->parsed()) return run_reconstruct(reconstruct);
     if (sp->parsed()) return run_sim_patient(sim_patient);
+    if (ss->parsed()) return run_sim_session(sim_session);
   } catch (const geometry::InputError& err) {
     log().error("{}", err.what());
     return 1;

@@ -46,6 +46,16 @@ struct SimPatientCommand {
 };
 int run_sim_patient(const SimPatientCommand& cmd);
 
+struct SimSessionCommand {
+  std::filesystem::path out;
+  unsigned long long seed = 1;
+  int detector_px = 1024;
+  double fluoro_seconds = 4.0;
+  double fluoro_fps = 15.0;
+  bool progress = true;
+};
+int run_sim_session(const SimSessionCommand& cmd);
+
 /// Options shared by segment and reconstruct.
 struct SegmentParams {
   double diameter_mm = 0.89;             ///< device diameter (0.035" guidewire), for its shadow width
