@@ -186,6 +186,23 @@ int run_cli(const std::vector<std::string>& args) {
   ss->add_option("--fps", sim_session.fluoro_fps, "pulsed fluoroscopy rate")->check(CLI::Range(1.0, 60.0))->capture_default_str();
   ss->add_flag("!--no-progress", sim_session.progress, "no progress bar");
 
+  ReplayCommand replay;
+  auto* rp = app.add_subcommand(
+      "replay",
+      "Play a recorded session (docs/SESSION_FORMAT.md) through the same frame-source and C-arm\n"
+      "geometry-source interfaces the hardware uses, in real time (recorded timestamps) or as fast\n"
+      "as possible, and report what arrived: frames, drops, C-arm states, views, moving periods.");
+  rp->add_option("session", replay.session, "session directory")->required();
+  auto* speed = rp->add_option("--speed", replay.speed, "playback speed (1 = real time)")
+                    ->check(CLI::Range(0.01, 1000.0))
+                    ->capture_default_str();
+  rp->add_flag("--fast", replay.fast, "as fast as possible (no pacing)")->excludes(speed);
+  rp->add_option("--loop", replay.loops, "times through the session; 0 = until interrupted")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
+  rp->add_option("--report", replay.report, "write a JSON report");
+  rp->add_flag("!--no-progress", replay.progress, "no progress bar");
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -203,6 +220,7 @@ int run_cli(const std::vector<std::string>& args) {
     if (rc->parsed()) return run_reconstruct(reconstruct);
     if (sp->parsed()) return run_sim_patient(sim_patient);
     if (ss->parsed()) return run_sim_session(sim_session);
+    if (rp->parsed()) return run_replay(replay);
   } catch (const geometry::InputError& err) {
     log().error("{}", err.what());
     return 1;

@@ -56,6 +56,15 @@ struct SimSessionCommand {
 };
 int run_sim_session(const SimSessionCommand& cmd);
 
+struct ReplayCommand {
+  std::filesystem::path session, report;
+  double speed = 1.0;
+  bool fast = false;
+  int loops = 1;
+  bool progress = true;
+};
+int run_replay(const ReplayCommand& cmd);
+
 /// Options shared by segment and reconstruct.
 struct SegmentParams {
   double diameter_mm = 0.89;             ///< device diameter (0.035" guidewire), for its shadow width

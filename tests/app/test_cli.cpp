@@ -438,3 +438,32 @@ TEST_F(Cli, SimPatientRefusesASeedItsTruthCannotHold) {
   EXPECT_NE(r.err.find("seed 7"), std::string::npos) << r.err;
   EXPECT_FALSE(fs::exists(out / "scene.json"));
 }
+
+// A simulated intervention, replayed through the acquisition interfaces: every frame
+// arrives, none while the C-arm moves, in the three views the session was made in.
+TEST_F(Cli, SimSessionThenReplayDeliversEveryFrameInItsViews) {
+  const auto out = scratch("sim_session");
+  ASSERT_EQ(evarnode({"sim", "session", "--seed", "2", "--out", (out / "s").string(), "--detector-px", "96",
+                      "--fluoro-seconds", "0.2", "--no-progress"}).code, 0);
+  ASSERT_EQ(evarnode({"replay", (out / "s").string(), "--fast", "--loop", "2", "--no-progress", "--report",
+                      (out / "r.json").string()}).code, 0);
+  const auto r = nlohmann::json::parse(std::ifstream(out / "r.json"));
+  // 3 runs of 3 fluoroscopy frames and 12 DSA frames (4 fps for 3 s), twice.
+  EXPECT_EQ(r["frames"], 2 * (9 + 12));
+  EXPECT_EQ(r["dropped"], 0);
+  EXPECT_EQ(r["frames_while_moving"], 0);
+  EXPECT_GT(r["carm_moving_states"].get<int>(), 0);
+  EXPECT_EQ(r["frames_per_view"].size(), 3u);
+  EXPECT_EQ(r["error"], "");
+}
+
+TEST_F(Cli, ReplayOfACorruptSessionNamesTheFileAndLine) {
+  const auto out = scratch("replay_corrupt");
+  ASSERT_EQ(evarnode({"sim", "session", "--seed", "2", "--out", out.string(), "--detector-px", "64", "--fluoro-seconds", "0.1",
+                      "--no-progress"}).code, 0);
+  std::ofstream(out / "carm.csv", std::ios::app) << "12,0,0,1200,80x0,0,0,0,1,0\n";
+  const auto r = evarnode({"replay", out.string(), "--fast", "--no-progress"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("carm.csv:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("sod_mm: '80x0' is not a number"), std::string::npos) << r.err;
+}

@@ -1,0 +1,104 @@
+// `evarnode replay`: plays a recorded session through the acquisition interfaces and
+// reports what arrived.
+#include <csignal>
+#include <map>
+#include <mutex>
+#include <set>
+
+#include "commands.hpp"
+#include "evar/sim/session_replay.hpp"
+#include "json_file.hpp"
+#include "logging.hpp"
+#include "progress_bar.hpp"
+
+namespace evar::app {
+namespace {
+
+std::atomic<bool> interrupted{false};
+extern "C" void on_interrupt(int) { interrupted = true; }
+
+}  // namespace
+
+int run_replay(const ReplayCommand& cmd) {
+  const sim::Session session = sim::read_session(cmd.session);
+  if (session.frames.empty()) {
+    log().error("{}: the session has no frames", cmd.session.string());
+    return 1;
+  }
+  sim::SessionReplay replay(session, {cmd.fast ? 0.0 : cmd.speed, cmd.loops});
+
+  std::mutex m;
+  std::map<std::string, std::size_t> by_view;  // frames per settled view
+  std::size_t frames_while_moving = 0, moving_states = 0;
+  std::optional<acquisition::CArmState> in_force;
+  std::int64_t first_ns = 0, last_ns = 0;
+  replay.carm().start(
+      [&](const acquisition::CArmState& s) {
+        std::lock_guard lock(m);
+        in_force = s;
+        moving_states += s.moving ? 1 : 0;
+      },
+      nullptr);
+  replay.frames().start(
+      [&](const acquisition::Frame& f) {
+        std::lock_guard lock(m);
+        if (first_ns == 0) first_ns = f.device_time_ns;
+        last_ns = f.device_time_ns;
+        if (!in_force) return;
+        if (in_force->moving) ++frames_while_moving;
+        char view[64];
+        std::snprintf(view, sizeof view, "%+.0f/%+.0f", in_force->primary_deg, in_force->secondary_deg);
+        ++by_view[view];
+      },
+      [&](acquisition::StreamState s, const std::string& reason) {
+        log().debug("frame source: {} ({})", acquisition::to_string(s), reason);
+      });
+
+  const auto old_handler = std::signal(SIGINT, on_interrupt);
+  ProgressBar bar("frames", cmd.progress);
+  const std::size_t total = cmd.loops == 0 ? 0 : session.frames.size() * static_cast<std::size_t>(cmd.loops);
+  const auto start = std::chrono::steady_clock::now();
+  while (!replay.wait(std::chrono::milliseconds(100))) {
+    if (interrupted) {
+      replay.frames().stop();
+      break;
+    }
+    const auto p = replay.progress();
+    bar.update(p.frames, total ? total : p.frames + p.frames_per_loop);
+  }
+  const auto p = replay.progress();
+  bar.update(p.frames, total ? total : p.frames);
+  bar.finish();
+  replay.frames().stop();
+  replay.carm().stop();
+  std::signal(SIGINT, old_handler);
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+
+  const auto stats = replay.frames().statistics();
+  log().info("{}: {} frames ({} dropped) and {} C-arm states in {:.1f} s ({:.1f} frames/s), {} loop(s)", cmd.session.string(),
+             p.frames, stats.dropped, p.carm_states, seconds, p.frames / std::max(seconds, 1e-9), p.loop + 1);
+  for (const auto& [view, n] : by_view) log().info("  view {} (primary/secondary deg): {} frames", view, n);
+  if (frames_while_moving > 0) log().warn("  {} frames arrived while the C-arm was moving", frames_while_moving);
+  if (!replay.error().empty()) log().error("replay stopped early: {}", replay.error());
+  if (!cmd.report.empty()) {
+    nlohmann::json views = nlohmann::json::object();
+    for (const auto& [view, n] : by_view) views[view] = n;
+    write_json(cmd.report, {{"format", "evarnode-replay-report"},
+                            {"version", 1},
+                            {"session", cmd.session.string()},
+                            {"frames", p.frames},
+                            {"dropped", stats.dropped},
+                            {"carm_states", p.carm_states},
+                            {"carm_moving_states", moving_states},
+                            {"frames_while_moving", frames_while_moving},
+                            {"loops", p.loop + 1},
+                            {"seconds", seconds},
+                            {"recorded_seconds", static_cast<double>(last_ns - first_ns) * 1e-9},
+                            {"frames_per_view", views},
+                            {"interrupted", interrupted.load()},
+                            {"error", replay.error()}});
+  }
+  return replay.error().empty() ? 0 : 1;
+}
+
+}  // namespace evar::app

@@ -1,0 +1,283 @@
+#include "evar/sim/session_replay.hpp"
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+
+#include "evar/acquisition/sequence_tracker.hpp"
+
+namespace evar::sim {
+
+namespace {
+
+class SteadyClock final : public ReplayClock {
+ public:
+  time_point now() override { return std::chrono::steady_clock::now(); }
+  void sleep_until(time_point t, const std::atomic<bool>& cancelled) override {
+    while (!cancelled.load()) {
+      const auto left = t - std::chrono::steady_clock::now();
+      if (left <= std::chrono::steady_clock::duration::zero()) return;
+      std::this_thread::sleep_for(std::min<std::chrono::steady_clock::duration>(left, std::chrono::milliseconds(50)));
+    }
+  }
+};
+
+}  // namespace
+
+std::shared_ptr<ReplayClock> steady_replay_clock() { return std::make_shared<SteadyClock>(); }
+
+acquisition::Frame to_frame(const cv::Mat& image, std::uint64_t sequence, std::int64_t device_time_ns) {
+  if (image.type() != CV_16UC1) throw std::invalid_argument("to_frame: expected a 16-bit single-channel image");
+  acquisition::Frame f;
+  f.format = acquisition::PixelFormat::Mono16;
+  f.width = image.cols;
+  f.height = image.rows;
+  f.stride_bytes = 2 * image.cols;
+  f.pixels.resize(static_cast<std::size_t>(f.stride_bytes) * static_cast<std::size_t>(f.height));
+  for (int r = 0; r < image.rows; ++r) {
+    const std::uint16_t* row = image.ptr<std::uint16_t>(r);
+    std::uint8_t* out = f.pixels.data() + static_cast<std::size_t>(r) * static_cast<std::size_t>(f.stride_bytes);
+    for (int c = 0; c < image.cols; ++c) {  // little-endian words, whatever the host
+      out[2 * c] = static_cast<std::uint8_t>(row[c] & 0xff);
+      out[2 * c + 1] = static_cast<std::uint8_t>(row[c] >> 8);
+    }
+  }
+  f.sequence = sequence;
+  f.device_time_ns = device_time_ns;
+  f.host_arrival = std::chrono::steady_clock::now();
+  return f;
+}
+
+acquisition::CArmState to_carm_state(const CArmSample& c, std::int64_t offset_ns) {
+  acquisition::CArmState s;
+  s.device_time_ns = c.timestamp_ns + offset_ns;
+  s.host_arrival = std::chrono::steady_clock::now();
+  s.primary_deg = c.primary_deg;
+  s.secondary_deg = c.secondary_deg;
+  s.sid_mm = c.sid_mm;
+  s.sod_mm = c.sod_mm;
+  s.table_mm = {c.table_mm.x(), c.table_mm.y(), c.table_mm.z()};
+  s.fluoro_on = c.fluoro_on;
+  s.moving = c.moving;
+  return s;
+}
+
+// Callbacks run under the facade's mutex, so that stop() (which takes it) guarantees none
+// runs afterwards. A callback must not call stop() on its own source.
+class SessionReplay::Frames final : public acquisition::FrameSource {
+ public:
+  explicit Frames(SessionReplay& owner) : owner_(owner) {}
+  void start(FrameCallback on_frame, StateCallback on_state) override {
+    {
+      std::lock_guard lock(mutex_);
+      on_frame_ = std::move(on_frame);
+      on_state_ = std::move(on_state);
+      tracker_.reset();
+    }
+    set_state(acquisition::StreamState::Connecting, "opening " + owner_.session_.directory.string());
+    set_state(acquisition::StreamState::Streaming, "replaying");
+    owner_.start_engine();
+  }
+  void stop() override {
+    owner_.stop_engine();
+    std::lock_guard lock(mutex_);
+    on_frame_ = nullptr;
+    on_state_ = nullptr;
+    state_ = acquisition::StreamState::Stopped;
+  }
+  acquisition::StreamState state() const override {
+    std::lock_guard lock(mutex_);
+    return state_;
+  }
+  acquisition::SequenceStats statistics() const override {
+    std::lock_guard lock(mutex_);
+    return tracker_.stats();
+  }
+  std::string description() const override { return "replay " + owner_.session_.directory.string(); }
+
+  void deliver(const acquisition::Frame& f) {
+    std::lock_guard lock(mutex_);
+    tracker_.observe(f.sequence);
+    if (on_frame_) on_frame_(f);
+  }
+  void set_state(acquisition::StreamState s, const std::string& reason) {
+    std::lock_guard lock(mutex_);
+    state_ = s;
+    if (on_state_) on_state_(s, reason);
+  }
+
+ private:
+  SessionReplay& owner_;
+  mutable std::mutex mutex_;
+  FrameCallback on_frame_;
+  StateCallback on_state_;
+  acquisition::SequenceTracker tracker_;
+  acquisition::StreamState state_ = acquisition::StreamState::Stopped;
+};
+
+class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
+ public:
+  explicit CArm(SessionReplay& owner) : owner_(owner) {}
+  void start(StateCallback on_state, StreamCallback on_stream) override {
+    std::lock_guard lock(mutex_);
+    on_state_ = std::move(on_state);
+    on_stream_ = std::move(on_stream);
+    state_ = acquisition::StreamState::Streaming;
+    if (on_stream_) on_stream_(state_, "replaying the C-arm stream of " + owner_.session_.directory.string());
+  }
+  void stop() override {
+    std::lock_guard lock(mutex_);
+    on_state_ = nullptr;
+    on_stream_ = nullptr;
+    state_ = acquisition::StreamState::Stopped;
+  }
+  acquisition::StreamState state() const override {
+    std::lock_guard lock(mutex_);
+    return state_;
+  }
+  std::string description() const override { return "replay C-arm " + owner_.session_.directory.string(); }
+
+  void deliver(const acquisition::CArmState& s) {
+    std::lock_guard lock(mutex_);
+    if (on_state_) on_state_(s);
+  }
+  void end(const std::string& reason) {
+    std::lock_guard lock(mutex_);
+    if (state_ != acquisition::StreamState::Streaming) return;
+    state_ = acquisition::StreamState::Stopped;
+    if (on_stream_) on_stream_(state_, reason);
+  }
+
+ private:
+  SessionReplay& owner_;
+  mutable std::mutex mutex_;
+  StateCallback on_state_;
+  StreamCallback on_stream_;
+  acquisition::StreamState state_ = acquisition::StreamState::Stopped;
+};
+
+SessionReplay::SessionReplay(Session session, ReplayOptions options, std::shared_ptr<ReplayClock> clock)
+    : session_(std::move(session)), options_(options), clock_(std::move(clock)) {
+  if (!(options_.speed >= 0.0) || options_.loops < 0)
+    throw std::invalid_argument("SessionReplay: speed must be >= 0 (0 = as fast as possible) and loops >= 0 (0 = forever)");
+  if (!clock_) throw std::invalid_argument("SessionReplay: no clock");
+  frames_ = std::make_unique<Frames>(*this);
+  carm_ = std::make_unique<CArm>(*this);
+  progress_.frames_per_loop = session_.frames.size();
+}
+
+SessionReplay::~SessionReplay() { stop_engine(); }
+
+acquisition::FrameSource& SessionReplay::frames() { return *frames_; }
+acquisition::CArmGeometrySource& SessionReplay::carm() { return *carm_; }
+
+void SessionReplay::start_engine() {
+  stop_engine();
+  std::lock_guard lock(mutex_);
+  cancel_ = false;
+  progress_ = ReplayProgress{};
+  progress_.frames_per_loop = session_.frames.size();
+  error_.clear();
+  running_ = true;
+  thread_ = std::thread([this] { run(); });
+}
+
+void SessionReplay::stop_engine() {
+  cancel_ = true;
+  if (thread_.joinable()) thread_.join();
+}
+
+bool SessionReplay::wait(std::chrono::milliseconds timeout) {
+  std::unique_lock lock(mutex_);
+  if (timeout == std::chrono::milliseconds::max()) {
+    done_cv_.wait(lock, [&] { return !running_; });
+    return true;
+  }
+  return done_cv_.wait_for(lock, timeout, [&] { return !running_; });
+}
+
+ReplayProgress SessionReplay::progress() const {
+  std::lock_guard lock(mutex_);
+  return progress_;
+}
+
+std::string SessionReplay::error() const {
+  std::lock_guard lock(mutex_);
+  return error_;
+}
+
+void SessionReplay::run() {
+  // One timeline: C-arm samples before frames at the same time (the geometry in force).
+  struct Event {
+    std::int64_t t;
+    bool frame;
+    std::size_t index;
+  };
+  std::vector<Event> events;
+  for (std::size_t i = 0; i < session_.carm.size(); ++i) events.push_back({session_.carm[i].timestamp_ns, false, i});
+  for (std::size_t i = 0; i < session_.frames.size(); ++i) events.push_back({session_.frames[i].timestamp_ns, true, i});
+  std::stable_sort(events.begin(), events.end(), [](const Event& a, const Event& b) {
+    return a.t < b.t || (a.t == b.t && !a.frame && b.frame);
+  });
+  std::string reason = "end of session";
+  if (!events.empty()) {
+    const std::int64_t t0 = events.front().t;
+    // A loop lasts the session plus one typical frame interval, so timestamps keep rising.
+    std::int64_t gap = 66'666'667;
+    if (session_.frames.size() >= 2)
+      gap = std::max<std::int64_t>(1, (session_.frames.back().timestamp_ns - session_.frames.front().timestamp_ns) /
+                                          static_cast<std::int64_t>(session_.frames.size() - 1));
+    const std::int64_t period = events.back().t - t0 + gap;
+    const auto start = clock_->now();
+    std::uint64_t sequence = 0;
+    for (int loop = 0; options_.loops == 0 || loop < options_.loops; ++loop) {
+      {
+        std::lock_guard lock(mutex_);
+        progress_.loop = loop;
+      }
+      const std::int64_t offset = loop * period;
+      for (const Event& e : events) {
+        if (cancel_) break;
+        if (options_.speed > 0.0) {
+          const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
+                                       std::chrono::duration<double, std::nano>(static_cast<double>(e.t + offset - t0) / options_.speed));
+          clock_->sleep_until(due, cancel_);
+          if (cancel_) break;
+        }
+        if (e.frame) {
+          acquisition::Frame f;
+          try {
+            f = to_frame(read_session_frame(session_, e.index), ++sequence, e.t + offset);
+          } catch (const std::exception& ex) {
+            std::lock_guard lock(mutex_);
+            error_ = ex.what();
+            break;
+          }
+          frames_->deliver(f);
+          std::lock_guard lock(mutex_);
+          ++progress_.frames;
+        } else {
+          carm_->deliver(to_carm_state(session_.carm[e.index], offset));
+          std::lock_guard lock(mutex_);
+          ++progress_.carm_states;
+        }
+      }
+      if (cancel_ || !error().empty()) break;
+    }
+    if (cancel_) reason = "stopped";
+  }
+  const std::string failure = error();
+  if (!failure.empty()) {
+    frames_->set_state(acquisition::StreamState::Disconnected, failure);
+    carm_->end(failure);
+  } else {
+    frames_->set_state(acquisition::StreamState::Stopped, reason);
+    carm_->end(reason);
+  }
+  std::lock_guard lock(mutex_);
+  progress_.finished = true;
+  running_ = false;
+  done_cv_.notify_all();
+}
+
+}  // namespace evar::sim
