@@ -71,21 +71,25 @@ int run_cli(const std::vector<std::string>& args) {
       ->capture_default_str();
   a->add_flag("!--no-anderson", arap.anderson, "plain local/global iterations (no Anderson acceleration)");
 
+  // Mesh format and resolution of the synthetic scenes (example, sim patient).
+  const auto add_mesh_options = [](CLI::App* c, std::string& format, int& aorta_vertices, int& iliac_vertices) {
+    c->add_option("--format", format, "mesh format: stl, ply or obj")
+        ->check(CLI::IsMember({"stl", "ply", "obj"}))
+        ->capture_default_str();
+    c->add_option("--aorta-vertices", aorta_vertices, "approximate aortic mesh size")
+        ->check(CLI::Range(500, 2000000))
+        ->capture_default_str();
+    c->add_option("--iliac-vertices", iliac_vertices, "approximate size of each iliac mesh")
+        ->check(CLI::Range(300, 2000000))
+        ->capture_default_str();
+  };
   ExampleCommand example;
   auto* e = app.add_subcommand("example",
                                "Write the bundled synthetic aorto-iliac example scene (meshes, centerlines,\n"
                                "landmarks, a guidewire that leaves the undeformed right iliac) to a directory.");
   e->add_option("--out", example.out, "output directory")->required();
-  e->add_option("--format", example.format, "mesh format: stl, ply or obj")
-      ->check(CLI::IsMember({"stl", "ply", "obj"}))
-      ->capture_default_str();
   e->add_option("--seed", example.seed, "anatomy variation seed")->capture_default_str();
-  e->add_option("--aorta-vertices", example.aorta_vertices, "approximate aortic mesh size")
-      ->check(CLI::Range(500, 2000000))
-      ->capture_default_str();
-  e->add_option("--iliac-vertices", example.iliac_vertices, "approximate size of each iliac mesh")
-      ->check(CLI::Range(300, 2000000))
-      ->capture_default_str();
+  add_mesh_options(e, example.format, example.aorta_vertices, example.iliac_vertices);
 
   ProjectCommand project;
   auto* pr = app.add_subcommand("project",
@@ -157,15 +161,7 @@ int run_cli(const std::vector<std::string>& args) {
       "and compare RESULT with OUT/truth/.");
   sp->add_option("--seed", sim_patient.seed, "patient seed (the same seed gives the same patient)")->capture_default_str();
   sp->add_option("--out", sim_patient.out, "output directory (created if missing)")->required();
-  sp->add_option("--format", sim_patient.format, "mesh format: stl, ply or obj")
-      ->check(CLI::IsMember({"stl", "ply", "obj"}))
-      ->capture_default_str();
-  sp->add_option("--aorta-vertices", sim_patient.aorta_vertices, "approximate aortic mesh size")
-      ->check(CLI::Range(500, 2000000))
-      ->capture_default_str();
-  sp->add_option("--iliac-vertices", sim_patient.iliac_vertices, "approximate size of each iliac mesh")
-      ->check(CLI::Range(300, 2000000))
-      ->capture_default_str();
+  add_mesh_options(sp, sim_patient.format, sim_patient.aorta_vertices, sim_patient.iliac_vertices);
 
   SimSessionCommand sim_session;
   auto* ss = sim->add_subcommand(

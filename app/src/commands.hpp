@@ -5,6 +5,8 @@
 #include <string>
 #include <vector>
 
+#include "evar/geometry/mesh_io.hpp"
+
 namespace evar::app {
 
 struct DeformCommand {
@@ -27,6 +29,9 @@ struct ArapCommand {
   bool anderson = true;
 };
 int run_arap(const ArapCommand& cmd);
+
+/// The mesh format named by a --format option ("stl", "ply" or "obj"; binary where the format has one).
+geometry::MeshFormat mesh_format_option(const std::string& name);
 
 struct ExampleCommand {
   std::filesystem::path out;

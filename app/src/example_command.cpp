@@ -3,7 +3,16 @@
 #include "evar/sim/example_scene.hpp"
 #include "logging.hpp"
 
+#include <stdexcept>
+
 namespace evar::app {
+
+geometry::MeshFormat mesh_format_option(const std::string& name) {
+  if (name == "ply") return geometry::MeshFormat::PlyBinary;
+  if (name == "obj") return geometry::MeshFormat::Obj;
+  if (name == "stl") return geometry::MeshFormat::StlBinary;
+  throw std::invalid_argument("--format: '" + name + "' (expected stl, ply or obj)");
+}
 
 int run_example(const ExampleCommand& cmd) {
   sim::ExampleSceneParams params;
@@ -11,9 +20,7 @@ int run_example(const ExampleCommand& cmd) {
   params.aorta_vertices = cmd.aorta_vertices;
   params.iliac_vertices = cmd.iliac_vertices;
   const auto scene = sim::make_example_scene(params);
-  const auto format = cmd.format == "ply"   ? geometry::MeshFormat::PlyBinary
-                      : cmd.format == "obj" ? geometry::MeshFormat::Obj
-                                            : geometry::MeshFormat::StlBinary;
+  const auto format = mesh_format_option(cmd.format);
   sim::write_example_scene(scene, cmd.out, format);
   for (const auto& c : scene.device_clearance)
     log().info("device vs {:<11}: up to {:.1f} mm outside the undeformed lumen over {:.0f} mm", c.vessel,

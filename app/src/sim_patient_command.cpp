@@ -7,9 +7,7 @@ namespace evar::app {
 
 int run_sim_patient(const SimPatientCommand& cmd) {
   const auto patient = sim::make_patient(cmd.seed, cmd.aorta_vertices, cmd.iliac_vertices);
-  const auto format = cmd.format == "ply"   ? geometry::MeshFormat::PlyBinary
-                      : cmd.format == "obj" ? geometry::MeshFormat::Obj
-                                            : geometry::MeshFormat::StlBinary;
+  const auto format = mesh_format_option(cmd.format);
   sim::write_patient(patient, cmd.out, format);
   const auto& p = patient.params;
   log().info("patient {}: aneurysm {:.0f} mm across, device ({:.2f} mm) through the {}", cmd.seed,
