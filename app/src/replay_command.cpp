@@ -3,6 +3,7 @@
 #include <csignal>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 
 #include "commands.hpp"
@@ -25,13 +26,20 @@ int run_replay(const ReplayCommand& cmd) {
     log().error("{}: the session has no frames", cmd.session.string());
     return 1;
   }
-  sim::SessionReplay replay(session, {cmd.fast ? 0.0 : cmd.speed, cmd.loops});
-
+  // What the callbacks fill in: declared before the replay, so it outlives the replay's
+  // thread whatever happens.
   std::mutex m;
   std::map<std::string, std::size_t> by_view;  // frames per settled view
   std::size_t frames_while_moving = 0, moving_states = 0;
   std::optional<acquisition::CArmState> in_force;
-  std::int64_t first_ns = 0, last_ns = 0;
+  std::optional<std::int64_t> first_ns;
+  std::int64_t last_ns = 0;
+  sim::SessionReplay replay(session, {cmd.fast ? 0.0 : cmd.speed, cmd.loops});
+  // Ctrl-C stops the replay cleanly; the previous handler comes back on every way out.
+  struct SignalGuard {
+    void (*previous)(int);
+    ~SignalGuard() { std::signal(SIGINT, previous); }
+  } guard{std::signal(SIGINT, on_interrupt)};
   replay.carm().start(
       [&](const acquisition::CArmState& s) {
         std::lock_guard lock(m);
@@ -42,7 +50,7 @@ int run_replay(const ReplayCommand& cmd) {
   replay.frames().start(
       [&](const acquisition::Frame& f) {
         std::lock_guard lock(m);
-        if (first_ns == 0) first_ns = f.device_time_ns;
+        if (!first_ns) first_ns = f.device_time_ns;
         last_ns = f.device_time_ns;
         if (!in_force) return;
         if (in_force->moving) ++frames_while_moving;
@@ -54,7 +62,6 @@ int run_replay(const ReplayCommand& cmd) {
         log().debug("frame source: {} ({})", acquisition::to_string(s), reason);
       });
 
-  const auto old_handler = std::signal(SIGINT, on_interrupt);
   ProgressBar bar("frames", cmd.progress);
   const std::size_t total = cmd.loops == 0 ? 0 : session.frames.size() * static_cast<std::size_t>(cmd.loops);
   const auto start = std::chrono::steady_clock::now();
@@ -71,7 +78,6 @@ int run_replay(const ReplayCommand& cmd) {
   bar.finish();
   replay.frames().stop();
   replay.carm().stop();
-  std::signal(SIGINT, old_handler);
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   const auto stats = replay.frames().statistics();
@@ -93,7 +99,7 @@ int run_replay(const ReplayCommand& cmd) {
                             {"frames_while_moving", frames_while_moving},
                             {"loops", p.loop + 1},
                             {"seconds", seconds},
-                            {"recorded_seconds", static_cast<double>(last_ns - first_ns) * 1e-9},
+                            {"device_seconds", static_cast<double>(last_ns - first_ns.value_or(last_ns)) * 1e-9},
                             {"frames_per_view", views},
                             {"interrupted", interrupted.load()},
                             {"error", replay.error()}});

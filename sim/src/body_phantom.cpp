@@ -57,12 +57,13 @@ BodyPhantom default_body_phantom(unsigned seed) {
     p.parts.push_back({{side * 90.0, 5.0, -150.0}, {24.0, 24.0, 24.0}, kCortical});  // femoral head
     p.parts.push_back({{side * 55.0, 10.0, -115.0}, {30.0, 15.0, 12.0}, kCancellous});  // pubic ramus
   }
-  // Bowel gas: a few pockets in front of the spine, placed by the seed.
+  // Bowel gas: a few pockets in front of the spine, placed by the seed, all inside the body
+  // (its front is at y = -90).
   std::mt19937 rng(seed);
   const auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * (static_cast<double>(rng() >> 8) * 0x1.0p-24); };
   for (int k = 0; k < 4; ++k)
-    p.parts.push_back({{uniform(-90.0, 90.0), uniform(-80.0, -30.0), uniform(-60.0, 150.0)},
-                       {uniform(12.0, 35.0), uniform(8.0, 18.0), uniform(10.0, 25.0)},
+    p.parts.push_back({{uniform(-90.0, 90.0), uniform(-70.0, -30.0), uniform(-60.0, 150.0)},
+                       {uniform(12.0, 35.0), uniform(8.0, 15.0), uniform(10.0, 25.0)},
                        -p.tissue_mu_per_mm});
   return p;
 }

@@ -95,6 +95,11 @@ bool plain_name(const std::string& s) {
   return true;
 }
 
+// A path a session may name: relative, inside the session, not empty.
+bool inside_path(const std::string& p) {
+  return !p.empty() && !fs::path(p).is_absolute() && p.find("..") == std::string::npos;
+}
+
 // The shortest text that reads back to the same double.
 std::string exact(double v) {
   char buf[64];
@@ -129,8 +134,8 @@ Session read_session(const std::filesystem::path& directory) {
   if (!field("version").is_number_integer() || field("version").get<long long>() != kVersion)
     fail(json_path, 0, "version: unsupported " + field("version").dump() + " (this build reads version 1)");
   const auto path_field = [&](const char* key) {
-    if (!field(key).is_string() || field(key).get<std::string>().empty())
-      fail(json_path, 0, std::string(key) + ": expected a file name");
+    if (!field(key).is_string() || !inside_path(field(key).get<std::string>()))
+      fail(json_path, 0, std::string(key) + ": expected a relative file name inside the session");
     return fs::path(field(key).get<std::string>());
   };
   s.scene = path_field("scene");
@@ -155,8 +160,10 @@ Session read_session(const std::filesystem::path& directory) {
   s.detector.col_spacing_mm = positive("col_spacing_mm");
   const auto& streams = field("streams");
   if (!streams.is_object() || !streams.contains("frames") || !streams.contains("carm") || !streams["frames"].is_string() ||
-      !streams["carm"].is_string())
-    fail(json_path, 0, "streams: expected {\"frames\": \"frames/index.csv\", \"carm\": \"carm.csv\"}");
+      !streams["carm"].is_string() || !inside_path(streams["frames"].get<std::string>()) ||
+      !inside_path(streams["carm"].get<std::string>()))
+    fail(json_path, 0, "streams: expected {\"frames\": \"frames/index.csv\", \"carm\": \"carm.csv\"} (relative paths inside the session)");
+  s.frames_index = streams["frames"].get<std::string>();
 
   // Frames.
   const fs::path index = directory / streams["frames"].get<std::string>();
@@ -204,8 +211,8 @@ Session read_session(const std::filesystem::path& directory) {
     const auto& g = j["ground_truth"];
     SessionTruth truth;
     const auto truth_file = [&](const char* key) {
-      if (!g.is_object() || !g.contains(key) || !g[key].is_string() || g[key].get<std::string>().empty())
-        fail(json_path, 0, std::string("ground_truth.") + key + ": expected a file name");
+      if (!g.is_object() || !g.contains(key) || !g[key].is_string() || !inside_path(g[key].get<std::string>()))
+        fail(json_path, 0, std::string("ground_truth.") + key + ": expected a relative file name inside the session");
       const fs::path p = g[key].get<std::string>();
       if (!fs::is_regular_file(directory / p)) fail(json_path, 0, std::string("ground_truth.") + key + ": " + p.string() + " is missing");
       return p;
@@ -235,7 +242,7 @@ Session read_session(const std::filesystem::path& directory) {
 
 cv::Mat read_session_frame(const Session& session, std::size_t index) {
   if (index >= session.frames.size()) throw std::out_of_range("read_session_frame: no frame " + std::to_string(index));
-  const fs::path file = session.directory / "frames" / session.frames[index].file;
+  const fs::path file = (session.directory / session.frames_index).parent_path() / session.frames[index].file;
   cv::Mat image;
   try {
     image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
@@ -261,7 +268,7 @@ void write_session_frame(const std::filesystem::path& directory, const FrameReco
 
 void write_session_files(const std::filesystem::path& directory, const Session& session) {
   const DetectorSpec& d = session.detector;
-  if (d.cols <= 0 || d.rows <= 0 || !(d.row_spacing_mm > 0.0) || !(d.col_spacing_mm > 0.0))
+  if (d.cols <= 0 || d.rows <= 0 || d.cols > 16384 || d.rows > 16384 || !(d.row_spacing_mm > 0.0) || !(d.col_spacing_mm > 0.0))
     throw std::invalid_argument("write_session: the detector needs a positive size and spacing");
   fs::create_directories(directory / "frames");
   std::string index = std::string(kFramesHeader) + "\n";
@@ -294,9 +301,15 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
                            {"streams", {{"frames", "frames/index.csv"}, {"carm", "carm.csv"}}}};
   if (session.truth) {
     const SessionTruth& t = *session.truth;
+    for (const fs::path& p : {t.scene, t.device, t.ostia_2d})
+      if (!inside_path(p.generic_string())) throw std::invalid_argument("write_session: ground-truth paths must be relative, inside the session");
+    for (const fs::path& p : {t.scene, t.device})
+      if (!fs::is_regular_file(directory / p)) throw std::invalid_argument("write_session: ground truth " + p.generic_string() + " is missing");
     std::string ostia = std::string(kOstiaHeader) + "\n";
     for (const auto& o : t.ostia) {
       if (!plain_name(o.label)) throw std::invalid_argument("write_session: bad ostium label '" + o.label + "'");
+      if (std::none_of(session.frames.begin(), session.frames.end(), [&](const FrameRecord& f) { return f.frame == o.frame; }))
+        throw std::invalid_argument("write_session: ostium for frame " + std::to_string(o.frame) + ", which is not in the session");
       ostia += std::to_string(o.frame) + "," + o.label + "," + exact(o.pixel.x()) + "," + exact(o.pixel.y()) + "\n";
     }
     fs::create_directories((directory / t.ostia_2d).parent_path());
@@ -310,6 +323,9 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
 void write_session(const std::filesystem::path& directory, const Session& session, const std::vector<cv::Mat>& images) {
   if (images.size() != session.frames.size())
     throw std::invalid_argument("write_session: one image per frame record is required");
+  for (const auto& image : images)
+    if (image.cols != session.detector.cols || image.rows != session.detector.rows)
+      throw std::invalid_argument("write_session: every image must have the detector's size");
   for (std::size_t i = 0; i < session.frames.size(); ++i) write_session_frame(directory, session.frames[i], images[i]);
   write_session_files(directory, session);
 }

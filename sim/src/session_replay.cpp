@@ -62,27 +62,91 @@ acquisition::CArmState to_carm_state(const CArmSample& c, std::int64_t offset_ns
   return s;
 }
 
-// Callbacks run under the facade's mutex, so that stop() (which takes it) guarantees none
-// runs afterwards. A callback must not call stop() on its own source.
+// Callbacks run on the replay thread only, under the facade's delivery mutex (never under
+// the state mutex, so a callback may ask state() or statistics()). stop() takes the
+// delivery mutex, so no callback runs after it returns; calling start() or stop() from a
+// callback (the replay thread) is refused with std::logic_error instead of deadlocking.
+class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
+ public:
+  explicit CArm(SessionReplay& owner) : owner_(owner) {}
+  void start(StateCallback on_state, StreamCallback on_stream) override {
+    owner_.refuse_from_replay_thread("start");
+    std::lock_guard delivery(delivery_);
+    on_state_ = std::move(on_state);
+    on_stream_ = std::move(on_stream);
+    set_state_locked(acquisition::StreamState::Streaming, "replaying the C-arm stream of " + owner_.session_.directory.string());
+  }
+  void stop() override {
+    owner_.refuse_from_replay_thread("stop");
+    std::lock_guard delivery(delivery_);
+    on_state_ = nullptr;
+    on_stream_ = nullptr;
+    std::lock_guard lock(mutex_);
+    state_ = acquisition::StreamState::Stopped;
+  }
+  acquisition::StreamState state() const override {
+    std::lock_guard lock(mutex_);
+    return state_;
+  }
+  std::string description() const override { return "replay C-arm " + owner_.session_.directory.string(); }
+
+  void deliver(const acquisition::CArmState& s) {
+    std::lock_guard delivery(delivery_);
+    if (on_state_ && state() == acquisition::StreamState::Streaming) on_state_(s);
+  }
+  /// The replay ended: a started stream says so (and delivers nothing more).
+  void end(const std::string& reason) {
+    std::lock_guard delivery(delivery_);
+    if (state() == acquisition::StreamState::Streaming) set_state_locked(acquisition::StreamState::Stopped, reason);
+  }
+  /// The frame source started a new replay: a started stream is live again.
+  void restart() {
+    std::lock_guard delivery(delivery_);
+    if (on_state_ && state() != acquisition::StreamState::Streaming)
+      set_state_locked(acquisition::StreamState::Streaming, "replaying again");
+  }
+
+ private:
+  void set_state_locked(acquisition::StreamState s, const std::string& reason) {
+    {
+      std::lock_guard lock(mutex_);
+      state_ = s;
+    }
+    if (on_stream_) on_stream_(s, reason);
+  }
+  SessionReplay& owner_;
+  std::mutex delivery_;
+  mutable std::mutex mutex_;
+  StateCallback on_state_;
+  StreamCallback on_stream_;
+  acquisition::StreamState state_ = acquisition::StreamState::Stopped;
+};
+
 class SessionReplay::Frames final : public acquisition::FrameSource {
  public:
   explicit Frames(SessionReplay& owner) : owner_(owner) {}
   void start(FrameCallback on_frame, StateCallback on_state) override {
+    owner_.refuse_from_replay_thread("start");
+    owner_.stop_engine();  // a running replay ends before the new one is set up
     {
-      std::lock_guard lock(mutex_);
+      std::lock_guard delivery(delivery_);
       on_frame_ = std::move(on_frame);
       on_state_ = std::move(on_state);
+      std::lock_guard lock(mutex_);
       tracker_.reset();
     }
     set_state(acquisition::StreamState::Connecting, "opening " + owner_.session_.directory.string());
     set_state(acquisition::StreamState::Streaming, "replaying");
+    owner_.carm_->restart();
     owner_.start_engine();
   }
   void stop() override {
+    owner_.refuse_from_replay_thread("stop");
     owner_.stop_engine();
-    std::lock_guard lock(mutex_);
+    std::lock_guard delivery(delivery_);
     on_frame_ = nullptr;
     on_state_ = nullptr;
+    std::lock_guard lock(mutex_);
     state_ = acquisition::StreamState::Stopped;
   }
   acquisition::StreamState state() const override {
@@ -96,63 +160,29 @@ class SessionReplay::Frames final : public acquisition::FrameSource {
   std::string description() const override { return "replay " + owner_.session_.directory.string(); }
 
   void deliver(const acquisition::Frame& f) {
-    std::lock_guard lock(mutex_);
-    tracker_.observe(f.sequence);
+    std::lock_guard delivery(delivery_);
+    {
+      std::lock_guard lock(mutex_);
+      tracker_.observe(f.sequence);
+    }
     if (on_frame_) on_frame_(f);
   }
   void set_state(acquisition::StreamState s, const std::string& reason) {
-    std::lock_guard lock(mutex_);
-    state_ = s;
+    std::lock_guard delivery(delivery_);
+    {
+      std::lock_guard lock(mutex_);
+      state_ = s;
+    }
     if (on_state_) on_state_(s, reason);
   }
 
  private:
   SessionReplay& owner_;
+  std::mutex delivery_;
   mutable std::mutex mutex_;
   FrameCallback on_frame_;
   StateCallback on_state_;
   acquisition::SequenceTracker tracker_;
-  acquisition::StreamState state_ = acquisition::StreamState::Stopped;
-};
-
-class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
- public:
-  explicit CArm(SessionReplay& owner) : owner_(owner) {}
-  void start(StateCallback on_state, StreamCallback on_stream) override {
-    std::lock_guard lock(mutex_);
-    on_state_ = std::move(on_state);
-    on_stream_ = std::move(on_stream);
-    state_ = acquisition::StreamState::Streaming;
-    if (on_stream_) on_stream_(state_, "replaying the C-arm stream of " + owner_.session_.directory.string());
-  }
-  void stop() override {
-    std::lock_guard lock(mutex_);
-    on_state_ = nullptr;
-    on_stream_ = nullptr;
-    state_ = acquisition::StreamState::Stopped;
-  }
-  acquisition::StreamState state() const override {
-    std::lock_guard lock(mutex_);
-    return state_;
-  }
-  std::string description() const override { return "replay C-arm " + owner_.session_.directory.string(); }
-
-  void deliver(const acquisition::CArmState& s) {
-    std::lock_guard lock(mutex_);
-    if (on_state_) on_state_(s);
-  }
-  void end(const std::string& reason) {
-    std::lock_guard lock(mutex_);
-    if (state_ != acquisition::StreamState::Streaming) return;
-    state_ = acquisition::StreamState::Stopped;
-    if (on_stream_) on_stream_(state_, reason);
-  }
-
- private:
-  SessionReplay& owner_;
-  mutable std::mutex mutex_;
-  StateCallback on_state_;
-  StreamCallback on_stream_;
   acquisition::StreamState state_ = acquisition::StreamState::Stopped;
 };
 
@@ -171,20 +201,30 @@ SessionReplay::~SessionReplay() { stop_engine(); }
 acquisition::FrameSource& SessionReplay::frames() { return *frames_; }
 acquisition::CArmGeometrySource& SessionReplay::carm() { return *carm_; }
 
+void SessionReplay::refuse_from_replay_thread(const char* what) const {
+  if (std::this_thread::get_id() == replay_thread_id_.load())
+    throw std::logic_error(std::string("SessionReplay: ") + what + "() called from a replay callback");
+}
+
 void SessionReplay::start_engine() {
-  stop_engine();
+  std::lock_guard control(control_);
   std::lock_guard lock(mutex_);
   cancel_ = false;
   progress_ = ReplayProgress{};
   progress_.frames_per_loop = session_.frames.size();
   error_.clear();
   running_ = true;
-  thread_ = std::thread([this] { run(); });
+  thread_ = std::thread([this] {
+    replay_thread_id_ = std::this_thread::get_id();
+    run();
+  });
 }
 
 void SessionReplay::stop_engine() {
+  std::lock_guard control(control_);
   cancel_ = true;
   if (thread_.joinable()) thread_.join();
+  replay_thread_id_ = std::thread::id();
 }
 
 bool SessionReplay::wait(std::chrono::milliseconds timeout) {
@@ -220,6 +260,17 @@ void SessionReplay::run() {
     return a.t < b.t || (a.t == b.t && !a.frame && b.frame);
   });
   std::string reason = "end of session";
+  // A callback that throws ends the replay with its message (nothing escapes the thread).
+  const auto deliver = [&](auto&& call) {
+    try {
+      call();
+      return true;
+    } catch (const std::exception& ex) {
+      std::lock_guard lock(mutex_);
+      error_ = std::string("a frame or C-arm callback threw: ") + ex.what();
+      return false;
+    }
+  };
   if (!events.empty()) {
     const std::int64_t t0 = events.front().t;
     // A loop lasts the session plus one typical frame interval, so timestamps keep rising.
@@ -253,11 +304,11 @@ void SessionReplay::run() {
             error_ = ex.what();
             break;
           }
-          frames_->deliver(f);
+          if (!deliver([&] { frames_->deliver(f); })) break;
           std::lock_guard lock(mutex_);
           ++progress_.frames;
         } else {
-          carm_->deliver(to_carm_state(session_.carm[e.index], offset));
+          if (!deliver([&] { carm_->deliver(to_carm_state(session_.carm[e.index], offset)); })) break;
           std::lock_guard lock(mutex_);
           ++progress_.carm_states;
         }

@@ -16,22 +16,28 @@ namespace evar::sim {
 namespace {
 
 // Ray crossings of the contrast meshes per pixel: the distance from the source, signed +
-// where the ray leaves a mesh and − where it enters. A handful per pixel; more are rare
-// (folded vessels seen end-on) and then the extra ones are dropped and counted.
+// where the ray leaves a mesh and − where it enters. A handful per pixel; beyond kMax
+// (vessels seen end-on through many folds) the pixel falls back to Σ exits − Σ entries,
+// which is exact for disjoint meshes.
 struct Crossings {
-  static constexpr int kMax = 12;
+  static constexpr int kMax = 16;
   int W = 0;
   std::vector<std::array<float, kMax>> t;
   std::vector<std::uint8_t> n;
-  std::size_t dropped = 0;
-  Crossings(int w, int h) : W(w), t(static_cast<std::size_t>(w) * static_cast<std::size_t>(h)), n(t.size(), 0) {}
+  std::vector<float> sum;  // Σ signed t, for the fallback
+  std::vector<char> overflow;
+  Crossings(int w, int h)
+      : W(w), t(static_cast<std::size_t>(w) * static_cast<std::size_t>(h)), n(t.size(), 0), sum(t.size(), 0.0f),
+        overflow(t.size(), 0) {}
   void add(int u, int v, float signed_t) {
     const std::size_t i = static_cast<std::size_t>(v) * static_cast<std::size_t>(W) + static_cast<std::size_t>(u);
+    sum[i] += signed_t;
     if (n[i] < kMax) t[i][n[i]++] = signed_t;
-    else ++dropped;
+    else overflow[i] = 1;
   }
   // Length of the union of the meshes' insides along the ray.
   double union_length(std::size_t i) const {
+    if (overflow[i]) return std::max(0.0, static_cast<double>(sum[i]));
     std::array<float, kMax> e = t[i];
     const int m = n[i];
     for (int k = 1; k < m; ++k)  // insertion sort by distance: a handful of entries
@@ -47,7 +53,8 @@ struct Crossings {
         length += at - start;
       }
     }
-    return length;
+    // Unbalanced (a crossing lost at a grazing edge): the signed sum instead.
+    return depth == 0 ? length : std::max(0.0, static_cast<double>(sum[i]));
   }
 };
 
@@ -89,11 +96,14 @@ void add_path_lengths(const std::vector<const geometry::TriangleMesh*>& meshes, 
       const int v1 = std::min(H - 1, static_cast<int>(std::floor(std::max({p0.y(), p1.y(), p2.y()}))));
       const Eigen::Vector2d e[3][2] = {{p1, p2}, {p2, p0}, {p0, p1}};
       // Top-left rule: a pixel centre exactly on an edge belongs to the triangle only for
-      // top or left edges, so neighbours sharing the edge count it once.
-      bool top_left[3];
+      // top or left edges, so neighbours sharing the edge count it once. Each edge function
+      // is evaluated from the edge's lexicographically smaller end, so the two triangles
+      // sharing an edge get exactly opposite values, not two roundings of them.
+      bool top_left[3], flipped[3];
       for (int k = 0; k < 3; ++k) {
         const Eigen::Vector2d d = e[k][1] - e[k][0];
         top_left[k] = (d.y() == 0.0 && d.x() < 0.0) || d.y() > 0.0;
+        flipped[k] = std::make_pair(e[k][1].x(), e[k][1].y()) < std::make_pair(e[k][0].x(), e[k][0].y());
       }
       const double plane_d = n.dot(X[a]);
       for (int v = v0; v <= v1; ++v)
@@ -101,8 +111,10 @@ void add_path_lengths(const std::vector<const geometry::TriangleMesh*>& meshes, 
           const Eigen::Vector2d q(u, v);
           bool inside = true;
           for (int k = 0; k < 3 && inside; ++k) {
-            const Eigen::Vector2d d = e[k][1] - e[k][0], r = q - e[k][0];
-            const double w = d.x() * r.y() - d.y() * r.x();
+            const Eigen::Vector2d& from = flipped[k] ? e[k][1] : e[k][0];
+            const Eigen::Vector2d& to = flipped[k] ? e[k][0] : e[k][1];
+            const Eigen::Vector2d d = to - from, r = q - from;
+            const double w = flipped[k] ? -(d.x() * r.y() - d.y() * r.x()) : d.x() * r.y() - d.y() * r.x();
             inside = w > 0.0 || (w == 0.0 && top_left[k]);
           }
           if (!inside) continue;
@@ -155,6 +167,8 @@ XRayExpected expected_xray(const geometry::CArmView& view, const XRayContent& co
 cv::Mat detect(const cv::Mat& expected, const XRayOptions& o, std::uint64_t seed) {
   if (expected.type() != CV_64F) throw std::invalid_argument("detect: expected quanta must be CV_64F");
   if (o.bits < 8 || o.bits > 16) throw std::invalid_argument("detect: 8 to 16 bits");
+  if (!(o.photons_per_pixel > 0.0) || !(o.electronic_noise >= 0.0) || !(o.detector_blur_px >= 0.0))
+    throw std::invalid_argument("detect: photons > 0, noise >= 0 and blur >= 0 are required");
   std::mt19937_64 rng(seed);
   std::normal_distribution<double> gauss(0.0, 1.0);
   cv::Mat n(expected.size(), CV_32F);
@@ -165,9 +179,11 @@ cv::Mat detect(const cv::Mat& expected, const XRayOptions& o, std::uint64_t seed
       const double mean = e[u];
       if (mean > 50.0) {
         out[u] = static_cast<float>(mean + std::sqrt(mean) * gauss(rng));
-      } else {
-        std::poisson_distribution<long> poisson(std::max(mean, 0.0));
+      } else if (mean > 0.0) {
+        std::poisson_distribution<long> poisson(mean);
         out[u] = static_cast<float>(poisson(rng));
+      } else {
+        out[u] = 0.0f;  // no quanta expected (Poisson needs a positive mean)
       }
     }
   }

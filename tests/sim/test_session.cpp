@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <opencv2/imgcodecs.hpp>
+
 #include <filesystem>
 #include <fstream>
 #include <unistd.h>
@@ -127,8 +129,11 @@ TEST(Session, AFrameOfAnotherSizeThanTheDetectorIsRefused) {
   TempDir dir;
   std::vector<cv::Mat> images;
   auto s = small_session(images);
-  images[1] = cv::Mat(41, 60, CV_16UC1, cv::Scalar(5));
   sim::write_session(dir.path, s, images);
+  auto wrong = images;
+  wrong[1] = cv::Mat(41, 60, CV_16UC1, cv::Scalar(5));
+  EXPECT_THROW(sim::write_session(dir.path, s, wrong), std::invalid_argument);  // the writer refuses it too
+  cv::imwrite((dir.path / "frames" / "f1.png").string(), wrong[1]);                // a file changed behind its back
   const auto r = sim::read_session(dir.path);
   try {
     sim::read_session_frame(r, 1);

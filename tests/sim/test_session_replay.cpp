@@ -157,6 +157,32 @@ TEST_F(Replay, NoCallbackAfterStopReturns) {
   EXPECT_EQ(replay.frames().state(), acquisition::StreamState::Stopped);
 }
 
+TEST_F(Replay, StartingAgainRestartsTheReplayAndIsLiveAgain) {
+  SessionReplay replay(session_, {0.0, 0}, std::make_shared<FakeClock>());  // forever
+  Received r;
+  attach(replay, r);
+  while (replay.progress().frames < 12) std::this_thread::yield();
+  Received again;
+  attach(replay, again);  // stops the running replay first
+  while (replay.progress().frames < 3) std::this_thread::yield();
+  EXPECT_EQ(replay.frames().state(), acquisition::StreamState::Streaming);
+  EXPECT_EQ(replay.carm().state(), acquisition::StreamState::Streaming);
+  replay.frames().stop();
+  std::lock_guard lock(again.m);
+  ASSERT_GE(again.frames.size(), 3u);
+  EXPECT_EQ(again.frames[0].sequence, 1u);  // a new replay, from the start
+  EXPECT_EQ(replay.frames().statistics().out_of_order, 0u);
+}
+
+TEST_F(Replay, ACallbackThatStopsItsSourceEndsTheReplayWithAnError) {
+  SessionReplay replay(session_, {0.0, 1}, std::make_shared<FakeClock>());
+  replay.carm().start(nullptr, nullptr);
+  replay.frames().start([&](const acquisition::Frame&) { replay.frames().stop(); }, nullptr);
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(20)));
+  EXPECT_NE(replay.error().find("called from a replay callback"), std::string::npos) << replay.error();
+  EXPECT_EQ(replay.frames().state(), acquisition::StreamState::Disconnected);
+}
+
 TEST(ReplayOptions, NegativeSpeedOrLoopsAreRefused) {
   EXPECT_THROW(SessionReplay(Session{}, {-1.0, 1}), std::invalid_argument);
   EXPECT_THROW(SessionReplay(Session{}, {1.0, -1}), std::invalid_argument);

@@ -32,7 +32,8 @@ struct BodyPhantom {
 BodyPhantom default_body_phantom(unsigned seed = 1);
 
 /// ∫ μ dl (dimensionless) along the line origin + t·direction (unit), t in [0, ∞), through
-/// the phantom placed by the rigid `patient_to_world` (world = C-arm LPS).
+/// the phantom placed by `patient_to_world` (world = C-arm LPS), which must be rigid (a
+/// registration: rotation and translation, as session files require).
 double line_integral(const BodyPhantom& phantom, const Eigen::Matrix4d& patient_to_world,
                      const Eigen::Vector3d& origin_world, const Eigen::Vector3d& direction_world);
 

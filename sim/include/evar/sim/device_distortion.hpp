@@ -9,9 +9,9 @@
 // are fixed; each iliac's stub inside the aortic lumen moves with the aortic centerline. The
 // device pushes by contact: wherever it crosses a cross-section outside the lumen (radius
 // minus Δd/2 minus a clearance), that section is moved until it is inside (an active-set
-// obstacle problem, solved to 0.01 mm). Finally every cross-section is re-swept rigidly
-// along the moved centerline with rotation-minimizing frames, so meshes keep their vertex
-// order and their section shapes; landmarks move with their vessel.
+// obstacle problem, solved to 0.01 mm). Finally every cross-section is translated with its
+// centerline point (docs/SYNTHETIC_PATIENTS.md says why not turned), so meshes keep their
+// vertex order and section shapes; landmarks move with their vessel.
 #include <string>
 #include <vector>
 
@@ -63,9 +63,9 @@ struct DeviceDistortion {
 /// device_points_outside before using the result as ground truth (make_patient does).
 DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOptions& options = {});
 
-/// Re-sweeps `mesh` (around `centerline`) along `moved` (same point count): each vertex keeps
-/// its coordinates in the rotation-minimizing frame of the centerline point it projects
-/// to. With moved == centerline the mesh comes back unchanged (to rounding).
+/// Re-sweeps `mesh` (around `centerline`) along `moved` (same point count): each vertex moves
+/// with the displacement of the place on the centerline it projects to (linear between
+/// points). With moved == centerline the mesh comes back unchanged.
 geometry::TriangleMesh resweep(const geometry::TriangleMesh& mesh, const geometry::Polyline& centerline,
                                const geometry::Polyline& moved);
 

@@ -63,6 +63,7 @@ struct SessionTruth {
 struct Session {
   std::filesystem::path directory;
   std::filesystem::path scene;               ///< scene.json, relative to the session directory
+  std::filesystem::path frames_index = "frames/index.csv";  ///< frame files are relative to its folder
   Eigen::Matrix4d ct_to_carm = Eigen::Matrix4d::Identity();  ///< registration at table position 0
   double device_thickness_mm = 0.9;
   DetectorSpec detector;

@@ -7,7 +7,10 @@
 // increasing across loops, as a camera's would).
 //
 // Start the C-arm source first: the replay clock starts with the frame source, and
-// C-arm states are delivered to a geometry source only once it has been started.
+// C-arm states are delivered to a geometry source only once it has been started. Starting
+// the frame source again restarts the replay. Callbacks run on the replay thread; they may
+// query the sources but must not start or stop them (std::logic_error). No callback runs
+// after a source's stop() returns.
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -72,13 +75,16 @@ class SessionReplay {
   void run();
   void start_engine();
   void stop_engine();
+  void refuse_from_replay_thread(const char* what) const;
 
   Session session_;
   ReplayOptions options_;
   std::shared_ptr<ReplayClock> clock_;
   std::unique_ptr<Frames> frames_;
   std::unique_ptr<CArm> carm_;
+  std::mutex control_;  // start/stop of the replay thread
   std::thread thread_;
+  std::atomic<std::thread::id> replay_thread_id_{};
   std::atomic<bool> cancel_{false};
   mutable std::mutex mutex_;
   std::condition_variable done_cv_;
