@@ -177,9 +177,9 @@ double bending_of(const DistortionOptions& o, bool aorta, double arc_mm) {
   return std::pow(l, 4);  // 1 mm spacing: λ = (l / h)^4
 }
 
-// Number of leading iliac points inside the aorta's lumen (at least 1): the stub that
+// Number of leading iliac points inside the aorta's lumen (at least 1): the overlap that
 // moves with the bifurcation.
-std::size_t stub_length(const ExampleVessel& iliac, const ExampleVessel& aorta, const std::vector<double>& aorta_arc,
+std::size_t overlap_length(const ExampleVessel& iliac, const ExampleVessel& aorta, const std::vector<double>& aorta_arc,
                         double* start_arc_on_aorta) {
   const geometry::PolylineProjector projector(aorta.centerline);
   std::size_t n = 0;
@@ -220,16 +220,16 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
   });
   const auto aorta_arc = geometry::arc_lengths(aorta->centerline);
 
-  // The bifurcation hub: the aorta below the highest iliac start and each iliac's stub
+  // The bifurcation hub: the aorta below the highest iliac start and each iliac's overlap
   // inside the aortic lumen. It is made 100x stiffer in bending, so it moves nearly
   // rigidly and the bends spread over the vessels instead of kinking the junction, whose
   // sections are wider than such a bend's radius.
   constexpr double kHubStiffening = 100.0;
-  std::vector<std::size_t> stubs;
+  std::vector<std::size_t> overlaps;
   double hub_arc = aorta_arc.back();
   for (const auto* iliac : iliacs) {
     double start_arc = 0.0;
-    stubs.push_back(stub_length(*iliac, *aorta, aorta_arc, &start_arc));
+    overlaps.push_back(overlap_length(*iliac, *aorta, aorta_arc, &start_arc));
     hub_arc = std::min(hub_arc, start_arc);
   }
   if (!(hub_arc > 10.0)) throw std::invalid_argument("distort_by_device: the iliacs start too high in the aorta");
@@ -241,19 +241,19 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
     const ExampleVessel& v = scene.vessels[vi];
     const bool is_aorta = &v == aorta;
     arcs[vi] = geometry::arc_lengths(v.centerline);
-    const std::size_t stub = is_aorta ? 0 : stubs[static_cast<std::size_t>(std::find(iliacs.begin(), iliacs.end(), &v) - iliacs.begin())];
+    const std::size_t overlap = is_aorta ? 0 : overlaps[static_cast<std::size_t>(std::find(iliacs.begin(), iliacs.end(), &v) - iliacs.begin())];
     std::vector<double> lambda;
     std::vector<char> push;
     for (std::size_t i = 0; i < v.centerline.size(); ++i) {
       const double s = arcs[vi][i];
-      const bool in_hub = is_aorta ? s >= hub_arc : i < stub;
-      // Next to the hub (above it in the aorta, below the stub in an iliac) the stiffness
+      const bool in_hub = is_aorta ? s >= hub_arc : i < overlap;
+      // Next to the hub (above it in the aorta, below the overlap in an iliac) the stiffness
       // ramps over two radii, so a push beside the stiff hub bends the vessel over a length
       // its sections can follow without folding.
-      const double from_hub = is_aorta ? hub_arc - s : s - (stub > 0 ? arcs[vi][stub - 1] : 0.0);
+      const double from_hub = is_aorta ? hub_arc - s : s - (overlap > 0 ? arcs[vi][overlap - 1] : 0.0);
       const double ramp = in_hub ? 1.0 : std::clamp(1.0 - from_hub / (2.0 * v.radii_mm[i]), 0.0, 1.0);
       lambda.push_back(bending_of(o, is_aorta, s) * std::pow(kHubStiffening, ramp));
-      // The device pushes the aorta above the hub and the carrier below its stub, except
+      // The device pushes the aorta above the hub and the carrier below its overlap, except
       // the carrier's last millimetres: the access sheath keeps the device central there,
       // and a push next to the tethered end would only kink the beam.
       constexpr double kSheathMm = 3.0;
@@ -271,8 +271,8 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
   for (std::size_t vi = 0; vi < scene.vessels.size(); ++vi) {
     const ExampleVessel& v = scene.vessels[vi];
     if (&v == aorta) continue;
-    const std::size_t stub = stubs[static_cast<std::size_t>(std::find(iliacs.begin(), iliacs.end(), &v) - iliacs.begin())];
-    for (std::size_t i = 0; i < stub; ++i) {  // the stub moves with the aorta around it
+    const std::size_t overlap = overlaps[static_cast<std::size_t>(std::find(iliacs.begin(), iliacs.end(), &v) - iliacs.begin())];
+    for (std::size_t i = 0; i < overlap; ++i) {  // the overlap moves with the aorta around it
       int seg = 0;
       const auto proj = aorta_projector.project(v.centerline[i], -1, &seg);
       const auto j = static_cast<std::size_t>(seg);

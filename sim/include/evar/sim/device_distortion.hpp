@@ -6,7 +6,7 @@
 // stiffness λ = l⁴ (l a bending length in mm, varying along the vessel), the surrounding
 // tissue as unit springs toward the preoperative course. Real tethers hold it: the aortic
 // top (visceral branches) and the iliac's distal end (inguinal ligament, access sheath)
-// are fixed; each iliac's stub inside the aortic lumen moves with the aortic centerline. The
+// are fixed; the part of each iliac inside the aortic lumen moves with the aortic centerline. The
 // device pushes by contact: wherever it crosses a cross-section outside the lumen (radius
 // minus Δd/2 minus a clearance), that section is moved until it is inside (an active-set
 // obstacle problem, solved to 0.01 mm). Finally every cross-section is translated with its

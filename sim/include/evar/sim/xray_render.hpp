@@ -48,7 +48,7 @@ struct XRayExpected {
 };
 
 /// Path length (mm) of every pixel ray of P through the union of the closed meshes
-/// (vertices mapped by `patient_to_world`; overlapping vessels such as the iliac stubs inside
+/// (vertices mapped by `patient_to_world`; overlapping vessels such as the iliacs' starts inside
 /// the aorta count once), added to `L` (CV_64F, detector size). Triangles are rasterized at
 /// pixel centres with a top-left rule, so shared edges count once; each gives the distance
 /// at which the ray enters or leaves, and the entries and exits are swept in order.
