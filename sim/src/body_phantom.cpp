@@ -2,9 +2,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <random>
 
 #include "evar/geometry/carm_projection.hpp"
+#include "seeded_uniform.hpp"
 
 namespace evar::sim {
 namespace {
@@ -59,25 +59,12 @@ BodyPhantom default_body_phantom(unsigned seed) {
   }
   // Bowel gas: a few pockets in front of the spine, placed by the seed, all inside the body
   // (its front is at y = -90).
-  std::mt19937 rng(seed);
-  const auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * (static_cast<double>(rng() >> 8) * 0x1.0p-24); };
+  SeededUniform uniform(seed);
   for (int k = 0; k < 4; ++k)
     p.parts.push_back({{uniform(-90.0, 90.0), uniform(-70.0, -30.0), uniform(-60.0, 150.0)},
                        {uniform(12.0, 35.0), uniform(8.0, 15.0), uniform(10.0, 25.0)},
                        -p.tissue_mu_per_mm});
   return p;
-}
-
-double line_integral(const BodyPhantom& phantom, const Eigen::Matrix4d& patient_to_world, const Eigen::Vector3d& origin_world,
-                     const Eigen::Vector3d& direction_world) {
-  // Into patient coordinates (rigid: the direction stays unit).
-  const Eigen::Matrix3d R = patient_to_world.topLeftCorner<3, 3>();
-  const Eigen::Vector3d o = R.transpose() * (origin_world - patient_to_world.topRightCorner<3, 1>());
-  const Eigen::Vector3d d = R.transpose() * direction_world;
-  double sum = phantom.tissue_mu_per_mm *
-               quadric_chord(phantom.body_centre_mm.data(), phantom.body_semi_axes_mm.data(), o.data(), d.data(), 2);
-  for (const auto& e : phantom.parts) sum += e.mu_per_mm * ellipsoid_chord(e.centre_mm, e.semi_axes_mm, o, d);
-  return sum;
 }
 
 void add_line_integrals(const BodyPhantom& phantom, const Eigen::Matrix4d& patient_to_world,

@@ -70,12 +70,12 @@ std::optional<Eigen::Vector3d> device_crossing(const Polyline& device, const Eig
 }
 
 // Is x inside the tube of radii `radii` (per point, along the rest arc lengths `arc`)
-// around `centerline`, by at least `margin`?
-bool inside_tube(const Polyline& centerline, const std::vector<double>& arc, const std::vector<double>& radii,
-                 const Eigen::Vector3d& x, double margin) {
+// around `centerline` (moved; `length_mm` its length), by at least `margin`?
+bool inside_tube(const Polyline& centerline, double length_mm, const std::vector<double>& arc,
+                 const std::vector<double>& radii, const Eigen::Vector3d& x, double margin) {
   const auto proj = geometry::project_onto(centerline, x);
   if (proj.beyond_start || proj.beyond_end) return false;
-  const double s = proj.arc_length_mm * arc.back() / geometry::arc_lengths(centerline).back();  // back to rest arc
+  const double s = proj.arc_length_mm * arc.back() / length_mm;  // back to rest arc
   return proj.distance_mm <= interpolate_along(arc, radii, s) - margin;
 }
 
@@ -299,6 +299,7 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
     // the crossing lies in the other vessel (in the bifurcation the union of aorta and
     // carrier holds the device).
     const Polyline now[2] = {moved(ai), moved(ci)};
+    const double now_length[2] = {geometry::arc_lengths(now[0]).back(), geometry::arc_lengths(now[1]).back()};
     intrusion = 0.0;
     bool changed = false;
     for (int side = 0; side < 2; ++side) {
@@ -314,7 +315,7 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
         if (!x) continue;
         const Eigen::Vector3d e = *x - c[i];
         const double over = e.norm() - (beams.radius[k] - wall);
-        if (over <= 0.0 || inside_tube(now[1 - side], arcs[other], scene.vessels[other].radii_mm, *x, wall)) continue;
+        if (over <= 0.0 || inside_tube(now[1 - side], now_length[1 - side], arcs[other], scene.vessels[other].radii_mm, *x, wall)) continue;
         intrusion = std::max(intrusion, over);
         if (over <= 0.005) continue;
         // Aim slightly past the wall so the active set closes from the safe side.

@@ -8,7 +8,6 @@
 #include <limits>
 #include <numbers>
 #include <optional>
-#include <random>
 #include <stdexcept>
 
 #include "evar/geometry/markups.hpp"
@@ -16,6 +15,7 @@
 #include "evar/geometry/polyline.hpp"
 #include "evar/geometry/scene.hpp"
 #include "evar/sim/tube_mesh.hpp"
+#include "seeded_uniform.hpp"
 
 namespace evar::sim {
 namespace {
@@ -25,19 +25,14 @@ constexpr double kPi = std::numbers::pi;
 constexpr double kCenterlineStepMm = 1.0;
 constexpr int kDenseSamples = 4000;  // parametric samples before arc-length resampling
 
-// Uniform perturbations from a fixed engine with our own int -> double mapping, because
-// std:: distributions are allowed to differ between standard libraries.
+// Uniform perturbations in [-amplitude, amplitude) * scale.
 class Perturbation {
  public:
-  Perturbation(std::uint64_t seed, double scale) : engine_(seed), scale_(scale) {}
-  /// Uniform in [-amplitude, amplitude) * scale.
-  double operator()(double amplitude) {
-    const double u = static_cast<double>(engine_() >> 11) * 0x1.0p-53;  // [0, 1), 53 bits
-    return (2.0 * u - 1.0) * amplitude * scale_;
-  }
+  Perturbation(std::uint64_t seed, double scale) : uniform_(seed), scale_(scale) {}
+  double operator()(double amplitude) { return (2.0 * uniform_.unit() - 1.0) * amplitude * scale_; }
 
  private:
-  std::mt19937_64 engine_;
+  SeededUniform uniform_;
   double scale_;
 };
 

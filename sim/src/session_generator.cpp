@@ -6,11 +6,11 @@
 #include <cstdio>
 #include <map>
 #include <numbers>
-#include <random>
 #include <stdexcept>
 
 #include "evar/sim/body_phantom.hpp"
 #include "evar/sim/synthetic_patient.hpp"
+#include "seeded_uniform.hpp"
 
 namespace evar::sim {
 namespace {
@@ -43,8 +43,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
   s.detector = {plan.detector_px, plan.detector_px, plan.pixel_spacing_mm, plan.pixel_spacing_mm};
   // Registration: CT point (0, 0, 50) (the aneurysm, renal ostia in the field) at the
   // isocenter, turned by a degree or two as a real registration would be.
-  std::mt19937_64 rng(plan.seed ^ 0xC0A4'5E55'1011ULL);
-  const auto uniform = [&](double lo, double hi) { return lo + (hi - lo) * static_cast<double>(rng() >> 11) * 0x1.0p-53; };
+  SeededUniform uniform(plan.seed ^ 0xC0A4'5E55'1011ULL);
   const Eigen::Matrix3d R = (Eigen::AngleAxisd(uniform(-2.0, 2.0) * std::numbers::pi / 180.0, Eigen::Vector3d::UnitZ()) *
                              Eigen::AngleAxisd(uniform(-2.0, 2.0) * std::numbers::pi / 180.0, Eigen::Vector3d::UnitX()))
                                 .toRotationMatrix();

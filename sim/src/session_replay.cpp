@@ -66,6 +66,40 @@ acquisition::CArmState to_carm_state(const CArmSample& c, std::int64_t offset_ns
 // the state mutex, so a callback may ask state() or statistics()). stop() takes the
 // delivery mutex, so no callback runs after it returns; calling start() or stop() from a
 // callback (the replay thread) is refused with std::logic_error instead of deadlocking.
+
+namespace {
+
+// A source's stream state and the callback told of its changes, as both facades keep them.
+// Changes are made under the facade's delivery mutex, so callbacks arrive in order.
+class StreamStatus {
+ public:
+  using Callback = std::function<void(acquisition::StreamState, const std::string&)>;
+  acquisition::StreamState get() const {
+    std::lock_guard lock(mutex_);
+    return state_;
+  }
+  void set(acquisition::StreamState s, const std::string& reason) {
+    {
+      std::lock_guard lock(mutex_);
+      state_ = s;
+    }
+    if (callback) callback(s, reason);
+  }
+  /// Stopped, silently, with no callback left (stop()).
+  void clear() {
+    callback = nullptr;
+    std::lock_guard lock(mutex_);
+    state_ = acquisition::StreamState::Stopped;
+  }
+  Callback callback;
+
+ private:
+  mutable std::mutex mutex_;
+  acquisition::StreamState state_ = acquisition::StreamState::Stopped;
+};
+
+}  // namespace
+
 class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
  public:
   explicit CArm(SessionReplay& owner) : owner_(owner) {}
@@ -73,53 +107,39 @@ class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
     owner_.refuse_from_replay_thread("start");
     std::lock_guard delivery(delivery_);
     on_state_ = std::move(on_state);
-    on_stream_ = std::move(on_stream);
-    set_state_locked(acquisition::StreamState::Streaming, "replaying the C-arm stream of " + owner_.session_.directory.string());
+    status_.callback = std::move(on_stream);
+    status_.set(acquisition::StreamState::Streaming, "replaying the C-arm stream of " + owner_.session_.directory.string());
   }
   void stop() override {
     owner_.refuse_from_replay_thread("stop");
     std::lock_guard delivery(delivery_);
     on_state_ = nullptr;
-    on_stream_ = nullptr;
-    std::lock_guard lock(mutex_);
-    state_ = acquisition::StreamState::Stopped;
+    status_.clear();
   }
-  acquisition::StreamState state() const override {
-    std::lock_guard lock(mutex_);
-    return state_;
-  }
+  acquisition::StreamState state() const override { return status_.get(); }
   std::string description() const override { return "replay C-arm " + owner_.session_.directory.string(); }
 
   void deliver(const acquisition::CArmState& s) {
     std::lock_guard delivery(delivery_);
-    if (on_state_ && state() == acquisition::StreamState::Streaming) on_state_(s);
+    if (on_state_ && status_.get() == acquisition::StreamState::Streaming) on_state_(s);
   }
   /// The replay ended: a started stream says so (and delivers nothing more).
   void end(const std::string& reason) {
     std::lock_guard delivery(delivery_);
-    if (state() == acquisition::StreamState::Streaming) set_state_locked(acquisition::StreamState::Stopped, reason);
+    if (status_.get() == acquisition::StreamState::Streaming) status_.set(acquisition::StreamState::Stopped, reason);
   }
   /// The frame source started a new replay: a started stream is live again.
   void restart() {
     std::lock_guard delivery(delivery_);
-    if (on_state_ && state() != acquisition::StreamState::Streaming)
-      set_state_locked(acquisition::StreamState::Streaming, "replaying again");
+    if (on_state_ && status_.get() != acquisition::StreamState::Streaming)
+      status_.set(acquisition::StreamState::Streaming, "replaying again");
   }
 
  private:
-  void set_state_locked(acquisition::StreamState s, const std::string& reason) {
-    {
-      std::lock_guard lock(mutex_);
-      state_ = s;
-    }
-    if (on_stream_) on_stream_(s, reason);
-  }
   SessionReplay& owner_;
   std::mutex delivery_;
-  mutable std::mutex mutex_;
   StateCallback on_state_;
-  StreamCallback on_stream_;
-  acquisition::StreamState state_ = acquisition::StreamState::Stopped;
+  StreamStatus status_;
 };
 
 class SessionReplay::Frames final : public acquisition::FrameSource {
@@ -131,8 +151,8 @@ class SessionReplay::Frames final : public acquisition::FrameSource {
     {
       std::lock_guard delivery(delivery_);
       on_frame_ = std::move(on_frame);
-      on_state_ = std::move(on_state);
-      std::lock_guard lock(mutex_);
+      status_.callback = std::move(on_state);
+      std::lock_guard lock(stats_mutex_);
       tracker_.reset();
     }
     set_state(acquisition::StreamState::Connecting, "opening " + owner_.session_.directory.string());
@@ -145,16 +165,11 @@ class SessionReplay::Frames final : public acquisition::FrameSource {
     owner_.stop_engine();
     std::lock_guard delivery(delivery_);
     on_frame_ = nullptr;
-    on_state_ = nullptr;
-    std::lock_guard lock(mutex_);
-    state_ = acquisition::StreamState::Stopped;
+    status_.clear();
   }
-  acquisition::StreamState state() const override {
-    std::lock_guard lock(mutex_);
-    return state_;
-  }
+  acquisition::StreamState state() const override { return status_.get(); }
   acquisition::SequenceStats statistics() const override {
-    std::lock_guard lock(mutex_);
+    std::lock_guard lock(stats_mutex_);
     return tracker_.stats();
   }
   std::string description() const override { return "replay " + owner_.session_.directory.string(); }
@@ -162,28 +177,23 @@ class SessionReplay::Frames final : public acquisition::FrameSource {
   void deliver(const acquisition::Frame& f) {
     std::lock_guard delivery(delivery_);
     {
-      std::lock_guard lock(mutex_);
+      std::lock_guard lock(stats_mutex_);
       tracker_.observe(f.sequence);
     }
     if (on_frame_) on_frame_(f);
   }
   void set_state(acquisition::StreamState s, const std::string& reason) {
     std::lock_guard delivery(delivery_);
-    {
-      std::lock_guard lock(mutex_);
-      state_ = s;
-    }
-    if (on_state_) on_state_(s, reason);
+    status_.set(s, reason);
   }
 
  private:
   SessionReplay& owner_;
   std::mutex delivery_;
-  mutable std::mutex mutex_;
   FrameCallback on_frame_;
-  StateCallback on_state_;
+  StreamStatus status_;
+  mutable std::mutex stats_mutex_;
   acquisition::SequenceTracker tracker_;
-  acquisition::StreamState state_ = acquisition::StreamState::Stopped;
 };
 
 SessionReplay::SessionReplay(Session session, ReplayOptions options, std::shared_ptr<ReplayClock> clock)

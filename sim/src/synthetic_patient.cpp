@@ -2,34 +2,17 @@
 
 #include <algorithm>
 #include <fstream>
-#include <random>
 #include <stdexcept>
 #include <string>
 
 #include <nlohmann/json.hpp>
 
+#include "seeded_uniform.hpp"
+
 namespace evar::sim {
-namespace {
-
-// Uniform draws from a fixed engine with our own int -> double mapping (std::
-// distributions may differ between standard libraries).
-class Draw {
- public:
-  explicit Draw(std::uint64_t seed) : engine_(seed ^ 0x5eed'a0e7'11ac'0001ULL) {}
-  double operator()(double lo, double hi) {
-    const double u = static_cast<double>(engine_() >> 11) * 0x1.0p-53;
-    return lo + u * (hi - lo);
-  }
-  bool coin() { return (engine_() >> 63) != 0; }
-
- private:
-  std::mt19937_64 engine_;
-};
-
-}  // namespace
-
 ExampleSceneParams draw_patient_params(std::uint64_t seed) {
-  Draw draw(seed);
+  SeededUniform draw(seed ^ 0x5eed'a0e7'11ac'0001ULL);
+  const auto coin = [&] { return draw.unit() >= 0.5; };  // the engine's top bit
   ExampleSceneParams p;
   p.seed = seed;
   p.variation = 0.0;  // the draws below are the variation
@@ -54,10 +37,10 @@ ExampleSceneParams draw_patient_params(std::uint64_t seed) {
   p.iliac_tortuosity_x_mm = draw(4.0, 20.0);
   p.iliac_tortuosity_y_mm = draw(3.0, 15.0);
   p.internal_iliac_arc_mm = draw(45.0, 65.0);
-  p.device_in_left_iliac = draw.coin();
+  p.device_in_left_iliac = coin();
   p.device_tip_z_mm = draw(p.renal_z_mm - 10.0, p.aorta_top_z_mm - 10.0);
   p.device_stiffness_length_mm = draw(30.0, 60.0);
-  p.device_thickness_mm = draw.coin() ? 0.97 : 0.89;  // 0.038" or 0.035"
+  p.device_thickness_mm = coin() ? 0.97 : 0.89;  // 0.038" or 0.035"
   return p;
 }
 

@@ -31,14 +31,9 @@ struct BodyPhantom {
 /// below, a few gas pockets. `seed` varies gas pockets only.
 BodyPhantom default_body_phantom(unsigned seed = 1);
 
-/// ∫ μ dl (dimensionless) along the line origin + t·direction (unit), t in [0, ∞), through
-/// the phantom placed by `patient_to_world` (world = C-arm LPS), which must be rigid (a
-/// registration: rotation and translation, as session files require).
-double line_integral(const BodyPhantom& phantom, const Eigen::Matrix4d& patient_to_world,
-                     const Eigen::Vector3d& origin_world, const Eigen::Vector3d& direction_world);
-
-/// Adds the phantom's line integral for every pixel ray of P (detector cols x rows) to
-/// `A` (CV_64F, rows x cols). Each part is evaluated only over the pixels its bounding box
+/// Adds the phantom's line integral ∫μ dl for every pixel ray of P (detector cols x rows)
+/// to `A` (CV_64F, rows x cols), the phantom placed by `patient_to_world` (world = C-arm
+/// LPS), which must be rigid (a registration, as session files require). Each part is evaluated only over the pixels its bounding box
 /// projects to, so a frame costs about one full pass plus the bones' footprints.
 void add_line_integrals(const BodyPhantom& phantom, const Eigen::Matrix4d& patient_to_world,
                         const Eigen::Matrix<double, 3, 4>& P, cv::Mat& A);
