@@ -1,0 +1,67 @@
+#pragma once
+// What every C-arm link transport (serial, USB) shares once bytes have arrived: decoding,
+// the stream state (connecting → streaming → stalled / disconnected), the C-arm's status
+// messages and the counters. Transports feed it bytes and tell it about their connection.
+#include <chrono>
+#include <mutex>
+#include <optional>
+#include <span>
+#include <string>
+#include <vector>
+
+#include "evar/acquisition/carm_geometry_source.hpp"
+#include "evar/acquisition/carm_link_protocol.hpp"
+
+namespace evar::acquisition {
+
+struct CArmLinkStatistics {
+  carm_link::LinkStats link;
+  std::uint64_t connections = 0;   ///< times the transport came up
+  std::uint64_t disconnections = 0;
+  std::string last_error;          ///< the decoder's last error, with the byte it ended at
+  std::optional<carm_link::StatusMessage> last_status;
+};
+
+class CArmLinkReceiver {
+ public:
+  using Clock = std::chrono::steady_clock;
+  /// `stale_after`: a streaming link that delivers no geometry for this long is Stalled.
+  CArmLinkReceiver(std::string name, std::chrono::milliseconds stale_after);
+
+  void set_callbacks(CArmGeometrySource::StateCallback on_state, CArmGeometrySource::StreamCallback on_stream);
+  /// The transport is trying to (re)connect; `reason` says why it is not up (shown to users).
+  void connecting(const std::string& reason);
+  /// The transport is up; the link streams once the first good sample arrives.
+  void connected();
+  void received(std::span<const std::uint8_t> bytes, Clock::time_point now);
+  /// Call regularly (every poll timeout) so a silent link is reported as stalled.
+  void tick(Clock::time_point now);
+  void disconnected(const std::string& reason);
+  void stopped();
+
+  StreamState state() const;
+  CArmLinkStatistics statistics() const;
+
+ private:
+  struct Notice {
+    StreamState state;
+    std::string reason;
+  };
+  void set_state(StreamState s, const std::string& reason);  // mutex_ held by the caller
+  void deliver(std::unique_lock<std::mutex>& lock, const std::vector<CArmState>& samples);
+
+  std::string name_;
+  std::chrono::milliseconds stale_after_;
+  CArmGeometrySource::StateCallback on_state_;
+  CArmGeometrySource::StreamCallback on_stream_;
+  mutable std::mutex mutex_;
+  carm_link::Decoder decoder_;
+  StreamState state_ = StreamState::Stopped;
+  std::string reason_;
+  std::optional<Clock::time_point> last_sample_;
+  std::uint64_t errors_reported_ = 0;
+  CArmLinkStatistics stats_;
+  std::vector<Notice> pending_;
+};
+
+}  // namespace evar::acquisition

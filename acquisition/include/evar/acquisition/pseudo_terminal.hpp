@@ -1,0 +1,33 @@
+#pragma once
+// A pseudo-terminal pair: the master end is a C-arm adapter's side of a serial cable, the
+// slave path is what the node opens as its serial port. Used to serve recorded sessions
+// over the real serial code path, and by the hardware-in-the-loop tests.
+#include <cstdint>
+#include <span>
+#include <string>
+
+namespace evar::acquisition {
+
+class PseudoTerminal {
+ public:
+  /// Opens a pair (raw mode on both ends). With `link`, also makes a symbolic link at that
+  /// path to the slave (replacing an old link), as `socat pty,link=…` does, so a reader can
+  /// be pointed at a stable name across reconnections. Throws std::runtime_error.
+  explicit PseudoTerminal(const std::string& link = {});
+  ~PseudoTerminal();  // closes both ends (the reader sees a hangup) and removes the link
+  PseudoTerminal(const PseudoTerminal&) = delete;
+  PseudoTerminal& operator=(const PseudoTerminal&) = delete;
+
+  int master_fd() const { return master_; }
+  const std::string& slave_path() const { return slave_path_; }
+  const std::string& link() const { return link_; }
+  /// Writes all of `bytes` to the master end (blocking until written); throws on error.
+  void write(std::span<const std::uint8_t> bytes);
+
+ private:
+  int master_ = -1;
+  int slave_ = -1;  // held open so the slave side does not report hangup before the reader opens it
+  std::string slave_path_, link_;
+};
+
+}  // namespace evar::acquisition

@@ -1,0 +1,116 @@
+#include "evar/acquisition/carm_link_receiver.hpp"
+
+#include <utility>
+#include <variant>
+#include <vector>
+
+namespace evar::acquisition {
+
+CArmLinkReceiver::CArmLinkReceiver(std::string name, std::chrono::milliseconds stale_after)
+    : name_(std::move(name)), stale_after_(stale_after) {}
+
+void CArmLinkReceiver::set_callbacks(CArmGeometrySource::StateCallback on_state,
+                                     CArmGeometrySource::StreamCallback on_stream) {
+  std::lock_guard lock(mutex_);
+  on_state_ = std::move(on_state);
+  on_stream_ = std::move(on_stream);
+}
+
+// Notifications are collected under the mutex and delivered after it is released, so a
+// callback may ask the source for its state or statistics. Only the transport's thread
+// calls in here, which keeps them in order.
+void CArmLinkReceiver::set_state(StreamState s, const std::string& reason) {
+  if (s == state_ && reason == reason_) return;
+  state_ = s;
+  reason_ = reason;
+  pending_.push_back({s, reason});
+}
+
+void CArmLinkReceiver::deliver(std::unique_lock<std::mutex>& lock, const std::vector<CArmState>& samples) {
+  std::vector<Notice> notices;
+  notices.swap(pending_);
+  auto on_state = on_state_;
+  auto on_stream = on_stream_;
+  lock.unlock();
+  for (const Notice& n : notices)
+    if (on_stream) on_stream(n.state, n.reason);
+  for (const CArmState& s : samples)
+    if (on_state) on_state(s);
+}
+
+void CArmLinkReceiver::connecting(const std::string& reason) {
+  std::unique_lock lock(mutex_);
+  set_state(StreamState::Connecting, reason);
+  deliver(lock, {});
+}
+
+void CArmLinkReceiver::connected() {
+  std::unique_lock lock(mutex_);
+  ++stats_.connections;
+  decoder_.reset_partial();
+  last_sample_.reset();
+  set_state(StreamState::Connecting, name_ + " open, waiting for the first geometry sample");
+  deliver(lock, {});
+}
+
+void CArmLinkReceiver::received(std::span<const std::uint8_t> bytes, Clock::time_point now) {
+  std::unique_lock lock(mutex_);
+  std::vector<CArmState> samples;
+  decoder_.feed(bytes, [&](const carm_link::Message& m) {
+    if (const auto* g = std::get_if<carm_link::GeometryMessage>(&m)) {
+      CArmState s = g->state;
+      s.host_arrival = now;
+      samples.push_back(s);
+    } else {
+      const auto& status = std::get<carm_link::StatusMessage>(m);
+      stats_.last_status = status;
+      if (status.level != carm_link::StatusLevel::Info)
+        pending_.push_back({state_, "C-arm " + std::string(to_string(status.level)) + ": " + status.text});
+    }
+  });
+  stats_.link = decoder_.stats();
+  stats_.last_error = decoder_.last_error();
+  if (stats_.link.errors() != errors_reported_) {
+    errors_reported_ = stats_.link.errors();
+    pending_.push_back({state_, name_ + ": " + decoder_.last_error() + " (" + std::to_string(errors_reported_) +
+                                    " bad frames so far)"});
+  }
+  if (!samples.empty()) {
+    last_sample_ = now;
+    set_state(StreamState::Streaming, name_ + " streaming");
+  }
+  deliver(lock, samples);
+}
+
+void CArmLinkReceiver::tick(Clock::time_point now) {
+  std::unique_lock lock(mutex_);
+  if (state_ == StreamState::Streaming && last_sample_ && now - *last_sample_ > stale_after_)
+    set_state(StreamState::Stalled, name_ + ": no geometry for " + std::to_string(stale_after_.count()) + " ms");
+  deliver(lock, {});
+}
+
+void CArmLinkReceiver::disconnected(const std::string& reason) {
+  std::unique_lock lock(mutex_);
+  ++stats_.disconnections;
+  decoder_.reset_partial();
+  set_state(StreamState::Disconnected, reason);
+  deliver(lock, {});
+}
+
+void CArmLinkReceiver::stopped() {
+  std::unique_lock lock(mutex_);
+  set_state(StreamState::Stopped, name_ + " stopped");
+  deliver(lock, {});
+}
+
+StreamState CArmLinkReceiver::state() const {
+  std::lock_guard lock(mutex_);
+  return state_;
+}
+
+CArmLinkStatistics CArmLinkReceiver::statistics() const {
+  std::lock_guard lock(mutex_);
+  return stats_;
+}
+
+}  // namespace evar::acquisition

@@ -1,0 +1,68 @@
+#include "evar/acquisition/pseudo_terminal.hpp"
+
+#include <fcntl.h>
+#include <poll.h>
+#include <pty.h>
+#include <termios.h>
+#include <unistd.h>
+
+#include <cerrno>
+#include <cstdio>
+#include <cstring>
+#include <stdexcept>
+
+namespace evar::acquisition {
+
+PseudoTerminal::PseudoTerminal(const std::string& link) {
+  termios raw{};
+  ::cfmakeraw(&raw);
+  char name[256] = {};
+  if (::openpty(&master_, &slave_, name, &raw, nullptr) != 0)
+    throw std::runtime_error(std::string("pseudo-terminal: openpty failed: ") + std::strerror(errno));
+  ::fcntl(master_, F_SETFD, FD_CLOEXEC);
+  ::fcntl(slave_, F_SETFD, FD_CLOEXEC);
+  slave_path_ = name;
+  if (!link.empty()) {
+    const std::string tmp = link + ".new";
+    ::unlink(tmp.c_str());
+    // Made beside the target and renamed over it, so a reader never sees no link at all.
+    if (::symlink(slave_path_.c_str(), tmp.c_str()) != 0 || ::rename(tmp.c_str(), link.c_str()) != 0) {
+      const std::string why = std::strerror(errno);
+      ::close(master_);
+      ::close(slave_);
+      throw std::runtime_error("pseudo-terminal: cannot link " + link + " to " + slave_path_ + ": " + why);
+    }
+    link_ = link;
+  }
+}
+
+PseudoTerminal::~PseudoTerminal() {
+  if (!link_.empty()) {
+    // Only our own link: a newer pair may have replaced it already.
+    char target[256] = {};
+    const ssize_t n = ::readlink(link_.c_str(), target, sizeof target - 1);
+    if (n > 0 && slave_path_ == std::string(target, static_cast<std::size_t>(n))) ::unlink(link_.c_str());
+  }
+  ::close(slave_);
+  ::close(master_);
+}
+
+void PseudoTerminal::write(std::span<const std::uint8_t> bytes) {
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(master_, bytes.data() + done, bytes.size() - done);
+    if (n > 0) {
+      done += static_cast<std::size_t>(n);
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 && errno == EAGAIN) {
+      pollfd p{master_, POLLOUT, 0};
+      ::poll(&p, 1, 100);
+      continue;
+    }
+    throw std::runtime_error("pseudo-terminal " + slave_path_ + ": write failed: " + std::strerror(errno));
+  }
+}
+
+}  // namespace evar::acquisition

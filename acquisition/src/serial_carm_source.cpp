@@ -1,0 +1,112 @@
+#include "evar/acquisition/serial_carm_source.hpp"
+
+#include <poll.h>
+#include <sys/eventfd.h>
+#include <unistd.h>
+
+#include <array>
+#include <optional>
+#include <cerrno>
+#include <cstring>
+#include <stdexcept>
+
+namespace evar::acquisition {
+
+namespace {
+constexpr int kPollMs = 50;  // also the resolution of stall detection
+}
+
+SerialCArmSource::SerialCArmSource(SerialLinkOptions options)
+    : options_(std::move(options)), receiver_("serial " + options_.path, options_.stale_after) {
+  if (options_.path.empty()) throw std::invalid_argument("serial C-arm link: no device path");
+  if (!is_supported_baud(options_.settings.baud))
+    throw std::invalid_argument("serial C-arm link: unsupported baud rate " + std::to_string(options_.settings.baud));
+  wake_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+  if (wake_fd_ < 0) throw std::runtime_error(std::string("serial C-arm link: eventfd: ") + std::strerror(errno));
+}
+
+SerialCArmSource::~SerialCArmSource() {
+  stop();
+  ::close(wake_fd_);
+}
+
+void SerialCArmSource::start(StateCallback on_state, StreamCallback on_stream) {
+  if (thread_.joinable()) throw std::logic_error("serial C-arm link: already started");
+  receiver_.set_callbacks(std::move(on_state), std::move(on_stream));
+  stop_ = false;
+  std::uint64_t drain = 0;
+  while (::read(wake_fd_, &drain, sizeof drain) > 0) {
+  }
+  thread_ = std::thread([this] { run(); });
+}
+
+void SerialCArmSource::stop() {
+  if (!thread_.joinable()) return;
+  stop_ = true;
+  const std::uint64_t one = 1;
+  [[maybe_unused]] const ssize_t n = ::write(wake_fd_, &one, sizeof one);
+  thread_.join();
+  receiver_.stopped();
+}
+
+StreamState SerialCArmSource::state() const { return receiver_.state(); }
+
+std::string SerialCArmSource::description() const {
+  const auto& s = options_.settings;
+  return "C-arm link on serial " + options_.path + " (" + std::to_string(s.baud) + " baud, parity " +
+         to_string(s.parity) + ", " + std::to_string(s.stop_bits) + " stop bit" + (s.stop_bits == 2 ? "s" : "") + ")";
+}
+
+CArmLinkStatistics SerialCArmSource::statistics() const { return receiver_.statistics(); }
+
+bool SerialCArmSource::wait_for_stop(std::chrono::milliseconds d) {
+  pollfd p{wake_fd_, POLLIN, 0};
+  ::poll(&p, 1, static_cast<int>(d.count()));
+  return stop_;
+}
+
+void SerialCArmSource::run() {
+  std::array<std::uint8_t, 4096> buffer{};
+  while (!stop_) {
+    std::optional<SerialPort> port;
+    try {
+      port.emplace(options_.path, options_.settings);
+    } catch (const std::exception& e) {
+      receiver_.connecting(std::string(e.what()) + "; retrying every " +
+                           std::to_string(options_.reconnect_interval.count()) + " ms");
+      if (wait_for_stop(options_.reconnect_interval)) break;
+      continue;
+    }
+    receiver_.connected();
+    std::string lost;  // why the port went away, empty while it is up
+    while (!stop_ && lost.empty()) {
+      std::array<pollfd, 2> p{{{port->fd(), POLLIN, 0}, {wake_fd_, POLLIN, 0}}};
+      const int r = ::poll(p.data(), p.size(), kPollMs);
+      if (r < 0 && errno != EINTR) lost = std::string("poll: ") + std::strerror(errno);
+      if (r > 0 && (p[0].revents & (POLLIN | POLLHUP | POLLERR | POLLNVAL))) {
+        // Read first even on hangup, so the last bytes before it are not lost.
+        for (;;) {
+          const ssize_t n = ::read(port->fd(), buffer.data(), buffer.size());
+          if (n > 0) {
+            receiver_.received(std::span(buffer.data(), static_cast<std::size_t>(n)), CArmLinkReceiver::Clock::now());
+            continue;
+          }
+          if (n < 0 && errno == EINTR) continue;
+          // A raw tty with VMIN = VTIME = 0 reads 0 bytes when drained: not an end of file.
+          // A hangup shows as POLLHUP below, or as EIO here.
+          if (n == 0 || errno == EAGAIN || errno == EWOULDBLOCK) break;
+          lost = std::strerror(errno);
+          break;
+        }
+        if (lost.empty() && (p[0].revents & (POLLHUP | POLLERR | POLLNVAL))) lost = "hangup";
+      }
+      receiver_.tick(CArmLinkReceiver::Clock::now());
+    }
+    if (!lost.empty()) {
+      receiver_.disconnected("serial " + options_.path + " lost (" + lost + "); reconnecting");
+      if (wait_for_stop(options_.reconnect_interval)) break;
+    }
+  }
+}
+
+}  // namespace evar::acquisition
