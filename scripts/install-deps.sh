@@ -9,6 +9,7 @@ packages=(
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
   libdcmtk-dev
+  libaravis-dev aravis-tools
   libgtest-dev libgmock-dev libbenchmark-dev
 )
 

@@ -222,7 +222,9 @@ void Decoder::feed(std::span<const std::uint8_t> bytes, const MessageCallback& o
 
 void Decoder::finish_frame(const MessageCallback& on_message) {
   std::vector<std::uint8_t> p;
-  const std::string size = "(" + std::to_string(frame_.size()) + " bytes) ";
+  std::string size = "(";  // built in steps: g++ 12 warns falsely (-Wrestrict) on "(" + std::string
+  size += std::to_string(frame_.size());
+  size += " bytes) ";
   if (!cobs_decode(frame_, p)) return fail(stats_.framing_errors, size + "invalid COBS encoding");
   if (p.size() < kHeaderBytes + kCrcBytes)
     return fail(stats_.framing_errors, size + "too short for a message (" + std::to_string(p.size()) + " decoded bytes)");

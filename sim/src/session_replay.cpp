@@ -45,6 +45,7 @@ acquisition::Frame to_frame(const cv::Mat& image, std::uint64_t sequence, std::i
   f.sequence = sequence;
   f.device_time_ns = device_time_ns;
   f.host_arrival = std::chrono::steady_clock::now();
+  f.device_time_on_host = f.host_arrival;  // the replay clock is the recording's, delivered on time
   return f;
 }
 

@@ -21,6 +21,9 @@ struct Frame {
   std::uint64_t sequence = 0;              ///< device sequence number
   std::int64_t device_time_ns = 0;         ///< device clock (arbitrary epoch)
   std::chrono::steady_clock::time_point host_arrival;  ///< when the host received it
+  /// The device timestamp mapped onto the host's steady clock by the source's clock-offset
+  /// estimate (equal to host_arrival where the source has no device clock).
+  std::chrono::steady_clock::time_point device_time_on_host;
 };
 
 }  // namespace evar::acquisition

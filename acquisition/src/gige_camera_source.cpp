@@ -1,0 +1,410 @@
+#include "evar/acquisition/gige_camera_source.hpp"
+
+#include <arv.h>
+
+#include <condition_variable>
+#include <cstring>
+#include <stdexcept>
+#include <utility>
+
+#include "evar/acquisition/clock_offset.hpp"
+#include "evar/acquisition/sequence_tracker.hpp"
+
+namespace evar::acquisition {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// Owns one GObject reference.
+template <class T>
+struct GObjectPtr {
+  T* p = nullptr;
+  GObjectPtr() = default;
+  explicit GObjectPtr(T* q) : p(q) {}
+  GObjectPtr(const GObjectPtr&) = delete;
+  GObjectPtr& operator=(const GObjectPtr&) = delete;
+  GObjectPtr(GObjectPtr&& o) noexcept : p(std::exchange(o.p, nullptr)) {}
+  GObjectPtr& operator=(GObjectPtr&& o) noexcept {
+    reset();
+    p = std::exchange(o.p, nullptr);
+    return *this;
+  }
+  ~GObjectPtr() { reset(); }
+  void reset() {
+    if (p) g_object_unref(p);
+    p = nullptr;
+  }
+  T* get() const { return p; }
+  explicit operator bool() const { return p != nullptr; }
+};
+
+// Turns a GError into an exception naming what was being done.
+void check(GError* error, const std::string& what) {
+  if (!error) return;
+  std::string message = what + ": " + error->message;
+  g_error_free(error);
+  throw std::runtime_error(message);
+}
+
+ArvPixelFormat to_arv(PixelFormat f) {
+  switch (f) {
+    case PixelFormat::Mono8: return ARV_PIXEL_FORMAT_MONO_8;
+    case PixelFormat::Mono12: return ARV_PIXEL_FORMAT_MONO_12;
+    case PixelFormat::Mono16: return ARV_PIXEL_FORMAT_MONO_16;
+  }
+  return ARV_PIXEL_FORMAT_MONO_8;
+}
+
+std::string str(const char* s) { return s ? s : ""; }
+
+
+}  // namespace
+
+std::vector<GigECameraInfo> list_gige_cameras() {
+  arv_update_device_list();
+  std::vector<GigECameraInfo> out;
+  for (unsigned i = 0; i < arv_get_n_devices(); ++i) {
+    if (str(arv_get_device_protocol(i)) != "GigEVision") continue;
+    out.push_back({str(arv_get_device_id(i)), str(arv_get_device_address(i)), str(arv_get_device_serial_nbr(i)),
+                   str(arv_get_device_vendor(i)), str(arv_get_device_model(i))});
+  }
+  return out;
+}
+
+struct GigECameraSource::Impl {
+  GigECameraOptions options;
+  FrameCallback on_frame;
+  StateCallback on_state;
+
+  std::thread thread;
+  std::atomic<bool> stop{false};
+  std::atomic<bool> control_lost{false};
+  std::mutex wait_mutex;
+  std::condition_variable wake;
+
+  mutable std::mutex mutex;  // guards what other threads read
+  StreamState state = StreamState::Stopped;
+  std::string reason;
+  GigEStatistics stats;
+  SequenceStats earlier_epochs;  // frames of connections before the current one
+  SequenceTracker tracker{64, 1024};
+  ClockOffsetEstimator clock{256};
+
+  // The current connection (acquisition thread only).
+  GObjectPtr<ArvCamera> camera;
+  GObjectPtr<ArvStream> stream;
+  gulong control_lost_handler = 0;
+  std::uint64_t stream_completed = 0, stream_failed = 0, stream_underruns = 0;  // this connection
+  std::optional<std::uint64_t> last_raw_id;
+  std::uint64_t id_epoch = 0;  // unwraps 16-bit GVSP 1.x block ids (0 is never used)
+
+  void set_state(StreamState s, const std::string& why) {
+    {
+      std::lock_guard lock(mutex);
+      if (s == state && why == reason) return;
+      state = s;
+      reason = why;
+    }
+    if (on_state) on_state(s, why);
+  }
+
+  bool wait_for_stop(std::chrono::milliseconds d) {
+    std::unique_lock lock(wait_mutex);
+    return wake.wait_for(lock, d, [&] { return stop.load(); });
+  }
+
+  std::string resolve_device_id() {
+    const auto cams = list_gige_cameras();
+    const std::string& want = options.camera;
+    std::string found;
+    for (const auto& c : cams) {
+      found += (found.empty() ? "" : ", ") + c.id + " at " + c.address;
+      if (want.empty() || c.id == want || c.serial == want || c.address == want) {
+        if (want.empty() && cams.size() > 1)
+          throw std::runtime_error("more than one GigE camera (" + std::to_string(cams.size()) +
+                                   "); name one with --camera");
+        return c.id;
+      }
+    }
+    throw std::runtime_error("no GigE camera " + (want.empty() ? std::string("found") : "matches '" + want + "'") +
+                             (found.empty() ? " (none answered discovery)" : " (found: " + found + ")"));
+  }
+
+  static void on_control_lost(ArvGvDevice*, gpointer self) {
+    static_cast<Impl*>(self)->control_lost = true;
+  }
+
+  void connect() {
+    const std::string id = resolve_device_id();
+    GError* error = nullptr;
+    camera = GObjectPtr<ArvCamera>(arv_camera_new(id.c_str(), &error));
+    check(error, "opening GigE camera " + id);
+    ArvCamera* cam = camera.get();
+    if (!arv_camera_is_gv_device(cam)) throw std::runtime_error(id + " is not a GigE Vision device");
+    ArvGvDevice* device = ARV_GV_DEVICE(arv_camera_get_device(cam));
+    bool loopback = false;
+    if (GSocketAddress* a = arv_gv_device_get_device_address(device)) {
+      loopback = g_inet_address_get_is_loopback(g_inet_socket_address_get_address(G_INET_SOCKET_ADDRESS(a)));
+    }
+    if (loopback || options.disable_packet_socket)
+      arv_gv_device_set_stream_options(device, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
+    control_lost = false;
+    control_lost_handler = g_signal_connect(device, "control-lost", G_CALLBACK(on_control_lost), this);
+
+    if (options.region) {
+      const Region& r = *options.region;
+      arv_camera_set_region(cam, r.x, r.y, r.width, r.height, &error);
+      check(error, id + ": region " + std::to_string(r.width) + "x" + std::to_string(r.height) + "+" +
+                       std::to_string(r.x) + "+" + std::to_string(r.y));
+    }
+    arv_camera_set_pixel_format(cam, to_arv(options.pixel_format), &error);
+    if (error || arv_camera_get_pixel_format(cam, nullptr) != to_arv(options.pixel_format)) {
+      if (error) g_error_free(error);
+      guint n = 0;
+      const char** names = arv_camera_dup_available_pixel_formats_as_strings(cam, &n, nullptr);
+      std::string offered;
+      for (guint i = 0; i < n; ++i) offered += (i ? ", " : "") + str(names[i]);
+      g_free(names);
+      throw std::runtime_error(id + " does not offer pixel format " + to_string(options.pixel_format) +
+                               " (it offers: " + offered + ")");
+    }
+    if (options.frame_rate_hz) {
+      arv_camera_set_frame_rate(cam, *options.frame_rate_hz, &error);
+      check(error, id + ": frame rate " + std::to_string(*options.frame_rate_hz) + " Hz");
+    }
+    int packet = 0;
+    if (options.packet_size) {
+      arv_camera_gv_set_packet_size(cam, *options.packet_size, &error);
+      check(error, id + ": packet size " + std::to_string(*options.packet_size));
+      packet = *options.packet_size;
+    } else {
+      packet = static_cast<int>(arv_camera_gv_auto_packet_size(cam, &error));
+      check(error, id + ": packet size negotiation");
+    }
+    const gint payload = arv_camera_get_payload(cam, &error);
+    check(error, id + ": payload size");
+
+    stream = GObjectPtr<ArvStream>(arv_camera_create_stream(cam, nullptr, nullptr, &error));
+    check(error, id + ": creating the stream");
+    // The default socket buffer is smaller than one frame: let Aravis size it to the payload.
+    g_object_set(stream.get(), "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, nullptr);
+    for (int i = 0; i < options.buffers; ++i)
+      arv_stream_push_buffer(stream.get(), arv_buffer_new_allocate(static_cast<size_t>(payload)));
+    arv_camera_set_acquisition_mode(cam, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
+    check(error, id + ": continuous acquisition");
+    arv_camera_start_acquisition(cam, &error);
+    check(error, id + ": starting acquisition");
+
+    stream_completed = stream_failed = stream_underruns = 0;
+    last_raw_id.reset();
+    id_epoch = 0;
+    std::lock_guard lock(mutex);
+    stats.camera_id = id;
+    stats.packet_size = packet;
+    ++stats.connections;
+    earlier_epochs = totals_locked();
+    tracker.reset();
+  }
+
+  SequenceStats totals_locked() const {
+    SequenceStats t = earlier_epochs;
+    const SequenceStats& c = tracker.stats();
+    t.received += c.received;
+    t.dropped += c.dropped;
+    t.duplicates += c.duplicates;
+    t.out_of_order += c.out_of_order;
+    t.restarts += c.restarts;
+    return t;
+  }
+
+  void update_stream_counters() {
+    if (!stream) return;
+    guint64 c = 0, f = 0, u = 0;
+    arv_stream_get_statistics(stream.get(), &c, &f, &u);
+    std::lock_guard lock(mutex);
+    stats.completed += c - stream_completed;
+    stats.failed += f - stream_failed;
+    stats.underruns += u - stream_underruns;
+    stream_completed = c;
+    stream_failed = f;
+    stream_underruns = u;
+  }
+
+  // `camera_gone`: do not talk to it (each register access to a vanished camera waits out
+  // Aravis's GVCP retries, about 10 s).
+  void teardown(bool camera_gone = false) {
+    update_stream_counters();
+    if (camera && !camera_gone) {
+      GError* error = nullptr;
+      arv_camera_stop_acquisition(camera.get(), &error);  // fails when the camera is gone: fine
+      if (error) g_error_free(error);
+    }
+    if (camera && control_lost_handler)
+      g_signal_handler_disconnect(arv_camera_get_device(camera.get()), control_lost_handler);
+    control_lost_handler = 0;
+    stream.reset();
+    camera.reset();
+  }
+
+  // One buffer from the stream, turned into a Frame when it is complete.
+  void handle(ArvBuffer* buffer) {
+    const ArvBufferStatus status = arv_buffer_get_status(buffer);
+    if (status != ARV_BUFFER_STATUS_SUCCESS) return;  // counted by the stream's statistics
+    Frame f;
+    f.host_arrival = Clock::now();
+    f.format = options.pixel_format;
+    f.width = arv_buffer_get_image_width(buffer);
+    f.height = arv_buffer_get_image_height(buffer);
+    f.stride_bytes = f.width * bytes_per_pixel(f.format);
+    size_t size = 0;
+    const auto* data = static_cast<const std::uint8_t*>(arv_buffer_get_data(buffer, &size));
+    const std::size_t need = static_cast<std::size_t>(f.stride_bytes) * static_cast<std::size_t>(f.height);
+    if (f.width <= 0 || f.height <= 0 || !data || size < need) return;
+    f.pixels.assign(data, data + need);
+    const std::uint64_t raw = arv_buffer_get_frame_id(buffer);
+    // GVSP 1.x block ids are 16 bits and skip 0 when they wrap.
+    if (last_raw_id && raw < 0x100 && *last_raw_id > 0xFF00 && *last_raw_id <= 0xFFFF) id_epoch += 0xFFFF;
+    last_raw_id = raw;
+    f.sequence = id_epoch + raw;
+    f.device_time_ns = static_cast<std::int64_t>(arv_buffer_get_timestamp(buffer));
+    const std::int64_t host_ns =
+        std::chrono::duration_cast<std::chrono::nanoseconds>(f.host_arrival.time_since_epoch()).count();
+    {
+      std::lock_guard lock(mutex);
+      tracker.observe(f.sequence);
+      clock.add(f.device_time_ns, host_ns);
+      f.device_time_on_host = Clock::time_point(std::chrono::nanoseconds(clock.to_host_ns(f.device_time_ns)));
+    }
+    if (on_frame) on_frame(f);
+  }
+
+  void run() {
+    bool in_outage = false;
+    Clock::time_point outage_since{};
+    while (!stop) {
+      set_state(StreamState::Connecting, "looking for GigE camera " + (options.camera.empty() ? "(any)" : options.camera));
+      try {
+        connect();
+      } catch (const std::exception& e) {
+        teardown();
+        set_state(StreamState::Connecting, std::string(e.what()) + "; retrying every " +
+                                               std::to_string(options.reconnect_interval.count()) + " ms");
+        if (wait_for_stop(options.reconnect_interval)) break;
+        continue;
+      }
+      if (in_outage) {
+        const double ms = std::chrono::duration<double, std::milli>(Clock::now() - outage_since).count();
+        std::lock_guard lock(mutex);
+        stats.longest_outage_ms = std::max(stats.longest_outage_ms, ms);
+        in_outage = false;
+      }
+      set_state(StreamState::Connecting, "GigE camera " + stats.camera_id + " open, waiting for the first frame");
+      Clock::time_point last_frame = Clock::now(), last_probe = Clock::now();
+      std::string lost;
+      while (!stop && lost.empty()) {
+        ArvBuffer* buffer = arv_stream_timeout_pop_buffer(stream.get(), 100'000);  // µs
+        if (buffer) {
+          const bool ok = arv_buffer_get_status(buffer) == ARV_BUFFER_STATUS_SUCCESS;
+          if (ok) {
+            last_frame = Clock::now();
+            set_state(StreamState::Streaming, "GigE camera " + stats.camera_id + " streaming");
+          }
+          handle(buffer);
+          arv_stream_push_buffer(stream.get(), buffer);
+        }
+        update_stream_counters();
+        const auto silent = Clock::now() - last_frame;
+        if (control_lost) {
+          lost = "control lost (no heartbeat answer)";
+        } else if (silent > options.probe_after && Clock::now() - last_probe > options.probe_after) {
+          // A camera that stopped sending may be gone. Discovery answers within about a
+          // second; a register read of a vanished camera takes Aravis's GVCP retries (~15 s).
+          last_probe = Clock::now();
+          bool present = false;
+          for (const auto& c : list_gige_cameras()) present |= c.id == stats.camera_id;
+          if (!present)
+            lost = "it no longer answers discovery";
+          else if (silent > 4 * options.probe_after)
+            lost = "it answers but has sent no frame for " +
+                   std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(silent).count()) +
+                   " ms; restarting the stream";
+        }
+        if (lost.empty() && silent > options.stall_after && state != StreamState::Stalled)
+          set_state(StreamState::Stalled, "GigE camera " + stats.camera_id + ": no frame for " +
+                                              std::to_string(options.stall_after.count()) + " ms");
+      }
+      if (lost.empty()) {
+        teardown();
+        continue;
+      }
+      in_outage = true;
+      outage_since = Clock::now();
+      {
+        std::lock_guard lock(mutex);
+        ++stats.outages;
+      }
+      set_state(StreamState::Disconnected, "GigE camera " + stats.camera_id + " lost: " + lost + "; reconnecting");
+      teardown(/*camera_gone=*/true);
+      if (wait_for_stop(options.reconnect_interval)) break;
+    }
+  }
+};
+
+GigECameraSource::GigECameraSource(GigECameraOptions options) : impl_(std::make_unique<Impl>()) {
+  if (options.buffers < 2) throw std::invalid_argument("GigE: need at least 2 buffers");
+  if (options.frame_rate_hz && !(*options.frame_rate_hz > 0.0))
+    throw std::invalid_argument("GigE: frame rate must be positive");
+  if (options.region && (options.region->width <= 0 || options.region->height <= 0 || options.region->x < 0 ||
+                         options.region->y < 0))
+    throw std::invalid_argument("GigE: region needs a positive size and a non-negative offset");
+  impl_->options = std::move(options);
+}
+
+GigECameraSource::~GigECameraSource() { stop(); }
+
+void GigECameraSource::start(FrameCallback on_frame, StateCallback on_state) {
+  if (impl_->thread.joinable()) throw std::logic_error("GigE source already started");
+  impl_->on_frame = std::move(on_frame);
+  impl_->on_state = std::move(on_state);
+  impl_->stop = false;
+  impl_->thread = std::thread([this] { impl_->run(); });
+}
+
+void GigECameraSource::stop() {
+  if (!impl_->thread.joinable()) return;
+  {
+    std::lock_guard lock(impl_->wait_mutex);
+    impl_->stop = true;
+  }
+  impl_->wake.notify_all();
+  impl_->thread.join();
+  impl_->set_state(StreamState::Stopped, "GigE source stopped");
+}
+
+StreamState GigECameraSource::state() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->state;
+}
+
+SequenceStats GigECameraSource::statistics() const {
+  std::lock_guard lock(impl_->mutex);
+  return impl_->totals_locked();
+}
+
+GigEStatistics GigECameraSource::gige_statistics() const {
+  std::lock_guard lock(impl_->mutex);
+  GigEStatistics s = impl_->stats;
+  s.frames = impl_->totals_locked();
+  s.clock_offset_ns = impl_->clock.offset_ns();
+  s.typical_delay_ns = impl_->clock.typical_delay_ns();
+  return s;
+}
+
+std::string GigECameraSource::description() const {
+  const auto& o = impl_->options;
+  return "GigE camera " + (o.camera.empty() ? std::string("(the only one found)") : o.camera) + ", " +
+         to_string(o.pixel_format);
+}
+
+}  // namespace evar::acquisition

@@ -1,0 +1,264 @@
+// Hardware-in-the-loop: the real Aravis GigE Vision source against GigE Vision cameras on
+// 127.0.0.1, one embedded with Aravis's fake GV camera API (our own pixels), one the stock
+// arv-fake-gv-camera-0.8 program. They share UDP port 3956, so ctest runs these one at a time.
+#include <arv.h>
+#include <gtest/gtest.h>
+#include <signal.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <atomic>
+#include <chrono>
+#include <condition_variable>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <functional>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "evar/acquisition/gige_camera_source.hpp"
+
+namespace acq = evar::acquisition;
+using namespace std::chrono_literals;
+
+namespace {
+
+// Our pattern: word 0 and 1 carry a 32-bit frame counter, every other pixel is a function
+// of the counter and its position, so a receiver can check each frame whole.
+std::uint16_t pattern(std::uint32_t counter, std::size_t i) {
+  return static_cast<std::uint16_t>((counter * 7919u + i * 31u + (i >> 10) * 17u) & 0xFFFFu);
+}
+
+std::atomic<std::uint32_t> fill_counter{0};
+
+void fill(ArvBuffer* buffer, void*, guint32, guint32, ArvPixelFormat format) {
+  if (format != ARV_PIXEL_FORMAT_MONO_16) return;
+  // At fill time the buffer's received size is not set yet: size it from the image.
+  auto* data = static_cast<std::uint16_t*>(const_cast<void*>(arv_buffer_get_data(buffer, nullptr)));
+  const std::size_t n = static_cast<std::size_t>(arv_buffer_get_image_width(buffer)) *
+                        static_cast<std::size_t>(arv_buffer_get_image_height(buffer));
+  const std::uint32_t c = fill_counter++;
+  data[0] = static_cast<std::uint16_t>(c & 0xFFFFu);
+  data[1] = static_cast<std::uint16_t>(c >> 16);
+  for (std::size_t i = 2; i < n; ++i) data[i] = pattern(c, i);
+}
+
+class EmbeddedCamera {
+ public:
+  explicit EmbeddedCamera(const std::string& serial) : cam_(arv_gv_fake_camera_new("lo", serial.c_str())) {
+    if (!cam_ || !arv_gv_fake_camera_is_running(cam_)) throw std::runtime_error("fake GV camera did not start on lo");
+    arv_fake_camera_set_fill_pattern(arv_gv_fake_camera_get_fake_camera(cam_), fill, nullptr);
+  }
+  ~EmbeddedCamera() { g_object_unref(cam_); }
+  EmbeddedCamera(const EmbeddedCamera&) = delete;
+  EmbeddedCamera& operator=(const EmbeddedCamera&) = delete;
+
+ private:
+  ArvGvFakeCamera* cam_;
+};
+
+struct Received {
+  std::mutex m;
+  std::condition_variable cv;
+  std::vector<acq::Frame> frames;
+  std::vector<std::pair<acq::StreamState, std::string>> states;
+  std::size_t bad_pixels = 0;
+  bool keep_pixels = false;
+
+  void frame(const acq::Frame& f) {
+    std::size_t bad = 0;
+    if (f.format == acq::PixelFormat::Mono16) {
+      const auto* w = reinterpret_cast<const std::uint16_t*>(f.pixels.data());
+      const std::size_t n = f.pixels.size() / 2;
+      const std::uint32_t c = w[0] | (static_cast<std::uint32_t>(w[1]) << 16);
+      for (std::size_t i = 2; i < n; ++i) bad += w[i] != pattern(c, i);
+    }
+    std::lock_guard lock(m);
+    bad_pixels += bad;
+    acq::Frame kept = f;
+    if (!keep_pixels) kept.pixels.resize(4);  // the counter words only
+    frames.push_back(std::move(kept));
+    cv.notify_all();
+  }
+  void state(acq::StreamState s, const std::string& r) {
+    std::lock_guard lock(m);
+    if (std::getenv("EVAR_GIGE_TRACE"))
+      std::fprintf(stderr, "%.3f %s: %s\n",
+                   std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(),
+                   acq::to_string(s), r.c_str());
+    states.emplace_back(s, r);
+    cv.notify_all();
+  }
+  bool wait(const std::function<bool()>& done, std::chrono::seconds limit = 30s) {
+    std::unique_lock lock(m);
+    return cv.wait_for(lock, limit, done);
+  }
+  bool saw(acq::StreamState s, std::size_t from = 0) {
+    for (std::size_t i = from; i < states.size(); ++i)
+      if (states[i].first == s) return true;
+    return false;
+  }
+  static std::uint32_t counter(const acq::Frame& f) {
+    return f.pixels[0] | (f.pixels[1] << 8) | (static_cast<std::uint32_t>(f.pixels[2]) << 16) |
+           (static_cast<std::uint32_t>(f.pixels[3]) << 24);
+  }
+};
+
+void start(acq::GigECameraSource& source, Received& rx) {
+  source.start([&](const acq::Frame& f) { rx.frame(f); },
+               [&](acq::StreamState s, const std::string& r) { rx.state(s, r); });
+}
+
+std::string unique_serial(const char* prefix) { return prefix + std::to_string(::getpid() % 100000); }
+
+}  // namespace
+
+TEST(GigECameraSource, ReceivesEveryFrameWholeAndInOrderFromAGigEVisionCameraOnLoopback) {
+  const std::string serial = unique_serial("EVARPX");
+  EmbeddedCamera camera(serial);
+  acq::GigECameraOptions o;
+  o.camera = serial;
+  o.pixel_format = acq::PixelFormat::Mono16;
+  o.region = acq::Region{0, 0, 1024, 1024};
+  o.frame_rate_hz = 30.0;
+  Received rx;  // declared first: it outlives the source that calls into it
+  acq::GigECameraSource source(o);
+  start(source, rx);
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 90; })) << rx.frames.size() << " frames";
+  source.stop();
+  std::lock_guard lock(rx.m);
+  EXPECT_EQ(rx.bad_pixels, 0u);
+  for (std::size_t i = 0; i < rx.frames.size(); ++i) {
+    const acq::Frame& f = rx.frames[i];
+    ASSERT_EQ(f.width, 1024);
+    ASSERT_EQ(f.height, 1024);
+    EXPECT_EQ(f.stride_bytes, 2048);
+    if (i == 0) continue;
+    EXPECT_EQ(f.sequence, rx.frames[i - 1].sequence + 1) << "frame " << i;
+    EXPECT_EQ(Received::counter(f), Received::counter(rx.frames[i - 1]) + 1) << "frame " << i;
+    EXPECT_GT(f.device_time_ns, rx.frames[i - 1].device_time_ns);
+  }
+  const acq::GigEStatistics st = source.gige_statistics();
+  EXPECT_EQ(st.frames.dropped, 0u);
+  EXPECT_EQ(st.camera_id, "Aravis-Fake-" + serial);
+  EXPECT_GT(st.packet_size, 0);
+  ASSERT_TRUE(st.clock_offset_ns.has_value());
+  // Device timestamps mapped onto the host clock never lie after the frame's arrival.
+  for (const acq::Frame& f : rx.frames) EXPECT_LE(f.device_time_on_host, f.host_arrival);
+}
+
+TEST(GigECameraSource, SaysWhichPixelFormatsTheCameraOffers) {
+  const std::string serial = unique_serial("EVARPF");
+  EmbeddedCamera camera(serial);
+  acq::GigECameraOptions o;
+  o.camera = serial;
+  o.pixel_format = acq::PixelFormat::Mono12;  // the fake camera has Mono8 and Mono16 only
+  Received rx;  // declared first: it outlives the source that calls into it
+  acq::GigECameraSource source(o);
+  start(source, rx);
+  ASSERT_TRUE(rx.wait([&] {
+    for (const auto& [s, r] : rx.states)
+      if (r.find("does not offer pixel format Mono12") != std::string::npos && r.find("Mono16") != std::string::npos)
+        return true;
+    return false;
+  }));
+  source.stop();
+}
+
+TEST(GigECameraSource, ACameraThatIsNotThereIsLookedForNotThrown) {
+  acq::GigECameraOptions o;
+  o.camera = "no-such-camera";
+  o.reconnect_interval = 100ms;
+  Received rx;  // declared first: it outlives the source that calls into it
+  acq::GigECameraSource source(o);
+  start(source, rx);
+  ASSERT_TRUE(rx.wait([&] {
+    for (const auto& [s, r] : rx.states)
+      if (s == acq::StreamState::Connecting && r.find("no GigE camera matches 'no-such-camera'") != std::string::npos)
+        return true;
+    return false;
+  }));
+  source.stop();
+  EXPECT_EQ(source.state(), acq::StreamState::Stopped);
+}
+
+TEST(GigECameraSource, RecoversOnItsOwnWhenTheCameraGoesAwayAndComesBack) {
+  const std::string serial = unique_serial("EVARRC");
+  auto camera = std::make_unique<EmbeddedCamera>(serial);
+  acq::GigECameraOptions o;
+  o.camera = serial;
+  o.pixel_format = acq::PixelFormat::Mono8;
+  o.region = acq::Region{0, 0, 256, 256};
+  o.frame_rate_hz = 25.0;
+  o.reconnect_interval = 200ms;
+  Received rx;  // declared first: it outlives the source that calls into it
+  acq::GigECameraSource source(o);
+  start(source, rx);
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 10; }));
+  camera.reset();  // the camera is switched off mid-stream
+  ASSERT_TRUE(rx.wait([&] { return rx.saw(acq::StreamState::Disconnected); }, 60s));
+  const std::size_t before = [&] {
+    std::lock_guard lock(rx.m);
+    return rx.frames.size();
+  }();
+  camera = std::make_unique<EmbeddedCamera>(serial);  // and back on
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= before + 10; }, 60s));
+  EXPECT_EQ(source.state(), acq::StreamState::Streaming);
+  const auto st = source.gige_statistics();
+  EXPECT_EQ(st.outages, 1u);
+  EXPECT_EQ(st.connections, 2u);
+  EXPECT_GT(st.longest_outage_ms, 0.0);
+  source.stop();
+  std::lock_guard lock(rx.m);
+  bool stalled_or_lost_said = false;
+  for (const auto& [s, r] : rx.states) stalled_or_lost_said |= r.find("lost") != std::string::npos;
+  EXPECT_TRUE(stalled_or_lost_said);
+}
+
+// The stock camera program, killed with SIGKILL mid-stream and started again.
+TEST(GigECameraSource, RecoversFromTheStockFakeCameraBeingKilledAndRestarted) {
+  const char* program = "/usr/bin/arv-fake-gv-camera-0.8";
+  if (!std::filesystem::exists(program)) GTEST_SKIP() << "aravis-tools is not installed (scripts/install-deps.sh installs it)";
+  const std::string serial = unique_serial("EVARST");
+  // The camera process, killed on every way out of the test.
+  struct Process {
+    pid_t pid = -1;
+    void launch(const char* program, const std::string& serial) {
+      pid = ::fork();
+      if (pid == 0) {
+        ::execl(program, program, "-i", "lo", "-s", serial.c_str(), static_cast<char*>(nullptr));
+        ::_exit(127);
+      }
+    }
+    void kill(int signal) {
+      if (pid <= 0) return;
+      ::kill(pid, signal);
+      ::waitpid(pid, nullptr, 0);
+      pid = -1;
+    }
+    ~Process() { kill(SIGKILL); }
+  } camera;
+  camera.launch(program, serial);
+  ASSERT_GT(camera.pid, 0);
+  acq::GigECameraOptions o;
+  o.camera = serial;
+  o.pixel_format = acq::PixelFormat::Mono8;
+  o.reconnect_interval = 200ms;
+  Received rx;  // declared first: it outlives the source that calls into it
+  acq::GigECameraSource source(o);
+  start(source, rx);
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 10; })) << "no frames from " << program;
+  camera.kill(SIGKILL);
+  ASSERT_TRUE(rx.wait([&] { return rx.saw(acq::StreamState::Disconnected); }, 60s));
+  const std::size_t before = [&] {
+    std::lock_guard lock(rx.m);
+    return rx.frames.size();
+  }();
+  camera.launch(program, serial);
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= before + 10; }, 60s));
+  source.stop();
+  EXPECT_EQ(source.gige_statistics().outages, 1u);
+}
