@@ -13,6 +13,24 @@
 
 namespace evar::acquisition {
 
+namespace {
+// One write that never waits, whatever the descriptor's own blocking mode.
+ssize_t send_nonblocking(int fd, const void* data, std::size_t size) {
+  pollfd p{fd, POLLOUT, 0};
+  if (::poll(&p, 1, 0) == 0) {
+    errno = EAGAIN;
+    return -1;
+  }
+  const int flags = ::fcntl(fd, F_GETFL);
+  ::fcntl(fd, F_SETFL, flags | O_NONBLOCK);
+  const ssize_t n = ::write(fd, data, size);
+  const int e = errno;
+  ::fcntl(fd, F_SETFL, flags);
+  errno = e;
+  return n;
+}
+}  // namespace
+
 PseudoTerminal::PseudoTerminal(const std::string& link) {
   termios raw{};
   ::cfmakeraw(&raw);
@@ -45,6 +63,21 @@ PseudoTerminal::~PseudoTerminal() {
   }
   ::close(slave_);
   ::close(master_);
+}
+
+bool PseudoTerminal::write_or_drop(std::span<const std::uint8_t> bytes) {
+  std::size_t done = 0;
+  while (done < bytes.size()) {
+    const ssize_t n = send_nonblocking(master_, bytes.data() + done, bytes.size() - done);
+    if (n > 0) {
+      done += static_cast<std::size_t>(n);
+      continue;
+    }
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0 && errno == EAGAIN) return false;
+    throw std::runtime_error("pseudo-terminal " + slave_path_ + ": write failed: " + std::strerror(errno));
+  }
+  return true;
 }
 
 void PseudoTerminal::write(std::span<const std::uint8_t> bytes) {

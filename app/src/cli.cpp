@@ -198,6 +198,14 @@ int run_cli(const std::vector<std::string>& args) {
       ->capture_default_str();
   rp->add_option("--report", replay.report, "write a JSON report");
   rp->add_flag("!--no-progress", replay.progress, "no progress bar");
+  rp->add_option("--serve-gige", replay.serve_gige,
+                 "also show the frames as a GigE Vision camera with this serial number (id\n"
+                 "Aravis-Fake-SERIAL), which evarnode's GigE source or any GigE Vision viewer can open");
+  rp->add_option("--gige-interface", replay.gige_interface, "network interface of that camera")
+      ->capture_default_str();
+  rp->add_option("--serve-carm", replay.serve_carm,
+                 "also send the C-arm states over a pseudo-terminal in the C-arm link protocol\n"
+                 "(docs/CARM_LINK_PROTOCOL.md); PATH becomes a link to its serial device");
 
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {

@@ -67,6 +67,9 @@ struct ReplayCommand {
   bool fast = false;
   int loops = 1;
   bool progress = true;
+  std::string serve_gige;       ///< serial of a GigE Vision camera that shows the frames
+  std::string gige_interface = "lo";
+  std::string serve_carm;       ///< path of a link to a pty that carries the C-arm states
 };
 int run_replay(const ReplayCommand& cmd);
 

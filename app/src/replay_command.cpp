@@ -7,6 +7,8 @@
 #include <set>
 
 #include "commands.hpp"
+#include "evar/sim/gige_frame_server.hpp"
+#include "evar/sim/serial_carm_server.hpp"
 #include "evar/sim/session_replay.hpp"
 #include "json_file.hpp"
 #include "logging.hpp"
@@ -34,6 +36,19 @@ int run_replay(const ReplayCommand& cmd) {
   std::optional<acquisition::CArmState> in_force;
   std::optional<std::int64_t> first_ns;
   std::int64_t last_ns = 0;
+  // The real transports' far ends, when asked: the node (or a viewer) on the other side
+  // receives through its real GigE and serial sources.
+  std::optional<sim::GigEFrameServer> camera;
+  std::optional<sim::SerialCArmServer> carm_link;
+  if (!cmd.serve_gige.empty()) {
+    camera.emplace(cmd.serve_gige, cmd.gige_interface);
+    log().info("serving the frames as GigE Vision camera {} on interface {}", camera->device_id(), cmd.gige_interface);
+  }
+  if (!cmd.serve_carm.empty()) {
+    carm_link.emplace(cmd.serve_carm);
+    log().info("serving the C-arm states on {} (-> {}), C-arm link protocol v1", cmd.serve_carm, carm_link->slave_path());
+  }
+  std::string transport_error;  // the first failure to serve; the replay goes on
   sim::SessionReplay replay(session, {cmd.fast ? 0.0 : cmd.speed, cmd.loops});
   // Ctrl-C stops the replay cleanly; the previous handler comes back on every way out.
   struct SignalGuard {
@@ -43,6 +58,13 @@ int run_replay(const ReplayCommand& cmd) {
   replay.carm().start(
       [&](const acquisition::CArmState& s) {
         std::lock_guard lock(m);
+        if (carm_link) {
+          try {
+            carm_link->send(s);
+          } catch (const std::exception& e) {
+            if (transport_error.empty()) transport_error = e.what();
+          }
+        }
         in_force = s;
         moving_states += s.moving ? 1 : 0;
       },
@@ -50,6 +72,7 @@ int run_replay(const ReplayCommand& cmd) {
   replay.frames().start(
       [&](const acquisition::Frame& f) {
         std::lock_guard lock(m);
+        if (camera) camera->show(f);
         if (!first_ns) first_ns = f.device_time_ns;
         last_ns = f.device_time_ns;
         if (!in_force) return;
@@ -86,6 +109,11 @@ int run_replay(const ReplayCommand& cmd) {
   for (const auto& [view, n] : by_view) log().info("  view {} (primary/secondary deg): {} frames", view, n);
   if (frames_while_moving > 0) log().warn("  {} frames arrived while the C-arm was moving", frames_while_moving);
   if (!replay.error().empty()) log().error("replay stopped early: {}", replay.error());
+  if (camera) log().info("  GigE camera {}: {} frames sent", camera->device_id(), camera->frames_sent());
+  if (carm_link)
+    log().info("  C-arm link {}: {} states sent, {} dropped (nobody reading)", cmd.serve_carm, carm_link->sent(),
+               carm_link->dropped());
+  if (!transport_error.empty()) log().error("serving the C-arm link failed: {}", transport_error);
   if (!cmd.report.empty()) {
     nlohmann::json views = nlohmann::json::object();
     for (const auto& [view, n] : by_view) views[view] = n;

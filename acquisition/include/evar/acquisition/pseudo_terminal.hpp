@@ -23,6 +23,9 @@ class PseudoTerminal {
   const std::string& link() const { return link_; }
   /// Writes all of `bytes` to the master end (blocking until written); throws on error.
   void write(std::span<const std::uint8_t> bytes);
+  /// Writes what fits now without waiting; false when the pty's buffer was full and the
+  /// rest was dropped (as on a serial line that nobody reads). Throws on other errors.
+  bool write_or_drop(std::span<const std::uint8_t> bytes);
 
  private:
   int master_ = -1;

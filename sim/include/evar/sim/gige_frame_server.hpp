@@ -1,0 +1,49 @@
+#pragma once
+// Plays frames as a GigE Vision camera: Aravis's fake GV camera on a network interface
+// (loopback by default), whose pixels are the latest frame handed to show(). The camera
+// free-runs at the frame rate its client sets, as a frame grabber on a C-arm's video output
+// does; the client is evarnode's own GigE source or any GigE Vision viewer.
+#include <atomic>
+#include <cstdint>
+#include <mutex>
+#include <string>
+#include <vector>
+
+#include "evar/acquisition/frame.hpp"
+
+struct _ArvGvFakeCamera;
+
+namespace evar::sim {
+
+struct GigEFrameServerFill;
+
+class GigEFrameServer {
+ public:
+  /// Starts the camera; throws std::runtime_error when it cannot (interface missing, GVCP
+  /// port 3956 taken by another camera on that interface).
+  explicit GigEFrameServer(const std::string& serial, const std::string& interface = "lo");
+  ~GigEFrameServer();
+  GigEFrameServer(const GigEFrameServer&) = delete;
+  GigEFrameServer& operator=(const GigEFrameServer&) = delete;
+
+  /// The picture of every frame sent from now on. Mono16 frames are sent as they are
+  /// (Mono8 clients get the high byte); a camera region larger than the frame is padded
+  /// with zeros, a smaller one shows the frame's top-left corner. Throws for other formats.
+  void show(const acquisition::Frame& frame);
+  /// The id a client opens it by ("Aravis-Fake-<serial>").
+  std::string device_id() const;
+  std::uint64_t frames_sent() const { return sent_; }
+
+ private:
+  friend struct GigEFrameServerFill;  // the camera thread's callback (in the .cpp)
+  void paint(std::uint8_t* data, int width, int height, bool mono16);
+
+  _ArvGvFakeCamera* camera_ = nullptr;
+  std::string serial_;
+  std::mutex mutex_;
+  std::vector<std::uint16_t> pixels_;
+  int width_ = 0, height_ = 0;
+  std::atomic<std::uint64_t> sent_{0};
+};
+
+}  // namespace evar::sim

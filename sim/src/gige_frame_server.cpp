@@ -1,0 +1,69 @@
+#include "evar/sim/gige_frame_server.hpp"
+
+#include <arv.h>
+
+#include <algorithm>
+#include <cstring>
+#include <stdexcept>
+
+namespace evar::sim {
+
+// Called by the fake camera's thread for every frame it sends. Its buffer's received size
+// is not set yet at this point, so the image size comes from the buffer's image header.
+struct GigEFrameServerFill {
+  static void fill(ArvBuffer* buffer, void* self, guint32, guint32, ArvPixelFormat format) {
+    auto* data = static_cast<std::uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, nullptr)));
+    const int w = arv_buffer_get_image_width(buffer), h = arv_buffer_get_image_height(buffer);
+    if (data && w > 0 && h > 0)
+      static_cast<GigEFrameServer*>(self)->paint(data, w, h, format == ARV_PIXEL_FORMAT_MONO_16);
+  }
+};
+
+GigEFrameServer::GigEFrameServer(const std::string& serial, const std::string& interface) : serial_(serial) {
+  camera_ = arv_gv_fake_camera_new(interface.c_str(), serial.c_str());
+  if (!camera_ || !arv_gv_fake_camera_is_running(camera_)) {
+    if (camera_) g_object_unref(camera_);
+    throw std::runtime_error("GigE frame server: no GigE Vision camera could start on interface '" + interface +
+                             "' (does it exist? is another camera using UDP port 3956 there?)");
+  }
+  arv_fake_camera_set_fill_pattern(arv_gv_fake_camera_get_fake_camera(camera_), &GigEFrameServerFill::fill, this);
+}
+
+GigEFrameServer::~GigEFrameServer() { g_object_unref(camera_); }  // stops the camera's threads first
+
+std::string GigEFrameServer::device_id() const { return "Aravis-Fake-" + serial_; }
+
+void GigEFrameServer::show(const acquisition::Frame& frame) {
+  if (frame.format != acquisition::PixelFormat::Mono16)
+    throw std::invalid_argument("GigE frame server: frames must be Mono16");
+  if (frame.width <= 0 || frame.height <= 0 || frame.stride_bytes < 2 * frame.width ||
+      frame.pixels.size() < static_cast<std::size_t>(frame.stride_bytes) * static_cast<std::size_t>(frame.height))
+    throw std::invalid_argument("GigE frame server: frame size and pixel buffer disagree");
+  std::lock_guard lock(mutex_);
+  width_ = frame.width;
+  height_ = frame.height;
+  pixels_.resize(static_cast<std::size_t>(width_) * static_cast<std::size_t>(height_));
+  for (int y = 0; y < height_; ++y)
+    std::memcpy(pixels_.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width_),
+                frame.pixels.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(frame.stride_bytes),
+                static_cast<std::size_t>(width_) * 2);
+}
+
+void GigEFrameServer::paint(std::uint8_t* data, int w, int h, bool mono16) {
+  const std::size_t bpp = mono16 ? 2 : 1;
+  std::memset(data, 0, static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * bpp);
+  std::lock_guard lock(mutex_);
+  const int cw = std::min(w, width_), ch = std::min(h, height_);
+  for (int y = 0; y < ch; ++y) {
+    const std::uint16_t* src = pixels_.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width_);
+    std::uint8_t* dst = data + static_cast<std::size_t>(y) * static_cast<std::size_t>(w) * bpp;
+    if (mono16) {
+      std::memcpy(dst, src, static_cast<std::size_t>(cw) * 2);  // little-endian on both sides
+    } else {
+      for (int x = 0; x < cw; ++x) dst[x] = static_cast<std::uint8_t>(src[x] >> 8);
+    }
+  }
+  ++sent_;
+}
+
+}  // namespace evar::sim
