@@ -163,11 +163,14 @@ std::vector<std::uint8_t> encode(const GeometryMessage& m) {
   w.i64(s.device_time_ns);
   w.i32(static_cast<std::int32_t>(to_wire(s.primary_deg, kMilliDegPerDeg, 180.0, "primary_deg")));
   w.i32(static_cast<std::int32_t>(to_wire(s.secondary_deg, kMilliDegPerDeg, 90.0, "secondary_deg")));
-  if (!(s.sid_mm > 0.0) || !(s.sod_mm > 0.0) || !(s.sod_mm < s.sid_mm))
-    throw std::invalid_argument("C-arm link: need 0 < sod_mm < sid_mm (got sod " + std::to_string(s.sod_mm) +
-                                ", sid " + std::to_string(s.sid_mm) + ")");
-  w.u32(static_cast<std::uint32_t>(to_wire(s.sid_mm, kCentiMmPerMm, 4.0e7, "sid_mm")));
-  w.u32(static_cast<std::uint32_t>(to_wire(s.sod_mm, kCentiMmPerMm, 4.0e7, "sod_mm")));
+  // Checked on the wire values: what the receiver will check.
+  const std::int64_t sid = to_wire(s.sid_mm, kCentiMmPerMm, 4.0e7, "sid_mm");
+  const std::int64_t sod = to_wire(s.sod_mm, kCentiMmPerMm, 4.0e7, "sod_mm");
+  if (!(sod > 0) || !(sod < sid))
+    throw std::invalid_argument("C-arm link: need 0 < sod_mm < sid_mm in 0.01 mm steps (got sod " +
+                                std::to_string(s.sod_mm) + ", sid " + std::to_string(s.sid_mm) + ")");
+  w.u32(static_cast<std::uint32_t>(sid));
+  w.u32(static_cast<std::uint32_t>(sod));
   const char* table_names[3] = {"table_mm[0]", "table_mm[1]", "table_mm[2]"};
   for (int k = 0; k < 3; ++k)
     w.i32(static_cast<std::int32_t>(to_wire(s.table_mm[static_cast<std::size_t>(k)], kCentiMmPerMm, 2.0e7, table_names[k])));

@@ -48,6 +48,7 @@ void CArmLinkReceiver::connected() {
   std::unique_lock lock(mutex_);
   ++stats_.connections;
   decoder_.reset_partial();
+  decoder_.reset_sequence();
   last_sample_.reset();
   set_state(StreamState::Connecting, name_ + " open, waiting for the first geometry sample");
   deliver(lock, {});

@@ -187,6 +187,7 @@ struct GigECameraSource::Impl {
 
     stream = GObjectPtr<ArvStream>(arv_camera_create_stream(cam, nullptr, nullptr, &error));
     check(error, id + ": creating the stream");
+    stream_completed = stream_failed = stream_underruns = 0;  // this stream's counters start at 0
     // The default socket buffer is smaller than one frame: let Aravis size it to the payload.
     g_object_set(stream.get(), "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, nullptr);
     for (int i = 0; i < options.buffers; ++i)
@@ -196,7 +197,6 @@ struct GigECameraSource::Impl {
     arv_camera_start_acquisition(cam, &error);
     check(error, id + ": starting acquisition");
 
-    stream_completed = stream_failed = stream_underruns = 0;
     last_raw_id.reset();
     id_epoch = 0;
     std::lock_guard lock(mutex);
@@ -205,6 +205,7 @@ struct GigECameraSource::Impl {
     ++stats.connections;
     earlier_epochs = totals_locked();
     tracker.reset();
+    clock.reset();  // a power-cycled camera restarted its clock
   }
 
   SequenceStats totals_locked() const {
@@ -302,6 +303,7 @@ struct GigECameraSource::Impl {
       set_state(StreamState::Connecting, "GigE camera " + stats.camera_id + " open, waiting for the first frame");
       Clock::time_point last_frame = Clock::now(), last_probe = Clock::now();
       std::string lost;
+      bool still_there = false;  // lost the stream, not the camera
       while (!stop && lost.empty()) {
         ArvBuffer* buffer = arv_stream_timeout_pop_buffer(stream.get(), 100'000);  // µs
         if (buffer) {
@@ -325,10 +327,12 @@ struct GigECameraSource::Impl {
           for (const auto& c : list_gige_cameras()) present |= c.id == stats.camera_id;
           if (!present)
             lost = "it no longer answers discovery";
-          else if (silent > 4 * options.probe_after)
+          else if (silent > 4 * options.probe_after) {
             lost = "it answers but has sent no frame for " +
                    std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(silent).count()) +
                    " ms; restarting the stream";
+            still_there = true;
+          }
         }
         if (lost.empty() && silent > options.stall_after && state != StreamState::Stalled)
           set_state(StreamState::Stalled, "GigE camera " + stats.camera_id + ": no frame for " +
@@ -345,9 +349,10 @@ struct GigECameraSource::Impl {
         ++stats.outages;
       }
       set_state(StreamState::Disconnected, "GigE camera " + stats.camera_id + " lost: " + lost + "; reconnecting");
-      teardown(/*camera_gone=*/true);
+      teardown(/*camera_gone=*/!still_there);
       if (wait_for_stop(options.reconnect_interval)) break;
     }
+    set_state(StreamState::Stopped, "GigE source stopped");
   }
 };
 
@@ -378,8 +383,7 @@ void GigECameraSource::stop() {
     impl_->stop = true;
   }
   impl_->wake.notify_all();
-  impl_->thread.join();
-  impl_->set_state(StreamState::Stopped, "GigE source stopped");
+  impl_->thread.join();  // the thread reported Stopped as its last word
 }
 
 StreamState GigECameraSource::state() const {

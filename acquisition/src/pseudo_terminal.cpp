@@ -3,6 +3,7 @@
 #include <fcntl.h>
 #include <poll.h>
 #include <pty.h>
+#include <sys/stat.h>
 #include <termios.h>
 #include <unistd.h>
 
@@ -41,11 +42,18 @@ PseudoTerminal::PseudoTerminal(const std::string& link) {
   ::fcntl(slave_, F_SETFD, FD_CLOEXEC);
   slave_path_ = name;
   if (!link.empty()) {
+    struct stat st {};
+    if (::lstat(link.c_str(), &st) == 0 && !S_ISLNK(st.st_mode)) {
+      ::close(master_);
+      ::close(slave_);
+      throw std::runtime_error("pseudo-terminal: " + link + " exists and is not a symbolic link; not replacing it");
+    }
     const std::string tmp = link + ".new";
     ::unlink(tmp.c_str());
     // Made beside the target and renamed over it, so a reader never sees no link at all.
     if (::symlink(slave_path_.c_str(), tmp.c_str()) != 0 || ::rename(tmp.c_str(), link.c_str()) != 0) {
       const std::string why = std::strerror(errno);
+      ::unlink(tmp.c_str());
       ::close(master_);
       ::close(slave_);
       throw std::runtime_error("pseudo-terminal: cannot link " + link + " to " + slave_path_ + ": " + why);
@@ -74,7 +82,12 @@ bool PseudoTerminal::write_or_drop(std::span<const std::uint8_t> bytes) {
       continue;
     }
     if (n < 0 && errno == EINTR) continue;
-    if (n < 0 && errno == EAGAIN) return false;
+    if (n < 0 && errno == EAGAIN) {
+      if (done == 0) return false;  // nothing of it went out: dropped whole
+      // Part of a message is out: finish it (at most 255 bytes) rather than tear it.
+      write(bytes.subspan(done));
+      return true;
+    }
     throw std::runtime_error("pseudo-terminal " + slave_path_ + ": write failed: " + std::strerror(errno));
   }
   return true;

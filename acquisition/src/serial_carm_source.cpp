@@ -45,8 +45,7 @@ void SerialCArmSource::stop() {
   stop_ = true;
   const std::uint64_t one = 1;
   [[maybe_unused]] const ssize_t n = ::write(wake_fd_, &one, sizeof one);
-  thread_.join();
-  receiver_.stopped();
+  thread_.join();  // the thread reported Stopped as its last word
 }
 
 StreamState SerialCArmSource::state() const { return receiver_.state(); }
@@ -107,6 +106,7 @@ void SerialCArmSource::run() {
       if (wait_for_stop(options_.reconnect_interval)) break;
     }
   }
+  receiver_.stopped();
 }
 
 }  // namespace evar::acquisition

@@ -91,6 +91,17 @@ SerialPort::SerialPort(const std::string& path, const SerialSettings& settings) 
     errno = e;
     fail(path, "tcsetattr");
   }
+  // tcsetattr succeeds when any setting took: read back what the driver accepted.
+  termios got{};
+  if (::tcgetattr(fd_, &got) != 0 || ::cfgetospeed(&got) != speed ||
+      (got.c_cflag & (CSTOPB | PARENB | PARODD | CSIZE)) != (tio.c_cflag & (CSTOPB | PARENB | PARODD | CSIZE))) {
+    ::close(fd_);
+    throw std::runtime_error("serial port " + path + ": the driver refused " + std::to_string(settings.baud) +
+                             " baud, parity " + to_string(settings.parity) + ", " +
+                             std::to_string(settings.stop_bits) + " stop bit(s)");
+  }
+  // Bytes queued before we listened are old geometry: a late reader must not take them as new.
+  ::tcflush(fd_, TCIFLUSH);
 }
 
 SerialPort::~SerialPort() {

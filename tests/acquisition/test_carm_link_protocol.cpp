@@ -114,6 +114,10 @@ TEST(CArmLinkProtocol, TheSenderRefusesWhatTheWireCannotCarry) {
   m = sample(1);
   m.state.sod_mm = m.state.sid_mm + 1;
   EXPECT_THROW(wire::encode(m), std::invalid_argument);
+  m = sample(1);
+  m.state.sid_mm = 1000.004;  // both 100000 on the wire: the receiver would reject it
+  m.state.sod_mm = 1000.0;
+  EXPECT_THROW(wire::encode(m), std::invalid_argument);
   EXPECT_THROW(wire::encode(wire::StatusMessage{0, 0, wire::StatusLevel::Info, std::string(201, 'x')}),
                std::invalid_argument);
   EXPECT_THROW(wire::encode(wire::StatusMessage{0, 0, wire::StatusLevel::Info, "bell\a"}), std::invalid_argument);

@@ -146,8 +146,14 @@ TEST(GigECameraSource, ReceivesEveryFrameWholeAndInOrderFromAGigEVisionCameraOnL
   EXPECT_EQ(st.camera_id, "Aravis-Fake-" + serial);
   EXPECT_GT(st.packet_size, 0);
   ASSERT_TRUE(st.clock_offset_ns.has_value());
-  // Device timestamps mapped onto the host clock never lie after the frame's arrival.
-  for (const acq::Frame& f : rx.frames) EXPECT_LE(f.device_time_on_host, f.host_arrival);
+  // The fake camera stamps frames with the wall clock, so the true offset is the steady
+  // clock minus the wall clock; the estimate adds the smallest delivery delay (a few ms on
+  // loopback at most).
+  const auto steady = std::chrono::steady_clock::now().time_since_epoch();
+  const auto wall = std::chrono::system_clock::now().time_since_epoch();
+  const double expected_ns = std::chrono::duration<double, std::nano>(steady - wall).count();
+  EXPECT_GT(static_cast<double>(*st.clock_offset_ns), expected_ns - 2e6);
+  EXPECT_LT(static_cast<double>(*st.clock_offset_ns), expected_ns + 50e6);
 }
 
 TEST(GigECameraSource, SaysWhichPixelFormatsTheCameraOffers) {
@@ -206,7 +212,6 @@ TEST(GigECameraSource, RecoversOnItsOwnWhenTheCameraGoesAwayAndComesBack) {
   }();
   camera = std::make_unique<EmbeddedCamera>(serial);  // and back on
   ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= before + 10; }, 60s));
-  EXPECT_EQ(source.state(), acq::StreamState::Streaming);
   const auto st = source.gige_statistics();
   EXPECT_EQ(st.outages, 1u);
   EXPECT_EQ(st.connections, 2u);

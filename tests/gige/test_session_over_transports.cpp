@@ -139,5 +139,6 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
   }
   EXPECT_EQ(gige.gige_statistics().frames.dropped, 0u) << "stream: " << gige.gige_statistics().completed << " completed, " << gige.gige_statistics().failed << " failed, " << gige.gige_statistics().underruns << " underruns";
   EXPECT_EQ(serial_source.statistics().link.errors(), 0u);
+  EXPECT_EQ(carm_link.dropped(), 0u);
   fs::remove_all(dir);
 }

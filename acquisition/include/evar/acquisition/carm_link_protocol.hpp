@@ -51,8 +51,8 @@ using Message = std::variant<GeometryMessage, StatusMessage>;
 std::vector<std::uint8_t> encode(const GeometryMessage& message);
 std::vector<std::uint8_t> encode(const StatusMessage& message);
 
-/// What a receiver has seen. Every byte that is not part of a good message is accounted
-/// for in exactly one error counter.
+/// What a receiver has seen. Every completed frame that is not a good message is counted in
+/// exactly one error counter (a partial frame cut off by a reconnection is not a frame).
 struct LinkStats {
   std::uint64_t bytes = 0;             ///< bytes fed
   std::uint64_t messages = 0;          ///< good messages (geometry + status)
@@ -76,10 +76,12 @@ class Decoder {
   /// Feeds bytes in any chunking; calls `on_message` for each good message completed.
   void feed(std::span<const std::uint8_t> bytes, const MessageCallback& on_message);
   const LinkStats& stats() const { return stats_; }
-  /// "frame ending at byte 1234 (45 bytes): CRC mismatch …"; empty while all was well.
+  /// "frame ending at byte 1234: (45 bytes) CRC mismatch …"; empty while all was well.
   const std::string& last_error() const { return last_error_; }
   /// Forgets a partial frame (after a reconnect); counters are kept.
   void reset_partial();
+  /// A new connection: the sender may have restarted its sequence numbers.
+  void reset_sequence() { sequence_ = SequenceTracker(16, 64); }
 
  private:
   void finish_frame(const MessageCallback& on_message);

@@ -1,0 +1,97 @@
+#include <gtest/gtest.h>
+
+#include <random>
+
+#include "evar/acquisition/clock_offset.hpp"
+#include "evar/acquisition/geometry_timeline.hpp"
+
+namespace acq = evar::acquisition;
+using namespace std::chrono_literals;
+using Clock = std::chrono::steady_clock;
+
+namespace {
+
+// A C-arm whose clock runs 5 s behind the host's, sampled at 10 Hz, each sample arriving
+// 1–21 ms late over the serial link; it turns at 20°/s between 1 s and 2 s.
+struct Scenario {
+  Clock::time_point t0 = Clock::time_point(100s);
+  static constexpr std::int64_t kCarmBehindNs = 5'000'000'000;
+  static double primary_at(double s) { return s < 1.0 ? 0.0 : s < 2.0 ? 20.0 * (s - 1.0) : 20.0; }
+  std::vector<acq::CArmState> samples(double until_s) const {
+    std::mt19937 rng(9);
+    std::uniform_int_distribution<int> delay_ms(1, 21);
+    std::vector<acq::CArmState> out;
+    for (double s = 0.0; s <= until_s + 1e-9; s += 0.1) {
+      acq::CArmState c;
+      const auto host = t0 + std::chrono::nanoseconds(static_cast<std::int64_t>(s * 1e9));
+      c.device_time_ns = std::chrono::duration_cast<std::chrono::nanoseconds>(host.time_since_epoch()).count() - kCarmBehindNs;
+      c.host_arrival = host + std::chrono::milliseconds(delay_ms(rng));
+      c.primary_deg = primary_at(s);
+      c.secondary_deg = -10.0;
+      c.sid_mm = 1200;
+      c.sod_mm = 800;
+      c.moving = s > 1.0 - 1e-9 && s < 2.0 + 1e-9;
+      out.push_back(c);
+    }
+    return out;
+  }
+  Clock::time_point at(double s) const { return t0 + std::chrono::nanoseconds(static_cast<std::int64_t>(s * 1e9)); }
+};
+
+}  // namespace
+
+TEST(ClockOffsetEstimator, TakesTheSmallestDelayAsTheOffset) {
+  acq::ClockOffsetEstimator e(8);
+  EXPECT_FALSE(e.offset_ns());
+  for (std::int64_t d : {7, 3, 9, 12, 4}) e.add(1000, 1000 + 500 + d);
+  EXPECT_EQ(*e.offset_ns(), 503);
+  EXPECT_EQ(*e.typical_delay_ns(), 4);  // median of the delays above the minimum: 0 1 4 6 9
+  EXPECT_EQ(e.to_host_ns(2000), 2503);
+  EXPECT_THROW(acq::ClockOffsetEstimator(0), std::invalid_argument);
+}
+
+TEST(GeometryTimeline, InterpolatesTheGeometryAtAFramesTimeDespiteLinkJitter) {
+  Scenario sc;
+  acq::GeometryTimeline tl;
+  for (const auto& s : sc.samples(3.0)) tl.add(s);
+  // The offset is the clock difference plus the smallest delay seen (1 ms here).
+  ASSERT_TRUE(tl.carm_clock_offset_ns());
+  EXPECT_NEAR(static_cast<double>(*tl.carm_clock_offset_ns()), 5.001e9, 1e6);
+  for (double s : {1.25, 1.5, 1.73}) {
+    const auto g = tl.at(sc.at(s));
+    ASSERT_TRUE(g);
+    // Linear motion, so interpolation is exact up to the 1 ms of placement error (0.02°).
+    EXPECT_NEAR(g->state.primary_deg, Scenario::primary_at(s), 0.03) << s;
+    EXPECT_TRUE(g->moving) << s;
+    EXPECT_FALSE(g->stale) << s;
+  }
+  const auto settled = tl.at(sc.at(2.55));
+  EXPECT_NEAR(settled->state.primary_deg, 20.0, 1e-9);
+  EXPECT_FALSE(settled->moving);
+  EXPECT_FALSE(settled->stale);
+  EXPECT_LE(settled->age_ns, 51'000'000);
+}
+
+TEST(GeometryTimeline, AFrameAfterTheLinkWentSilentHasStaleGeometry) {
+  Scenario sc;
+  acq::GeometryTimeline tl;
+  for (const auto& s : sc.samples(0.5)) tl.add(s);
+  EXPECT_FALSE(tl.at(sc.at(0.6))->stale);   // 100 ms after the last sample
+  const auto late = tl.at(sc.at(1.5));      // a second after it
+  EXPECT_TRUE(late->stale);
+  EXPECT_NEAR(late->age_ns, 1.0e9, 2e7);
+  EXPECT_FALSE(acq::GeometryTimeline().at(sc.at(1.0)));  // no geometry at all: nothing to pair
+}
+
+TEST(GeometryTimeline, ARestartedCArmClockStartsAFreshHistory) {
+  Scenario sc;
+  acq::GeometryTimeline tl;
+  for (const auto& s : sc.samples(1.0)) tl.add(s);
+  acq::CArmState restarted = sc.samples(0.0)[0];
+  restarted.device_time_ns = 42;  // the C-arm rebooted
+  restarted.host_arrival = sc.at(1.2);
+  restarted.primary_deg = 30.0;
+  tl.add(restarted);
+  EXPECT_EQ(tl.size(), 1u);
+  EXPECT_NEAR(tl.at(sc.at(1.2))->state.primary_deg, 30.0, 1e-9);
+}
