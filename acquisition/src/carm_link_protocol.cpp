@@ -205,6 +205,15 @@ void Decoder::fail(std::uint64_t& counter, const std::string& what) {
   last_error_ = "frame ending at byte " + std::to_string(stats_.bytes - 1) + ": " + what;
 }
 
+void Decoder::accept(std::uint64_t& type_counter, std::uint16_t sequence, const Message& m,
+                     const MessageCallback& on_message) {
+  ++stats_.messages;
+  ++type_counter;
+  sequence_.observe(sequence);
+  stats_.sequence = sequence_.stats();
+  on_message(m);
+}
+
 void Decoder::feed(std::span<const std::uint8_t> bytes, const MessageCallback& on_message) {
   for (std::uint8_t b : bytes) {
     ++stats_.bytes;
@@ -277,12 +286,7 @@ void Decoder::finish_frame(const MessageCallback& on_message) {
     for (std::size_t k = 0; k < 3; ++k) s.table_mm[k] = table[k] / kCentiMmPerMm;
     s.fluoro_on = (flags & kFlagFluoro) != 0;
     s.moving = (flags & kFlagMoving) != 0;
-    ++stats_.messages;
-    ++stats_.geometry;
-    sequence_.observe(sequence);
-    stats_.sequence = sequence_.stats();
-    on_message(Message{m});
-    return;
+    return accept(stats_.geometry, sequence, Message{m}, on_message);
   }
   if (type == static_cast<std::uint8_t>(MessageType::Status)) {
     if (body < kStatusFixedBytes) return wrong_length("status", kStatusFixedBytes);
@@ -297,12 +301,7 @@ void Decoder::finish_frame(const MessageCallback& on_message) {
     if (length > kMaxStatusText || !printable(m.text))
       return fail(stats_.invalid_fields, size + "status text too long or not printable ASCII");
     m.level = static_cast<StatusLevel>(level);
-    ++stats_.messages;
-    ++stats_.status;
-    sequence_.observe(sequence);
-    stats_.sequence = sequence_.stats();
-    on_message(Message{m});
-    return;
+    return accept(stats_.status, sequence, Message{m}, on_message);
   }
   fail(stats_.unknown_types, size + "unknown message type " + std::to_string(type));
 }

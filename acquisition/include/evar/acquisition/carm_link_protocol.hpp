@@ -86,6 +86,7 @@ class Decoder {
  private:
   void finish_frame(const MessageCallback& on_message);
   void fail(std::uint64_t& counter, const std::string& what);
+  void accept(std::uint64_t& type_counter, std::uint16_t sequence, const Message& m, const MessageCallback& on_message);
 
   std::vector<std::uint8_t> frame_;
   bool overflow_ = false;
