@@ -14,23 +14,6 @@
 
 namespace evar::acquisition {
 
-namespace {
-// One write that never waits, whatever the descriptor's own blocking mode.
-ssize_t send_nonblocking(int fd, const void* data, std::size_t size) {
-  pollfd p{fd, POLLOUT, 0};
-  if (::poll(&p, 1, 0) == 0) {
-    errno = EAGAIN;
-    return -1;
-  }
-  const int flags = ::fcntl(fd, F_GETFL);
-  ::fcntl(fd, F_SETFL, flags | O_NONBLOCK);
-  const ssize_t n = ::write(fd, data, size);
-  const int e = errno;
-  ::fcntl(fd, F_SETFL, flags);
-  errno = e;
-  return n;
-}
-}  // namespace
 
 PseudoTerminal::PseudoTerminal(const std::string& link) {
   termios raw{};
@@ -39,6 +22,7 @@ PseudoTerminal::PseudoTerminal(const std::string& link) {
   if (::openpty(&master_, &slave_, name, &raw, nullptr) != 0)
     throw std::runtime_error(std::string("pseudo-terminal: openpty failed: ") + std::strerror(errno));
   ::fcntl(master_, F_SETFD, FD_CLOEXEC);
+  ::fcntl(master_, F_SETFL, ::fcntl(master_, F_GETFL) | O_NONBLOCK);  // write() waits by poll, write_or_drop() not
   ::fcntl(slave_, F_SETFD, FD_CLOEXEC);
   slave_path_ = name;
   if (!link.empty()) {
@@ -74,22 +58,13 @@ PseudoTerminal::~PseudoTerminal() {
 }
 
 bool PseudoTerminal::write_or_drop(std::span<const std::uint8_t> bytes) {
-  std::size_t done = 0;
-  while (done < bytes.size()) {
-    const ssize_t n = send_nonblocking(master_, bytes.data() + done, bytes.size() - done);
-    if (n > 0) {
-      done += static_cast<std::size_t>(n);
-      continue;
-    }
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0 && errno == EAGAIN) {
-      if (done == 0) return false;  // nothing of it went out: dropped whole
-      // Part of a message is out: finish it (at most 255 bytes) rather than tear it.
-      write(bytes.subspan(done));
-      return true;
-    }
-    throw std::runtime_error("pseudo-terminal " + slave_path_ + ": write failed: " + std::strerror(errno));
-  }
+  ssize_t n = 0;
+  do n = ::write(master_, bytes.data(), bytes.size());
+  while (n < 0 && errno == EINTR);
+  if (n < 0 && errno == EAGAIN) return false;  // nothing of it went out: dropped whole
+  if (n < 0) throw std::runtime_error("pseudo-terminal " + slave_path_ + ": write failed: " + std::strerror(errno));
+  // Part of a message may be out: finish it (at most 255 bytes) rather than tear it.
+  if (static_cast<std::size_t>(n) < bytes.size()) write(bytes.subspan(static_cast<std::size_t>(n)));
   return true;
 }
 

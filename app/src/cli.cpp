@@ -72,24 +72,24 @@ int run_cli(const std::vector<std::string>& args) {
   a->add_flag("!--no-anderson", arap.anderson, "plain local/global iterations (no Anderson acceleration)");
 
   // Mesh format and resolution of the synthetic scenes (example, sim patient).
-  const auto add_mesh_options = [](CLI::App* c, std::string& format, int& aorta_vertices, int& iliac_vertices) {
-    c->add_option("--format", format, "mesh format: stl, ply or obj")
+  const auto add_mesh_options = [](CLI::App* c, SyntheticSceneCommand& cmd) {
+    c->add_option("--format", cmd.format, "mesh format: stl, ply or obj")
         ->check(CLI::IsMember({"stl", "ply", "obj"}))
         ->capture_default_str();
-    c->add_option("--aorta-vertices", aorta_vertices, "approximate aortic mesh size")
+    c->add_option("--aorta-vertices", cmd.aorta_vertices, "approximate aortic mesh size")
         ->check(CLI::Range(500, 2000000))
         ->capture_default_str();
-    c->add_option("--iliac-vertices", iliac_vertices, "approximate size of each iliac mesh")
+    c->add_option("--iliac-vertices", cmd.iliac_vertices, "approximate size of each iliac mesh")
         ->check(CLI::Range(300, 2000000))
         ->capture_default_str();
   };
-  ExampleCommand example;
+  SyntheticSceneCommand example;
   auto* e = app.add_subcommand("example",
                                "Write the bundled synthetic aorto-iliac example scene (meshes, centerlines,\n"
                                "landmarks, a guidewire that leaves the undeformed right iliac) to a directory.");
   e->add_option("--out", example.out, "output directory")->required();
   e->add_option("--seed", example.seed, "anatomy variation seed")->capture_default_str();
-  add_mesh_options(e, example.format, example.aorta_vertices, example.iliac_vertices);
+  add_mesh_options(e, example);
 
   ProjectCommand project;
   auto* pr = app.add_subcommand("project",
@@ -149,7 +149,7 @@ int run_cli(const std::vector<std::string>& args) {
 
   auto* sim = app.add_subcommand("sim", "Synthetic material for development and evaluation (docs/SYNTHETIC_PATIENTS.md).");
   sim->require_subcommand(1);
-  SimPatientCommand sim_patient;
+  SyntheticSceneCommand sim_patient;
   auto* sp = sim->add_subcommand(
       "patient",
       "Write a synthetic aorto-iliac patient drawn from adult ranges by a seed: the preoperative\n"
@@ -161,7 +161,7 @@ int run_cli(const std::vector<std::string>& args) {
       "and compare RESULT with OUT/truth/.");
   sp->add_option("--seed", sim_patient.seed, "patient seed (the same seed gives the same patient)")->capture_default_str();
   sp->add_option("--out", sim_patient.out, "output directory (created if missing)")->required();
-  add_mesh_options(sp, sim_patient.format, sim_patient.aorta_vertices, sim_patient.iliac_vertices);
+  add_mesh_options(sp, sim_patient);
 
   SimSessionCommand sim_session;
   auto* ss = sim->add_subcommand(

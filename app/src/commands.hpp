@@ -33,23 +33,16 @@ int run_arap(const ArapCommand& cmd);
 /// The mesh format named by a --format option ("stl", "ply" or "obj"; binary where the format has one).
 geometry::MeshFormat mesh_format_option(const std::string& name);
 
-struct ExampleCommand {
-  std::filesystem::path out;
-  std::string format = "stl";
-  unsigned long long seed = 1;
-  int aorta_vertices = 7500;
-  int iliac_vertices = 3500;
-};
-int run_example(const ExampleCommand& cmd);
-
-struct SimPatientCommand {
+/// A synthetic scene drawn by a seed and written to a directory: `example` and `sim patient`.
+struct SyntheticSceneCommand {
   std::filesystem::path out;
   unsigned long long seed = 1;
   std::string format = "stl";
   int aorta_vertices = 7500;
   int iliac_vertices = 3500;
 };
-int run_sim_patient(const SimPatientCommand& cmd);
+int run_example(const SyntheticSceneCommand& cmd);
+int run_sim_patient(const SyntheticSceneCommand& cmd);
 
 struct SimSessionCommand {
   std::filesystem::path out;

@@ -14,7 +14,7 @@ geometry::MeshFormat mesh_format_option(const std::string& name) {
   throw std::invalid_argument("--format: '" + name + "' (expected stl, ply or obj)");
 }
 
-int run_example(const ExampleCommand& cmd) {
+int run_example(const SyntheticSceneCommand& cmd) {
   sim::ExampleSceneParams params;
   params.seed = cmd.seed;
   params.aorta_vertices = cmd.aorta_vertices;

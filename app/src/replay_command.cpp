@@ -57,22 +57,24 @@ int run_replay(const ReplayCommand& cmd) {
   } guard{std::signal(SIGINT, on_interrupt)};
   replay.carm().start(
       [&](const acquisition::CArmState& s) {
-        std::lock_guard lock(m);
+        std::string failed;  // the link is written outside the report's lock
         if (carm_link) {
           try {
             carm_link->send(s);
           } catch (const std::exception& e) {
-            if (transport_error.empty()) transport_error = e.what();
+            failed = e.what();
           }
         }
+        std::lock_guard lock(m);
+        if (transport_error.empty()) transport_error = failed;
         in_force = s;
         moving_states += s.moving ? 1 : 0;
       },
       nullptr);
   replay.frames().start(
       [&](const acquisition::Frame& f) {
+        if (camera) camera->show(f);  // outside the report's lock: it copies the whole frame
         std::lock_guard lock(m);
-        if (camera) camera->show(f);
         if (!first_ns) first_ns = f.device_time_ns;
         last_ns = f.device_time_ns;
         if (!in_force) return;

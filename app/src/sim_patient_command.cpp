@@ -5,7 +5,7 @@
 
 namespace evar::app {
 
-int run_sim_patient(const SimPatientCommand& cmd) {
+int run_sim_patient(const SyntheticSceneCommand& cmd) {
   const auto patient = sim::make_patient(cmd.seed, cmd.aorta_vertices, cmd.iliac_vertices);
   const auto format = mesh_format_option(cmd.format);
   sim::write_patient(patient, cmd.out, format);

@@ -17,6 +17,7 @@
 #include "evar/acquisition/carm_link_protocol.hpp"
 #include "evar/acquisition/pseudo_terminal.hpp"
 #include "evar/acquisition/serial_carm_source.hpp"
+#include "support/stream_log.hpp"
 
 namespace acq = evar::acquisition;
 namespace wire = acq::carm_link;
@@ -36,34 +37,12 @@ wire::GeometryMessage sample(std::uint16_t seq) {
   return m;
 }
 
-// Collects what a source reports; tests wait on conditions, never on fixed sleeps.
-class Recorder {
- public:
+// The C-arm states a source delivered, beside its stream notices.
+struct Recorder : evar::test::StreamLog {
   void on_state(const acq::CArmState& s) {
-    std::lock_guard lock(m_);
-    states.push_back(s);
-    cv_.notify_all();
-  }
-  void on_stream(acq::StreamState s, const std::string& reason) {
-    std::lock_guard lock(m_);
-    streams.emplace_back(s, reason);
-    cv_.notify_all();
-  }
-  bool wait(const std::function<bool()>& done, std::chrono::milliseconds limit = 10s) {
-    std::unique_lock lock(m_);
-    return cv_.wait_for(lock, limit, done);
-  }
-  bool saw(acq::StreamState s, std::size_t from = 0) const {
-    for (std::size_t i = from; i < streams.size(); ++i)
-      if (streams[i].first == s) return true;
-    return false;
+    record([&] { states.push_back(s); });
   }
   std::vector<acq::CArmState> states;
-  std::vector<std::pair<acq::StreamState, std::string>> streams;
-
- private:
-  std::mutex m_;
-  std::condition_variable cv_;
 };
 
 struct SerialCArmLink : ::testing::Test {
@@ -90,11 +69,7 @@ struct SerialCArmLink : ::testing::Test {
   }
   // The source has the port open (it says so) before the peer sends.
   void wait_open() {
-    ASSERT_TRUE(rec.wait([&] {
-      for (const auto& [s, r] : rec.streams)
-        if (r.find("waiting for the first geometry sample") != std::string::npos) return true;
-      return false;
-    }));
+    ASSERT_TRUE(rec.wait([&] { return rec.said({"waiting for the first geometry sample"}); }));
   }
 };
 
@@ -159,11 +134,7 @@ TEST_F(SerialCArmLink, GarbageBitFlipsAndTornFramesAreCountedAndTheLinkGoesOn) {
   EXPECT_EQ(st.link.crc_errors + st.link.framing_errors, bad);
   EXPECT_EQ(st.link.sequence.dropped, 60u - (expected - 1));  // the lost samples are known
   EXPECT_FALSE(st.last_error.empty());
-  EXPECT_TRUE(rec.wait([&] {
-    for (const auto& [s, r] : rec.streams)
-      if (r.find("bad frames so far") != std::string::npos) return true;
-    return false;
-  }));
+  EXPECT_TRUE(rec.wait([&] { return rec.said({"bad frames so far"}); }));
 }
 
 TEST_F(SerialCArmLink, ASilentLinkIsReportedStalledAndRecovers) {
@@ -175,10 +146,7 @@ TEST_F(SerialCArmLink, ASilentLinkIsReportedStalledAndRecovers) {
   ASSERT_TRUE(rec.wait([&] { return source.state() == acq::StreamState::Streaming; }));
   ASSERT_TRUE(rec.wait([&] { return rec.saw(acq::StreamState::Stalled); }));
   std::size_t mark = 0;
-  rec.wait([&] {
-    mark = rec.streams.size();
-    return true;
-  });
+  rec.record([&] { mark = rec.streams.size(); });
   pty.write(wire::encode(sample(1)));
   ASSERT_TRUE(rec.wait([&] { return rec.saw(acq::StreamState::Streaming, mark); }));
 }
@@ -194,12 +162,8 @@ TEST_F(SerialCArmLink, AHangupIsReportedAndTheLinkReconnectsOnItsOwn) {
   }  // the adapter goes away: both ends closed
   ASSERT_TRUE(rec.wait([&] { return rec.saw(acq::StreamState::Disconnected); }));
   // While nobody is there the source keeps trying and says why.
-  ASSERT_TRUE(rec.wait([&] {
-    for (const auto& [s, r] : rec.streams)
-      if (s == acq::StreamState::Connecting && r.find(link_path) != std::string::npos && r.find("retrying") != std::string::npos)
-        return true;
-    return false;
-  }));
+  const auto connecting = acq::StreamState::Connecting;
+  ASSERT_TRUE(rec.wait([&] { return rec.said({link_path.c_str(), "retrying"}, &connecting); }));
   acq::PseudoTerminal again(link_path);  // a new pty behind the same name
   ASSERT_TRUE(rec.wait([&] { return source.statistics().connections == 2; }));
   for (std::uint16_t i = 5; i < 10; ++i) {
@@ -217,22 +181,15 @@ TEST_F(SerialCArmLink, AHangupIsReportedAndTheLinkReconnectsOnItsOwn) {
 TEST_F(SerialCArmLink, AMissingOrWrongDeviceIsReportedNotThrown) {
   acq::SerialCArmSource missing(options());
   start(missing);
-  ASSERT_TRUE(rec.wait([&] {
-    for (const auto& [s, r] : rec.streams)
-      if (s == acq::StreamState::Connecting && r.find("open failed") != std::string::npos) return true;
-    return false;
-  }));
+  const auto connecting = acq::StreamState::Connecting;
+  ASSERT_TRUE(rec.wait([&] { return rec.said({"open failed"}, &connecting); }));
   missing.stop();
 
   std::ofstream(link_path) << "not a terminal";
   Recorder other;
   acq::SerialCArmSource file(options());
   file.start([](const acq::CArmState&) {}, [&](acq::StreamState s, const std::string& r) { other.on_stream(s, r); });
-  ASSERT_TRUE(other.wait([&] {
-    for (const auto& [s, r] : other.streams)
-      if (r.find("tcgetattr") != std::string::npos) return true;
-    return false;
-  }));
+  ASSERT_TRUE(other.wait([&] { return other.said({"tcgetattr"}); }));
   file.stop();
 
   acq::SerialLinkOptions bad = options();

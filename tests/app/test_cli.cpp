@@ -286,15 +286,21 @@ struct TwoFrames {
   fs::path dir;
   evar::geometry::Polyline wire;
 };
+// The views the CLI tests render: 768² at 0.4 mm, SID 1200 mm, SOD 800 mm.
+evar::geometry::CArmView test_view(double primary_deg) {
+  evar::geometry::CArmView v;
+  v.primary_angle_deg = primary_deg;
+  v.source_to_detector_mm = 1200;
+  v.source_to_isocenter_mm = 800;
+  v.detector_cols = v.detector_rows = 768;
+  v.row_spacing_mm = v.col_spacing_mm = 0.4;
+  return v;
+}
+
 TwoFrames write_two_frames(const fs::path& dir, double separation_deg = 60.0) {
   TwoFrames t{dir, evar::sim::iliac_guidewire()};
   for (int k = 0; k < 2; ++k) {
-    evar::geometry::CArmView v;
-    v.primary_angle_deg = (k == 0 ? 0.5 : -0.5) * separation_deg;
-    v.source_to_detector_mm = 1200;
-    v.source_to_isocenter_mm = 800;
-    v.detector_cols = v.detector_rows = 768;
-    v.row_spacing_mm = v.col_spacing_mm = 0.4;
+    const evar::geometry::CArmView v = test_view((k == 0 ? 0.5 : -0.5) * separation_deg);
     evar::sim::FluoroOptions o;
     o.seed = static_cast<std::uint64_t>(k + 1);
     const auto f = evar::sim::render_fluoro(evar::geometry::projection_matrix(v), v, {t.wire}, o);
@@ -377,12 +383,7 @@ TEST_F(Cli, ReconstructedDeviceDrivesTheDeformation) {
   evar::geometry::Polyline wire;
   for (const auto& d : example.device) wire.push_back((T * d.homogeneous()).head<3>());
   for (int k = 0; k < 2; ++k) {
-    evar::geometry::CArmView v;
-    v.primary_angle_deg = k == 0 ? 35 : -35;
-    v.source_to_detector_mm = 1200;
-    v.source_to_isocenter_mm = 800;
-    v.detector_cols = v.detector_rows = 768;
-    v.row_spacing_mm = v.col_spacing_mm = 0.4;
+    const evar::geometry::CArmView v = test_view(k == 0 ? 35 : -35);
     evar::sim::FluoroOptions o;
     o.seed = static_cast<std::uint64_t>(k + 7);
     const auto f = evar::sim::render_fluoro(evar::geometry::projection_matrix(v), v, {wire}, o);

@@ -4,12 +4,8 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
-#include <condition_variable>
-#include <cstdio>
-#include <cstdlib>
 #include <cstring>
 #include <filesystem>
-#include <mutex>
 #include <opencv2/core.hpp>
 
 #include "evar/acquisition/gige_camera_source.hpp"
@@ -17,6 +13,7 @@
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/serial_carm_server.hpp"
 #include "evar/sim/session_replay.hpp"
+#include "support/stream_log.hpp"
 
 namespace acq = evar::acquisition;
 namespace sim = evar::sim;
@@ -59,12 +56,10 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
   sim::SerialCArmServer carm_link((dir / "ttyCARM").string());
 
   // The node's side: the real sources.
-  std::mutex m;
-  std::condition_variable cv;
-  std::vector<int> shown;  // which session image each received frame is (-1: before the replay)
+  evar::test::StreamLog video, carm;  // declared first: they outlive the sources
+  std::vector<int> shown;             // under video's mutex: which session image each frame is
   std::size_t unknown = 0;
-  std::vector<acq::CArmState> states;
-  bool gige_streaming = false, serial_open = false;
+  std::vector<acq::CArmState> states;  // under carm's mutex
   acq::GigECameraOptions go;
   go.camera = serial;
   go.region = acq::Region{0, 0, 128, 96};
@@ -79,41 +74,19 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
         for (int k = 0; k < 8; ++k)
           if (f.pixels.size() == 128u * 96u * 2u && std::memcmp(f.pixels.data(), images[static_cast<std::size_t>(k)].data, f.pixels.size()) == 0)
             which = k;
-        std::lock_guard lock(m);
         bool blank = true;
         for (auto b : f.pixels) blank &= b == 0;
-        if (which < 0 && !blank) ++unknown;
-        if (which >= 0) shown.push_back(which);
-        if (std::getenv("EVAR_GIGE_TRACE"))
-          std::fprintf(stderr, "%.3f frame seq %llu shows %d\n",
-                       std::chrono::duration<double>(f.host_arrival.time_since_epoch()).count(),
-                       static_cast<unsigned long long>(f.sequence), which);
-        cv.notify_all();
+        video.record([&] {
+          if (which < 0 && !blank) ++unknown;  // blank: the camera before the first replayed frame
+          if (which >= 0) shown.push_back(which);
+        });
       },
-      [&](acq::StreamState st, const std::string& r) {
-        if (std::getenv("EVAR_GIGE_TRACE"))
-          std::fprintf(stderr, "%.3f gige %s: %s\n",
-                       std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(),
-                       acq::to_string(st), r.c_str());
-        std::lock_guard lock(m);
-        gige_streaming |= st == acq::StreamState::Streaming;
-        cv.notify_all();
-      });
+      [&](acq::StreamState st, const std::string& r) { video.on_stream(st, r); });
   serial_source.start(
-      [&](const acq::CArmState& st) {
-        std::lock_guard lock(m);
-        states.push_back(st);
-        cv.notify_all();
-      },
-      [&](acq::StreamState, const std::string& r) {
-        std::lock_guard lock(m);
-        serial_open |= r.find("waiting for the first geometry sample") != std::string::npos;
-        cv.notify_all();
-      });
-  {
-    std::unique_lock lock(m);
-    ASSERT_TRUE(cv.wait_for(lock, 30s, [&] { return gige_streaming && serial_open; }));
-  }
+      [&](const acq::CArmState& st) { carm.record([&] { states.push_back(st); }); },
+      [&](acq::StreamState st, const std::string& r) { carm.on_stream(st, r); });
+  ASSERT_TRUE(video.wait([&] { return video.saw(acq::StreamState::Streaming); }));
+  ASSERT_TRUE(carm.wait([&] { return carm.said({"waiting for the first geometry sample"}); }));
 
   // The replay drives the far ends in real time.
   sim::SessionReplay replay(session, {1.0, 1});
@@ -121,14 +94,10 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
   replay.frames().start([&](const acq::Frame& f) { camera.show(f); }, nullptr);
   ASSERT_TRUE(replay.wait(30s));
   std::this_thread::sleep_for(300ms);  // the last picture stays on; let a few frames of it arrive
-  {
-    std::unique_lock lock(m);
-    ASSERT_TRUE(cv.wait_for(lock, 10s, [&] { return states.size() == 6; })) << states.size();
-  }
+  ASSERT_TRUE(carm.wait([&] { return states.size() == 6; }, 10s)) << states.size();
   gige.stop();
-  serial_source.stop();
+  serial_source.stop();  // no callback runs after these: the records are ours now
 
-  std::lock_guard lock(m);
   EXPECT_EQ(unknown, 0u) << "frames that are no session frame (torn or corrupted)";
   ASSERT_FALSE(shown.empty());
   for (std::size_t i = 1; i < shown.size(); ++i) EXPECT_GE(shown[i], shown[i - 1]) << "out of order at " << i;

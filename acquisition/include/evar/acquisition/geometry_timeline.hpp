@@ -1,7 +1,8 @@
 #pragma once
-// Pairs frames with the C-arm geometry at their time. C-arm samples are placed on the host's
-// steady clock through their own device clock (a minimum-delay offset estimate, so serial
-// jitter does not move them), kept for a window, and interpolated at a frame's time. A frame
+// Pairs frames with the C-arm geometry at their time. C-arm samples are kept on their own
+// clock for a window; a frame's host time is mapped onto that clock by a minimum-delay
+// offset estimate (so serial jitter does not move the samples) and the geometry there is
+// interpolated. A frame
 // is marked when the C-arm moved around it or when the geometry for it is stale.
 #include <chrono>
 #include <cstdint>
@@ -41,13 +42,9 @@ class GeometryTimeline {
   std::size_t size() const { return samples_.size(); }
 
  private:
-  struct Placed {
-    std::int64_t host_ns;
-    CArmState state;
-  };
   GeometryTimelineOptions options_;
   ClockOffsetEstimator clock_{256};
-  std::deque<Placed> samples_;
+  std::deque<CArmState> samples_;  // in C-arm time; a query's host time is mapped onto it
 };
 
 }  // namespace evar::acquisition
