@@ -210,13 +210,7 @@ struct GigECameraSource::Impl {
 
   SequenceStats totals_locked() const {
     SequenceStats t = earlier_epochs;
-    const SequenceStats& c = tracker.stats();
-    t.received += c.received;
-    t.dropped += c.dropped;
-    t.duplicates += c.duplicates;
-    t.out_of_order += c.out_of_order;
-    t.restarts += c.restarts;
-    return t;
+    return t += tracker.stats();
   }
 
   void update_stream_counters() {

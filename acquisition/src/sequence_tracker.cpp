@@ -9,6 +9,15 @@ SequenceTracker::SequenceTracker(int bits, std::uint64_t restart_window)
   if (bits < 2 || bits > 64) throw std::invalid_argument("sequence counter width must be 2..64 bits");
 }
 
+SequenceStats& operator+=(SequenceStats& total, const SequenceStats& more) {
+  total.received += more.received;
+  total.dropped += more.dropped;
+  total.duplicates += more.duplicates;
+  total.out_of_order += more.out_of_order;
+  total.restarts += more.restarts;
+  return total;
+}
+
 void SequenceTracker::reset() {
   have_last_ = false;
   last_ = 0;

@@ -14,6 +14,9 @@ struct SequenceStats {
   std::uint64_t restarts = 0;       ///< the device restarted its counter
 };
 
+/// Sums counts across connections (each connection has its own device counter).
+SequenceStats& operator+=(SequenceStats& total, const SequenceStats& more);
+
 class SequenceTracker {
  public:
   /// `bits`: width of the device counter (it wraps at 2^bits); `restart_window`: a

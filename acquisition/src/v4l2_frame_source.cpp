@@ -1,0 +1,515 @@
+#include "evar/acquisition/v4l2_frame_source.hpp"
+
+#include <fcntl.h>
+#include <linux/videodev2.h>
+#include <sys/eventfd.h>
+#include <sys/mman.h>
+#include <unistd.h>
+
+#include <algorithm>
+#include <atomic>
+#include <cerrno>
+#include <cmath>
+#include <cstring>
+#include <mutex>
+#include <stdexcept>
+#include <thread>
+#include <utility>
+
+#include "evar/acquisition/sequence_tracker.hpp"
+
+namespace evar::acquisition {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+// A failed V4L2 call, with its errno so the caller can tell "gone" (ENODEV) from "refused".
+struct V4l2Error : std::runtime_error {
+  int error;
+  V4l2Error(const std::string& what, int e) : std::runtime_error(what), error(e) {}
+};
+
+int retry_ioctl(V4l2Io& io, int fd, unsigned long request, void* arg) {
+  int r;
+  do r = io.ioctl(fd, request, arg);
+  while (r == -1 && errno == EINTR);
+  return r;
+}
+
+std::string errno_text(int e) { return std::string(strerrorname_np(e) ? strerrorname_np(e) : "E?") + " (" + std::strerror(e) + ")"; }
+
+std::string device_gone_reason(int e) {
+  return e == ENODEV || e == ENXIO || e == EIO ? "the device went away: " + errno_text(e) : errno_text(e);
+}
+
+std::string size_text(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
+
+std::string fourcc_list(const std::vector<std::uint32_t>& f) {
+  std::string s;
+  for (auto c : f) s += (s.empty() ? "" : ", ") + fourcc_to_string(c);
+  return s.empty() ? "none" : s;
+}
+
+// One open V4L2 device and what was set up on it. The destructor undoes all of it in
+// reverse (stream off, unmap, close), whichever step the setup reached.
+class OpenDevice {
+ public:
+  OpenDevice(V4l2Io& io, std::string path) : io_(io), path_(std::move(path)) {
+    fd_ = io_.open(path_.c_str(), O_RDWR | O_NONBLOCK);
+    if (fd_ < 0) {
+      const int e = errno;
+      throw V4l2Error("cannot open " + path_ + ": " + errno_text(e), e);
+    }
+  }
+  OpenDevice(const OpenDevice&) = delete;
+  OpenDevice& operator=(const OpenDevice&) = delete;
+  ~OpenDevice() {
+    if (streaming_) {
+      int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+      retry_ioctl(io_, fd_, VIDIOC_STREAMOFF, &type);
+    }
+    for (const auto& m : maps_) io_.munmap(m.start, m.length);
+    io_.close(fd_);
+  }
+
+  int fd() const { return fd_; }
+  const std::string& path() const { return path_; }
+
+  /// An ioctl that must succeed; throws naming the call and the device.
+  void call(unsigned long request, void* arg, const char* name) {
+    if (retry_ioctl(io_, fd_, request, arg) == -1) {
+      const int e = errno;
+      throw V4l2Error(path_ + ": " + name + " failed: " + errno_text(e), e);
+    }
+  }
+  /// An ioctl that may fail; returns errno (0 on success).
+  int try_call(unsigned long request, void* arg) { return retry_ioctl(io_, fd_, request, arg) == -1 ? errno : 0; }
+
+  void map_buffers(int wanted) {
+    v4l2_requestbuffers req{};
+    req.count = static_cast<std::uint32_t>(wanted);
+    req.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    req.memory = V4L2_MEMORY_MMAP;
+    call(VIDIOC_REQBUFS, &req, "VIDIOC_REQBUFS");
+    if (req.count < 2)
+      throw V4l2Error(path_ + ": the driver granted " + std::to_string(req.count) + " buffers, streaming needs 2",
+                      ENOMEM);
+    for (std::uint32_t i = 0; i < req.count; ++i) {
+      v4l2_buffer buf{};
+      buf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+      buf.memory = V4L2_MEMORY_MMAP;
+      buf.index = i;
+      call(VIDIOC_QUERYBUF, &buf, "VIDIOC_QUERYBUF");
+      void* p = io_.mmap(buf.length, PROT_READ | PROT_WRITE, MAP_SHARED, fd_, static_cast<off_t>(buf.m.offset));
+      if (p == MAP_FAILED) {
+        const int e = errno;
+        throw V4l2Error(path_ + ": mmap of buffer " + std::to_string(i) + " failed: " + errno_text(e), e);
+      }
+      maps_.push_back({p, buf.length});
+    }
+    for (std::uint32_t i = 0; i < req.count; ++i) queue(i);
+  }
+
+  void queue(std::uint32_t index) {
+    v4l2_buffer buf{};
+    buf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    buf.memory = V4L2_MEMORY_MMAP;
+    buf.index = index;
+    call(VIDIOC_QBUF, &buf, "VIDIOC_QBUF");
+  }
+
+  void stream_on() {
+    int type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    call(VIDIOC_STREAMON, &type, "VIDIOC_STREAMON");
+    streaming_ = true;
+  }
+
+  std::size_t buffer_count() const { return maps_.size(); }
+  std::span<const std::uint8_t> buffer(std::uint32_t index, std::size_t bytes_used) const {
+    const auto& m = maps_[index];
+    return {static_cast<const std::uint8_t*>(m.start), std::min(bytes_used, m.length)};
+  }
+
+ private:
+  struct Mapping {
+    void* start;
+    std::size_t length;
+  };
+  V4l2Io& io_;
+  std::string path_;
+  int fd_ = -1;
+  std::vector<Mapping> maps_;
+  bool streaming_ = false;
+};
+
+// The capture card and what it can do (VIDIOC_QUERYCAP, VIDIOC_ENUM_FMT).
+struct Capabilities {
+  std::string driver, card, bus_info;
+  bool can_capture = false;
+  bool can_set_rate = false;
+  std::vector<std::uint32_t> formats;
+};
+
+std::string text_field(const std::uint8_t* s, std::size_t n) {
+  return std::string(reinterpret_cast<const char*>(s), strnlen(reinterpret_cast<const char*>(s), n));
+}
+
+Capabilities query(OpenDevice& d) {
+  v4l2_capability cap{};
+  d.call(VIDIOC_QUERYCAP, &cap, "VIDIOC_QUERYCAP");
+  Capabilities c;
+  c.driver = text_field(cap.driver, sizeof cap.driver);
+  c.card = text_field(cap.card, sizeof cap.card);
+  c.bus_info = text_field(cap.bus_info, sizeof cap.bus_info);
+  // A node's own capabilities are in device_caps where the driver fills it.
+  const std::uint32_t caps = (cap.capabilities & V4L2_CAP_DEVICE_CAPS) ? cap.device_caps : cap.capabilities;
+  c.can_capture = (caps & V4L2_CAP_VIDEO_CAPTURE) && (caps & V4L2_CAP_STREAMING);
+  for (std::uint32_t i = 0; i < 256; ++i) {
+    v4l2_fmtdesc desc{};
+    desc.index = i;
+    desc.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    if (d.try_call(VIDIOC_ENUM_FMT, &desc) != 0) break;  // EINVAL ends the list
+    c.formats.push_back(desc.pixelformat);
+  }
+  return c;
+}
+
+}  // namespace
+
+struct V4l2FrameSource::Impl {
+  V4l2Options options;
+  V4l2Io& io;
+  FrameCallback on_frame;
+  StateCallback on_state;
+  std::thread thread;
+  std::atomic<bool> stop{false};
+  int wake_fd = -1;  // eventfd: stop() wakes the capture thread's poll
+
+  mutable std::mutex mutex;  // guards what other threads read
+  StreamState state = StreamState::Stopped;
+  std::string reason;
+  V4l2Statistics stats;
+  SequenceStats earlier;  // frames of openings before the current one
+  SequenceTracker tracker{32, 1024};  // v4l2_buffer.sequence is 32 bits
+
+  Impl(V4l2Options o, V4l2Io& i) : options(std::move(o)), io(i) {}
+
+  void set_state(StreamState s, const std::string& why) {
+    {
+      std::lock_guard lock(mutex);
+      if (s == state && why == reason) return;
+      state = s;
+      reason = why;
+    }
+    if (on_state) on_state(s, why);
+  }
+
+  bool wait_for_stop(std::chrono::milliseconds d) {
+    pollfd p{wake_fd, POLLIN, 0};
+    return ::poll(&p, 1, static_cast<int>(d.count())) > 0 || stop;
+  }
+
+  void note_error(const std::string& e) {
+    std::lock_guard lock(mutex);
+    stats.last_error = e;
+  }
+
+  // Opens and negotiates; returns the device streaming and a line saying what was agreed.
+  std::unique_ptr<OpenDevice> open_stream(std::string& agreed) {
+    auto d = std::make_unique<OpenDevice>(io, options.device);
+    const Capabilities caps = query(*d);
+    if (!caps.can_capture)
+      throw V4l2Error(options.device + " (" + caps.card + ") is not a video capture device with streaming I/O", ENOTTY);
+    const std::vector<std::uint32_t>& wanted = options.formats.empty() ? readable_v4l2_formats() : options.formats;
+    std::uint32_t fourcc = 0;
+    for (auto w : wanted)
+      if (std::find(caps.formats.begin(), caps.formats.end(), w) != caps.formats.end()) {
+        fourcc = w;
+        break;
+      }
+    if (fourcc == 0)
+      throw V4l2Error(options.device + " (" + caps.card + ") offers " + fourcc_list(caps.formats) + "; asked for " +
+                          fourcc_list(wanted),
+                      EINVAL);
+
+    v4l2_format fmt{};
+    fmt.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    d->call(VIDIOC_G_FMT, &fmt, "VIDIOC_G_FMT");
+    fmt.fmt.pix.pixelformat = fourcc;
+    if (options.width) fmt.fmt.pix.width = static_cast<std::uint32_t>(*options.width);
+    if (options.height) fmt.fmt.pix.height = static_cast<std::uint32_t>(*options.height);
+    fmt.fmt.pix.field = V4L2_FIELD_ANY;
+    fmt.fmt.pix.bytesperline = 0;  // let the driver choose its padding
+    d->call(VIDIOC_S_FMT, &fmt, "VIDIOC_S_FMT");
+    // The driver answers with what it will really do; that, not the request, is used.
+    const auto& pix = fmt.fmt.pix;
+    if (!is_readable_v4l2_format(pix.pixelformat))
+      throw V4l2Error(options.device + ": asked for " + fourcc_to_string(fourcc) + ", the driver set " +
+                          fourcc_to_string(pix.pixelformat) + ", which evarnode does not read",
+                      EINVAL);
+    if (pix.width == 0 || pix.height == 0 || pix.width > 16384 || pix.height > 16384)
+      throw V4l2Error(options.device + ": the driver set an implausible size " + size_text(static_cast<int>(pix.width), static_cast<int>(pix.height)), EINVAL);
+    V4l2Layout layout{pix.pixelformat, static_cast<int>(pix.width), static_cast<int>(pix.height),
+                      static_cast<int>(pix.bytesperline), pix.sizeimage};
+    agreed = fourcc_to_string(layout.fourcc) + " " + size_text(layout.width, layout.height);
+    if (pix.pixelformat != fourcc) agreed += " (asked for " + fourcc_to_string(fourcc) + ")";
+    if ((options.width && *options.width != layout.width) || (options.height && *options.height != layout.height))
+      agreed += " (asked for " + size_text(options.width.value_or(layout.width), options.height.value_or(layout.height)) + ")";
+
+    std::optional<double> rate;
+    v4l2_streamparm parm{};
+    parm.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+    const bool has_parm = d->try_call(VIDIOC_G_PARM, &parm) == 0;
+    if (options.frame_rate_hz && has_parm && (parm.parm.capture.capability & V4L2_CAP_TIMEPERFRAME)) {
+      parm.parm.capture.timeperframe.numerator = 1000;
+      parm.parm.capture.timeperframe.denominator = static_cast<std::uint32_t>(std::lround(*options.frame_rate_hz * 1000.0));
+      d->call(VIDIOC_S_PARM, &parm, "VIDIOC_S_PARM");
+    } else if (options.frame_rate_hz) {
+      agreed += " (the device does not take a frame rate)";
+    }
+    const auto& tpf = parm.parm.capture.timeperframe;
+    if (has_parm && tpf.numerator > 0 && tpf.denominator > 0) {
+      rate = static_cast<double>(tpf.denominator) / tpf.numerator;
+      char buf[32];
+      std::snprintf(buf, sizeof buf, " at %.3g Hz", *rate);
+      agreed += buf;
+    }
+
+    d->map_buffers(options.buffers);
+    d->stream_on();
+    std::lock_guard lock(mutex);
+    stats.driver = caps.driver;
+    stats.card = caps.card;
+    stats.bus_info = caps.bus_info;
+    stats.layout = layout;
+    stats.frame_rate_hz = rate;
+    ++stats.connections;
+    earlier += tracker.stats();
+    tracker.reset();
+    return d;
+  }
+
+  // Takes every filled buffer off the queue; returns why the device is lost, or empty.
+  std::string drain(OpenDevice& d, Clock::time_point& last_frame) {
+    for (;;) {
+      v4l2_buffer buf{};
+      buf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
+      buf.memory = V4L2_MEMORY_MMAP;
+      if (const int e = d.try_call(VIDIOC_DQBUF, &buf); e != 0) {
+        if (e == EAGAIN) return {};
+        if (e == EIO) {  // a bad frame (signal loss): the driver may have kept capturing
+          std::lock_guard lock(mutex);
+          ++stats.bad_buffers;
+          stats.last_error = d.path() + ": VIDIOC_DQBUF reported EIO (a bad frame)";
+          return {};
+        }
+        return "VIDIOC_DQBUF failed: " + device_gone_reason(e);
+      }
+      const Clock::time_point arrival = Clock::now();
+      if (buf.index >= d.buffer_count()) return "the driver returned buffer " + std::to_string(buf.index) + " of " + std::to_string(d.buffer_count());
+      handle(d, buf, arrival, last_frame);
+      if (const int e = d.try_call(VIDIOC_QBUF, &buf); e != 0) return "VIDIOC_QBUF failed: " + device_gone_reason(e);
+    }
+  }
+
+  void handle(OpenDevice& d, const v4l2_buffer& buf, Clock::time_point arrival, Clock::time_point& last_frame) {
+    V4l2Layout layout;
+    {
+      std::lock_guard lock(mutex);
+      layout = stats.layout;
+    }
+    Frame f;
+    std::optional<std::string> bad;
+    if (buf.flags & V4L2_BUF_FLAG_ERROR)
+      bad = "the driver flagged buffer " + std::to_string(buf.index) + " (sequence " + std::to_string(buf.sequence) + ") as corrupt";
+    else
+      bad = convert_v4l2_buffer(layout, d.buffer(buf.index, buf.bytesused), f);
+    if (bad) {
+      std::lock_guard lock(mutex);
+      ++stats.bad_buffers;
+      stats.last_error = d.path() + ": " + *bad;
+      return;
+    }
+    f.sequence = buf.sequence;
+    f.host_arrival = arrival;
+    const std::int64_t t_ns = std::int64_t{buf.timestamp.tv_sec} * 1'000'000'000 + std::int64_t{buf.timestamp.tv_usec} * 1000;
+    f.device_time_ns = t_ns;
+    // Monotonic buffer times are on the host's steady clock (CLOCK_MONOTONIC) already;
+    // one taken after it arrived, or long before, is not believed.
+    const bool monotonic = (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+    const Clock::time_point t{std::chrono::nanoseconds(t_ns)};
+    const bool believable = monotonic && t <= arrival && arrival - t < std::chrono::seconds(2);
+    f.device_time_on_host = believable ? t : arrival;
+    {
+      std::lock_guard lock(mutex);
+      tracker.observe(buf.sequence);
+      stats.monotonic_timestamps = believable;
+    }
+    last_frame = arrival;
+    set_state(StreamState::Streaming, options.device + " streaming " + fourcc_to_string(layout.fourcc) + " " +
+                                          size_text(layout.width, layout.height));
+    if (on_frame) on_frame(f);
+  }
+
+  void run() {
+    bool in_outage = false;
+    while (!stop) {
+      set_state(StreamState::Connecting, "opening " + options.device);
+      std::unique_ptr<OpenDevice> device;
+      std::string agreed;
+      try {
+        device = open_stream(agreed);
+      } catch (const V4l2Error& e) {
+        device.reset();
+        note_error(e.what());
+        set_state(StreamState::Connecting, std::string(e.what()) + "; retrying every " +
+                                               std::to_string(options.reconnect_interval.count()) + " ms");
+        if (wait_for_stop(options.reconnect_interval)) break;
+        continue;
+      }
+      in_outage = false;
+      set_state(StreamState::Connecting, options.device + " open, " + agreed + ", waiting for the first frame");
+      Clock::time_point last_frame = Clock::now();
+      std::string lost;
+      bool restart = false;
+      while (!stop && lost.empty() && !restart) {
+        pollfd fds[2] = {{device->fd(), POLLIN, 0}, {wake_fd, POLLIN, 0}};
+        const int n = io.poll(fds, 2, 100);
+        if (n < 0 && errno != EINTR) lost = "poll failed: " + errno_text(errno);
+        if (n > 0 && (fds[0].revents & (POLLERR | POLLHUP | POLLNVAL)))
+          lost = std::string("poll reported ") + ((fds[0].revents & POLLHUP) ? "POLLHUP" : (fds[0].revents & POLLNVAL) ? "POLLNVAL" : "POLLERR");
+        else if (n > 0 && (fds[0].revents & POLLIN))
+          lost = drain(*device, last_frame);
+        if (!lost.empty() || stop) break;
+        const auto silent = Clock::now() - last_frame;
+        if (silent > options.restart_after) {
+          restart = true;
+        } else if (silent > options.stall_after && state_now() != StreamState::Stalled) {
+          set_state(StreamState::Stalled, options.device + ": no frame for " + std::to_string(options.stall_after.count()) + " ms");
+        }
+      }
+      device.reset();  // stream off, unmap, close: a clean slate for the reopen
+      if (stop) break;
+      if (restart) {
+        {
+          std::lock_guard lock(mutex);
+          ++stats.restarts;
+        }
+        set_state(StreamState::Stalled, options.device + ": no frame for " + std::to_string(options.restart_after.count()) +
+                                            " ms; reopening the device");
+        continue;
+      }
+      if (!in_outage) {
+        std::lock_guard lock(mutex);
+        ++stats.outages;
+        stats.last_error = options.device + ": " + lost;
+      }
+      in_outage = true;
+      set_state(StreamState::Disconnected, options.device + " lost: " + lost + "; reopening");
+      if (wait_for_stop(options.reconnect_interval)) break;
+    }
+    set_state(StreamState::Stopped, "V4L2 source " + options.device + " stopped");
+  }
+
+  StreamState state_now() const {
+    std::lock_guard lock(mutex);
+    return state;
+  }
+};
+
+V4l2FrameSource::V4l2FrameSource(V4l2Options options, V4l2Io& io) {
+  if (options.buffers < 2) throw std::invalid_argument("V4L2: need at least 2 buffers");
+  if ((options.width && *options.width <= 0) || (options.height && *options.height <= 0))
+    throw std::invalid_argument("V4L2: width and height must be positive");
+  if (options.frame_rate_hz && !(*options.frame_rate_hz > 0.0 && *options.frame_rate_hz < 10000.0))
+    throw std::invalid_argument("V4L2: frame rate must be positive (Hz)");
+  for (auto f : options.formats)
+    if (!is_readable_v4l2_format(f))
+      throw std::invalid_argument("V4L2: format " + fourcc_to_string(f) + " is not one evarnode reads (GREY, Y16, YUYV, MJPG)");
+  if (options.restart_after <= options.stall_after)
+    throw std::invalid_argument("V4L2: restart_after must be longer than stall_after");
+  impl_ = std::make_unique<Impl>(std::move(options), io);
+}
+
+V4l2FrameSource::~V4l2FrameSource() {
+  stop();
+  if (impl_->wake_fd >= 0) ::close(impl_->wake_fd);
+}
+
+void V4l2FrameSource::start(FrameCallback on_frame, StateCallback on_state) {
+  if (impl_->thread.joinable()) throw std::logic_error("V4L2 source already started");
+  if (impl_->wake_fd < 0) {
+    impl_->wake_fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
+    if (impl_->wake_fd < 0) throw std::runtime_error("V4L2: eventfd failed: " + errno_text(errno));
+  }
+  std::uint64_t drain_count;
+  while (::read(impl_->wake_fd, &drain_count, sizeof drain_count) > 0) {
+  }
+  impl_->on_frame = std::move(on_frame);
+  impl_->on_state = std::move(on_state);
+  impl_->stop = false;
+  impl_->thread = std::thread([this] { impl_->run(); });
+}
+
+void V4l2FrameSource::stop() {
+  if (!impl_->thread.joinable()) return;
+  impl_->stop = true;
+  const std::uint64_t one = 1;
+  [[maybe_unused]] const auto n = ::write(impl_->wake_fd, &one, sizeof one);
+  impl_->thread.join();  // the thread reported Stopped as its last word
+}
+
+StreamState V4l2FrameSource::state() const { return impl_->state_now(); }
+
+SequenceStats V4l2FrameSource::statistics() const {
+  std::lock_guard lock(impl_->mutex);
+  SequenceStats s = impl_->earlier;
+  return s += impl_->tracker.stats();
+}
+
+V4l2Statistics V4l2FrameSource::v4l2_statistics() const {
+  std::lock_guard lock(impl_->mutex);
+  V4l2Statistics s = impl_->stats;
+  s.frames = impl_->earlier;
+  s.frames += impl_->tracker.stats();
+  return s;
+}
+
+std::string V4l2FrameSource::description() const {
+  const auto& o = impl_->options;
+  return "V4L2 device " + o.device + ", " + fourcc_list(o.formats.empty() ? readable_v4l2_formats() : o.formats);
+}
+
+std::vector<V4l2DeviceInfo> list_v4l2_devices(V4l2Io& io, const std::filesystem::path& dev_dir) {
+  std::vector<std::pair<long, std::filesystem::path>> nodes;
+  std::error_code ec;
+  for (const auto& entry : std::filesystem::directory_iterator(dev_dir, ec)) {
+    const std::string name = entry.path().filename().string();
+    if (name.size() <= 5 || name.compare(0, 5, "video") != 0) continue;
+    if (!std::all_of(name.begin() + 5, name.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+    if (name.size() > 12) continue;  // not a plausible minor number
+    nodes.emplace_back(std::stol(name.substr(5)), entry.path());
+  }
+  std::sort(nodes.begin(), nodes.end());
+  std::vector<V4l2DeviceInfo> out;
+  for (const auto& [number, path] : nodes) {
+    V4l2DeviceInfo info;
+    info.path = path.string();
+    try {
+      OpenDevice d(io, info.path);
+      const Capabilities c = query(d);
+      info.driver = c.driver;
+      info.card = c.card;
+      info.bus_info = c.bus_info;
+      info.can_capture = c.can_capture;
+      info.formats = c.formats;
+    } catch (const V4l2Error& e) {
+      info.error = e.what();
+    }
+    out.push_back(std::move(info));
+  }
+  return out;
+}
+
+}  // namespace evar::acquisition

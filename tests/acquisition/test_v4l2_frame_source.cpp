@@ -1,0 +1,466 @@
+// The V4L2 grabber against a scripted device behind the V4l2Io seam (no /dev/video* and no
+// loadable video driver exist on the machines these tests run on): format negotiation with
+// read-back, streaming with pixels checked, drops from sequence gaps, bad buffers, the
+// watchdog, and teardown and reopen when the device goes away.
+#include <gtest/gtest.h>
+
+#include <cstdlib>
+#include <filesystem>
+#include <fstream>
+#include <opencv2/imgcodecs.hpp>
+#include <thread>
+
+#include "evar/acquisition/v4l2_formats.hpp"
+#include "evar/acquisition/v4l2_frame_source.hpp"
+#include "support/fake_v4l2_device.hpp"
+#include "support/stream_log.hpp"
+
+namespace evar::acquisition {
+namespace {
+
+using namespace std::chrono_literals;
+using test::FakeV4l2Device;
+
+// A sensor image that differs in every pixel and frame, in the device's negotiated layout.
+std::uint16_t expected_value(int x, int y, int seed, PixelFormat f) {
+  const int v = x * 7 + y * 13 + seed * 101;
+  return static_cast<std::uint16_t>(f == PixelFormat::Mono16 ? (v * 37) & 0xFFFF : v & 0xFF);
+}
+
+std::vector<std::uint8_t> payload_for(const v4l2_pix_format& fmt, int seed) {
+  const int w = static_cast<int>(fmt.width), h = static_cast<int>(fmt.height);
+  std::vector<std::uint8_t> p(fmt.sizeimage, 0xEE);  // padding bytes are never read
+  for (int y = 0; y < h; ++y)
+    for (int x = 0; x < w; ++x) {
+      std::uint8_t* row = p.data() + static_cast<std::size_t>(y) * fmt.bytesperline;
+      switch (fmt.pixelformat) {
+        case V4L2_PIX_FMT_GREY: row[x] = static_cast<std::uint8_t>(expected_value(x, y, seed, PixelFormat::Mono8)); break;
+        case V4L2_PIX_FMT_Y16: {
+          const std::uint16_t v = expected_value(x, y, seed, PixelFormat::Mono16);
+          row[2 * x] = static_cast<std::uint8_t>(v & 0xFF);
+          row[2 * x + 1] = static_cast<std::uint8_t>(v >> 8);
+          break;
+        }
+        case V4L2_PIX_FMT_YUYV:
+          row[2 * x] = static_cast<std::uint8_t>(expected_value(x, y, seed, PixelFormat::Mono8));
+          row[2 * x + 1] = static_cast<std::uint8_t>(x % 2 ? 90 : 160);  // chroma, ignored
+          break;
+      }
+    }
+  return p;
+}
+
+int mismatches(const Frame& f, int seed) {
+  int bad = 0;
+  for (int y = 0; y < f.height; ++y)
+    for (int x = 0; x < f.width; ++x) {
+      const std::uint8_t* row = f.pixels.data() + static_cast<std::size_t>(y) * f.stride_bytes;
+      const int v = f.format == PixelFormat::Mono16 ? row[2 * x] | (row[2 * x + 1] << 8) : row[x];
+      bad += v != expected_value(x, y, seed, f.format);
+    }
+  return bad;
+}
+
+struct FrameLog : test::StreamLog {
+  std::vector<Frame> frames;
+  FrameSource::FrameCallback frame_callback() {
+    return [this](const Frame& f) { record([&] { frames.push_back(f); }); };
+  }
+  FrameSource::StateCallback state_callback() {
+    return [this](StreamState s, const std::string& r) { on_stream(s, r); };
+  }
+};
+
+V4l2Options quick_options(const std::string& path) {
+  V4l2Options o;
+  o.device = path;
+  o.stall_after = 150ms;
+  o.restart_after = 600ms;
+  o.reconnect_interval = 50ms;
+  return o;
+}
+
+// ---- conversions -------------------------------------------------------------------------
+
+TEST(V4l2Formats, FourccNamesRoundTripAndUnknownNamesAreRefused) {
+  EXPECT_EQ(fourcc_to_string(V4L2_PIX_FMT_YUYV), "YUYV");
+  EXPECT_EQ(fourcc_to_string(V4L2_PIX_FMT_Y16), "Y16 ");
+  EXPECT_EQ(fourcc_from_string("mjpeg"), V4L2_PIX_FMT_MJPEG);
+  EXPECT_EQ(fourcc_from_string("Y16"), V4L2_PIX_FMT_Y16);
+  EXPECT_FALSE(fourcc_from_string("RGB3"));
+  EXPECT_FALSE(is_readable_v4l2_format(V4L2_PIX_FMT_RGB24));
+}
+
+TEST(V4l2Formats, PaddedLinesAreStrippedAndLumaIsTakenFromYuyv) {
+  for (std::uint32_t fourcc : {V4L2_PIX_FMT_GREY, V4L2_PIX_FMT_Y16, V4L2_PIX_FMT_YUYV}) {
+    v4l2_pix_format fmt{};
+    fmt.pixelformat = fourcc;
+    fmt.width = 10;
+    fmt.height = 6;
+    fmt.bytesperline = (fourcc == V4L2_PIX_FMT_GREY ? 10 : 20) + 12;
+    fmt.sizeimage = fmt.bytesperline * fmt.height;
+    const auto data = payload_for(fmt, 3);
+    Frame f;
+    const V4l2Layout layout{fourcc, 10, 6, static_cast<int>(fmt.bytesperline), fmt.sizeimage};
+    ASSERT_FALSE(convert_v4l2_buffer(layout, data, f)) << fourcc_to_string(fourcc);
+    EXPECT_EQ(f.format, fourcc == V4L2_PIX_FMT_Y16 ? PixelFormat::Mono16 : PixelFormat::Mono8);
+    EXPECT_EQ(f.stride_bytes, 10 * bytes_per_pixel(f.format));
+    EXPECT_EQ(mismatches(f, 3), 0) << fourcc_to_string(fourcc);
+  }
+}
+
+TEST(V4l2Formats, AShortBufferIsRefusedNamingTheSizes) {
+  const V4l2Layout layout{V4L2_PIX_FMT_Y16, 640, 480, 1280, 1280 * 480};
+  std::vector<std::uint8_t> data(1000);
+  Frame f;
+  const auto error = convert_v4l2_buffer(layout, data, f);
+  ASSERT_TRUE(error);
+  EXPECT_NE(error->find("holds 1000 bytes, needs 614400"), std::string::npos) << *error;
+}
+
+TEST(V4l2Formats, MjpegDecodesToTheImageWithinJpegLoss) {
+  cv::Mat img(48, 64, CV_8UC1);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) img.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(40 + 2 * x + y);
+  std::vector<std::uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", img, jpeg, {cv::IMWRITE_JPEG_QUALITY, 95}));
+  Frame f;
+  ASSERT_FALSE(convert_v4l2_buffer({V4L2_PIX_FMT_MJPEG, 64, 48, 0, 64 * 48}, jpeg, f));
+  ASSERT_EQ(f.width, 64);
+  ASSERT_EQ(f.pixels.size(), 64u * 48u);
+  double sum = 0;
+  int worst = 0;
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) {
+      const int d = std::abs(int(f.pixels[static_cast<std::size_t>(y * 64 + x)]) - img.at<std::uint8_t>(y, x));
+      sum += d;
+      worst = std::max(worst, d);
+    }
+  // A smooth ramp at quality 95 loses about a grey level on average.
+  EXPECT_LT(sum / (64 * 48), 1.5);
+  EXPECT_LE(worst, 8);
+}
+
+TEST(V4l2Formats, GarbageOrTheWrongSizeOfMjpegIsAnErrorNotACrash) {
+  Frame f;
+  std::vector<std::uint8_t> garbage(5000);
+  for (std::size_t i = 0; i < garbage.size(); ++i) garbage[i] = static_cast<std::uint8_t>(i * 131 + 7);
+  EXPECT_TRUE(convert_v4l2_buffer({V4L2_PIX_FMT_MJPEG, 64, 48, 0, 5000}, garbage, f));
+  garbage[0] = 0xFF;
+  garbage[1] = 0xD8;  // a JPEG start followed by nonsense
+  EXPECT_TRUE(convert_v4l2_buffer({V4L2_PIX_FMT_MJPEG, 64, 48, 0, 5000}, garbage, f));
+  cv::Mat img(20, 30, CV_8UC1, cv::Scalar(100));
+  std::vector<std::uint8_t> jpeg;
+  cv::imencode(".jpg", img, jpeg);
+  const auto e = convert_v4l2_buffer({V4L2_PIX_FMT_MJPEG, 64, 48, 0, 5000}, jpeg, f);
+  ASSERT_TRUE(e);
+  EXPECT_NE(e->find("decodes to 30x20"), std::string::npos) << *e;
+}
+
+// ---- negotiation -------------------------------------------------------------------------
+
+TEST(V4l2FrameSource, TakesTheDeepestOfferedGreyAndUsesTheSizeTheDriverGrants) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_GREY};  // no Y16 on this grabber
+  c.max_width = 640;
+  c.max_height = 480;
+  c.width_step = 16;
+  FakeV4l2Device device(c);
+  V4l2Options o = quick_options(c.path);
+  o.width = 1000;  // more than the grabber can
+  o.height = 700;
+  o.frame_rate_hz = 25.0;
+  FrameLog log;
+  V4l2FrameSource source(o, device);
+  source.start(log.frame_callback(), log.state_callback());
+  ASSERT_TRUE(device.wait_streaming(5s));
+  EXPECT_EQ(device.format().pixelformat, V4L2_PIX_FMT_GREY);
+  EXPECT_EQ(device.format().width, 640u);
+  EXPECT_NEAR(device.frame_rate_set(), 25.0, 1e-9);
+  device.produce(payload_for(device.format(), 1));
+  ASSERT_TRUE(log.wait([&] { return !log.frames.empty(); }, 5s));
+  source.stop();
+  EXPECT_EQ(log.frames[0].width, 640);
+  EXPECT_EQ(log.frames[0].height, 480);
+  EXPECT_EQ(log.frames[0].format, PixelFormat::Mono8);
+  EXPECT_EQ(mismatches(log.frames[0], 1), 0);
+  const auto stats = source.v4l2_statistics();
+  EXPECT_EQ(stats.layout.fourcc, V4L2_PIX_FMT_GREY);
+  EXPECT_EQ(stats.card, "Scripted grabber");
+  ASSERT_TRUE(stats.frame_rate_hz);
+  EXPECT_NEAR(*stats.frame_rate_hz, 25.0, 1e-9);
+  // What was granted instead of what was asked is told, not hidden.
+  EXPECT_TRUE(log.said({"GREY 640x480", "asked for 1000x700"}));
+}
+
+TEST(V4l2FrameSource, ADeviceWithoutAReadableFormatIsReportedNamingWhatItOffers) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_RGB24, V4L2_PIX_FMT_NV12};
+  FakeV4l2Device device(c);
+  FrameLog log;
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start(log.frame_callback(), log.state_callback());
+  ASSERT_TRUE(log.wait([&] { return log.said({"offers RGB3, NV12", "Y16 , GREY, YUYV, MJPG"}); }, 5s));
+  EXPECT_EQ(source.state(), StreamState::Connecting);
+  source.stop();
+  EXPECT_TRUE(log.frames.empty());
+  EXPECT_TRUE(device.wait_closed(1s)) << "a refused device is closed again";
+}
+
+TEST(V4l2FrameSource, ANodeThatIsNotACaptureDeviceIsRefused) {
+  FakeV4l2Device::Config c;
+  c.capture = false;  // e.g. the metadata node a UVC grabber also creates
+  FakeV4l2Device device(c);
+  FrameLog log;
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start(log.frame_callback(), log.state_callback());
+  ASSERT_TRUE(log.wait([&] { return log.said({"not a video capture device"}); }, 5s));
+  source.stop();
+}
+
+TEST(V4l2FrameSource, BadOptionsThrowBeforeAnythingStarts) {
+  FakeV4l2Device device({});
+  V4l2Options o;
+  o.buffers = 1;
+  EXPECT_THROW(V4l2FrameSource(o, device), std::invalid_argument);
+  o = {};
+  o.formats = {V4L2_PIX_FMT_RGB24};
+  EXPECT_THROW(V4l2FrameSource(o, device), std::invalid_argument);
+  o = {};
+  o.frame_rate_hz = 0.0;
+  EXPECT_THROW(V4l2FrameSource(o, device), std::invalid_argument);
+}
+
+// ---- streaming ---------------------------------------------------------------------------
+
+TEST(V4l2FrameSource, StreamsEveryFrameInOrderWithPixelsAndMonotonicTimes) {
+  FakeV4l2Device::Config c;
+  c.row_padding = 24;  // a driver that pads its lines
+  c.width = 200;
+  c.height = 120;
+  FakeV4l2Device device(c);
+  FrameLog log;
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start(log.frame_callback(), log.state_callback());
+  ASSERT_TRUE(device.wait_streaming(5s));
+  ASSERT_EQ(device.format().pixelformat, V4L2_PIX_FMT_Y16) << "Y16 is preferred when offered";
+  constexpr int n = 40;
+  for (int i = 0; i < n; ++i) {
+    // The sensor waits for the grabber like a real frame period would.
+    ASSERT_TRUE(log.wait([&] { return static_cast<int>(log.frames.size()) >= i; }, 5s));
+    ASSERT_TRUE(device.produce(payload_for(device.format(), i)));
+  }
+  ASSERT_TRUE(log.wait([&] { return log.frames.size() == n; }, 5s));
+  source.stop();
+  for (int i = 0; i < n; ++i) {
+    const Frame& f = log.frames[static_cast<std::size_t>(i)];
+    EXPECT_EQ(f.sequence, static_cast<std::uint64_t>(i));
+    EXPECT_EQ(f.format, PixelFormat::Mono16);
+    EXPECT_EQ(mismatches(f, i), 0) << "frame " << i;
+    // The buffer time is the kernel's CLOCK_MONOTONIC: the host clock, before arrival.
+    EXPECT_LE(f.device_time_on_host, f.host_arrival);
+    EXPECT_LT(f.host_arrival - f.device_time_on_host, 1s);
+    if (i > 0) {
+      EXPECT_GE(f.device_time_ns, log.frames[static_cast<std::size_t>(i - 1)].device_time_ns);
+    }
+  }
+  const auto stats = source.v4l2_statistics();
+  EXPECT_EQ(stats.frames.received, static_cast<std::uint64_t>(n));
+  EXPECT_EQ(stats.frames.dropped, 0u);
+  EXPECT_EQ(stats.bad_buffers, 0u);
+  EXPECT_TRUE(stats.monotonic_timestamps);
+  EXPECT_TRUE(log.saw(StreamState::Streaming));
+  EXPECT_EQ(log.streams.back().first, StreamState::Stopped);
+  EXPECT_TRUE(device.wait_closed(1s)) << "stop() unmaps every buffer and closes the device";
+}
+
+TEST(V4l2FrameSource, YuyvAndMjpegGrabbersDeliverGreyFrames) {
+  for (std::uint32_t fourcc : {V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_MJPEG}) {
+    FakeV4l2Device::Config c;
+    c.formats = {fourcc};
+    FakeV4l2Device device(c);
+    FrameLog log;
+    V4l2FrameSource source(quick_options(c.path), device);
+    source.start(log.frame_callback(), log.state_callback());
+    ASSERT_TRUE(device.wait_streaming(5s));
+    const auto fmt = device.format();
+    std::vector<std::uint8_t> payload;
+    if (fourcc == V4L2_PIX_FMT_MJPEG) {
+      cv::Mat img(static_cast<int>(fmt.height), static_cast<int>(fmt.width), CV_8UC1, cv::Scalar(77));
+      cv::imencode(".jpg", img, payload);
+    } else {
+      payload = payload_for(fmt, 5);
+    }
+    ASSERT_TRUE(device.produce(payload));
+    ASSERT_TRUE(log.wait([&] { return !log.frames.empty(); }, 5s)) << fourcc_to_string(fourcc);
+    source.stop();
+    const Frame& f = log.frames[0];
+    EXPECT_EQ(f.format, PixelFormat::Mono8);
+    if (fourcc == V4L2_PIX_FMT_MJPEG) {
+      for (auto v : f.pixels) ASSERT_NEAR(v, 77, 1);  // a flat image survives JPEG
+    } else {
+      EXPECT_EQ(mismatches(f, 5), 0);
+    }
+  }
+}
+
+TEST(V4l2FrameSource, SequenceGapsAreDropsAndBadBuffersAreCountedNotDelivered) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_GREY};
+  FakeV4l2Device device(c);
+  FrameLog log;
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start(log.frame_callback(), log.state_callback());
+  ASSERT_TRUE(device.wait_streaming(5s));
+  const auto fmt = device.format();
+  auto next = [&](std::size_t expect_frames) {
+    return log.wait([&] { return log.frames.size() >= expect_frames; }, 5s);
+  };
+  device.produce(payload_for(fmt, 0));  // sequence 0
+  ASSERT_TRUE(next(1));
+  device.skip(3);                        // 1, 2, 3 lost in the driver
+  device.produce(payload_for(fmt, 4));  // 4
+  ASSERT_TRUE(next(2));
+  device.produce(payload_for(fmt, 5), V4L2_BUF_FLAG_ERROR);  // 5: corrupt
+  device.produce(std::vector<std::uint8_t>(10, 1));          // 6: far too short
+  device.produce(payload_for(fmt, 7));                        // 7
+  ASSERT_TRUE(next(3));
+  source.stop();
+  ASSERT_EQ(log.frames.size(), 3u);
+  EXPECT_EQ(log.frames[1].sequence, 4u);
+  EXPECT_EQ(log.frames[2].sequence, 7u);
+  EXPECT_EQ(mismatches(log.frames[2], 7), 0);
+  const auto stats = source.v4l2_statistics();
+  EXPECT_EQ(stats.bad_buffers, 2u);
+  EXPECT_EQ(stats.frames.received, 3u);
+  EXPECT_EQ(stats.frames.dropped, 5u) << "3 lost in the driver and 2 bad buffers never shown";
+  EXPECT_NE(stats.last_error.find("holds 10 bytes"), std::string::npos) << stats.last_error;
+}
+
+TEST(V4l2FrameSource, BufferTimesNotOnTheMonotonicClockAreReplacedByArrival) {
+  FakeV4l2Device::Config c;
+  c.timestamp_flags = V4L2_BUF_FLAG_TIMESTAMP_COPY;
+  FakeV4l2Device device(c);
+  FrameLog log;
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start(log.frame_callback(), log.state_callback());
+  ASSERT_TRUE(device.wait_streaming(5s));
+  device.produce(payload_for(device.format(), 0));
+  ASSERT_TRUE(log.wait([&] { return !log.frames.empty(); }, 5s));
+  source.stop();
+  EXPECT_EQ(log.frames[0].device_time_on_host, log.frames[0].host_arrival);
+  EXPECT_FALSE(source.v4l2_statistics().monotonic_timestamps);
+}
+
+// ---- the device going away ---------------------------------------------------------------
+
+TEST(V4l2FrameSource, AnUnpluggedGrabberIsReportedTornDownAndReopenedWhenItReturns) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_GREY};
+  FakeV4l2Device device(c);
+  FrameLog log;
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start(log.frame_callback(), log.state_callback());
+  ASSERT_TRUE(device.wait_streaming(5s));
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_TRUE(log.wait([&] { return static_cast<int>(log.frames.size()) >= i; }, 5s));
+    device.produce(payload_for(device.format(), i));
+  }
+  ASSERT_TRUE(log.wait([&] { return log.frames.size() == 5; }, 5s));
+
+  device.unplug();
+  ASSERT_TRUE(log.wait([&] { return log.saw(StreamState::Disconnected); }, 5s));
+  // Torn down completely: the vanished device's buffers unmapped and its descriptor closed.
+  EXPECT_TRUE(device.wait_closed(5s));
+  // While it is away the reason says so.
+  ASSERT_TRUE(log.wait([&] { return log.said({"cannot open", "ENOENT"}); }, 5s));
+  EXPECT_NE(source.state(), StreamState::Streaming);
+
+  device.plug();
+  ASSERT_TRUE(device.wait_streaming(5s, 2));
+  for (int i = 0; i < 5; ++i) {
+    ASSERT_TRUE(log.wait([&] { return static_cast<int>(log.frames.size()) >= 5 + i; }, 5s));
+    device.produce(payload_for(device.format(), 10 + i));
+  }
+  ASSERT_TRUE(log.wait([&] { return log.frames.size() == 10; }, 5s));
+  EXPECT_EQ(source.state(), StreamState::Streaming);
+  source.stop();
+  EXPECT_EQ(mismatches(log.frames[9], 14), 0);
+  const auto stats = source.v4l2_statistics();
+  EXPECT_EQ(stats.outages, 1u);
+  EXPECT_EQ(stats.connections, 2u);
+  EXPECT_EQ(stats.frames.received, 10u);
+  EXPECT_EQ(stats.frames.dropped, 0u) << "the counter restarting at STREAMON is not a drop";
+}
+
+TEST(V4l2FrameSource, EnodevFromDequeueTearsDownAndReopens) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_GREY};
+  FakeV4l2Device device(c);
+  FrameLog log;
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start(log.frame_callback(), log.state_callback());
+  ASSERT_TRUE(device.wait_streaming(5s));
+  device.fail_next_dqbuf(ENODEV);
+  device.produce(payload_for(device.format(), 0));  // wakes the grabber into the failing DQBUF
+  ASSERT_TRUE(log.wait([&] { return log.said({"VIDIOC_DQBUF", "ENODEV"}); }, 5s));
+  ASSERT_TRUE(device.wait_streaming(5s, 2));
+  device.produce(payload_for(device.format(), 1));
+  ASSERT_TRUE(log.wait([&] { return !log.frames.empty(); }, 5s));
+  source.stop();
+  EXPECT_EQ(mismatches(log.frames[0], 1), 0);
+  EXPECT_EQ(source.v4l2_statistics().outages, 1u);
+}
+
+TEST(V4l2FrameSource, TheWatchdogReportsAStallThenReopensAHungDevice) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_GREY};
+  FakeV4l2Device device(c);
+  FrameLog log;
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start(log.frame_callback(), log.state_callback());
+  ASSERT_TRUE(device.wait_streaming(5s));
+  device.produce(payload_for(device.format(), 0));
+  ASSERT_TRUE(log.wait([&] { return !log.frames.empty(); }, 5s));
+  // The sensor falls silent: stalled after 150 ms, reopened after 600 ms.
+  ASSERT_TRUE(log.wait([&] { return log.saw(StreamState::Stalled); }, 5s));
+  ASSERT_TRUE(device.wait_streaming(5s, 2));
+  EXPECT_TRUE(log.said({"reopening the device"}));
+  EXPECT_EQ(device.opens(), 2);
+  device.produce(payload_for(device.format(), 1));
+  ASSERT_TRUE(log.wait([&] { return log.frames.size() == 2; }, 5s));
+  EXPECT_EQ(source.state(), StreamState::Streaming);
+  source.stop();
+  const auto stats = source.v4l2_statistics();
+  EXPECT_GE(stats.restarts, 1u);
+  EXPECT_EQ(stats.outages, 0u) << "a hang is not a lost device";
+}
+
+// ---- enumeration -------------------------------------------------------------------------
+
+TEST(V4l2Devices, ListsVideoNodesInNumberOrderWithWhatTheySay) {
+  const auto dir = std::filesystem::temp_directory_path() / ("evar-v4l2-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dir);
+  for (const char* name : {"video10", "video0", "video1", "video", "videoX", "vbi0", "media0"})
+    std::ofstream(dir / name).put('\n');
+  FakeV4l2Device::Config c;
+  c.path = (dir / "video0").string();
+  c.formats = {V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_MJPEG};
+  FakeV4l2Device device(c);
+  const auto list = list_v4l2_devices(device, dir);
+  std::filesystem::remove_all(dir);
+  ASSERT_EQ(list.size(), 3u);
+  EXPECT_EQ(std::filesystem::path(list[0].path).filename(), "video0");
+  EXPECT_EQ(std::filesystem::path(list[1].path).filename(), "video1");
+  EXPECT_EQ(std::filesystem::path(list[2].path).filename(), "video10");
+  EXPECT_EQ(list[0].card, "Scripted grabber");
+  EXPECT_TRUE(list[0].can_capture);
+  EXPECT_EQ(list[0].formats, (std::vector<std::uint32_t>{V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_MJPEG}));
+  EXPECT_TRUE(list[0].error.empty());
+  EXPECT_NE(list[1].error.find("ENOENT"), std::string::npos) << list[1].error;
+  EXPECT_EQ(device.open_fds(), 0);
+  EXPECT_TRUE(list_v4l2_devices(device, dir / "absent").empty());
+}
+
+}  // namespace
+}  // namespace evar::acquisition
