@@ -207,6 +207,54 @@ int run_cli(const std::vector<std::string>& args) {
                  "also send the C-arm states over a pseudo-terminal in the C-arm link protocol\n"
                  "(docs/CARM_LINK_PROTOCOL.md); PATH becomes a link to its serial device");
 
+  DevicesCommand devices;
+  auto* dv = app.add_subcommand(
+      "devices",
+      "List the acquisition hardware this machine sees: GigE Vision cameras (Aravis discovery),\n"
+      "V4L2 video devices, serial ports (with their stable /dev/serial/by-id names) and USB\n"
+      "devices with their bulk/interrupt IN endpoints, for choosing --camera, --v4l2 and --carm.");
+  dv->add_flag("--json", devices.json, "machine-readable output on stdout");
+  dv->add_option("--usb", devices.usb, "only USB devices with this VID:PID[:SERIAL] (hexadecimal, as lsusb prints)");
+
+  RecordCommand record;
+  auto* rd = app.add_subcommand(
+      "record",
+      "Record a live session from a frame grabber and the C-arm link into the session format\n"
+      "(docs/SESSION_FORMAT.md), with live statistics; stop with Ctrl-C, --seconds or --frames.\n"
+      "Frames are written as 16-bit PNG (8-bit grey x257, 12-bit x16); C-arm states are put on\n"
+      "the frames' clock. The patient scene is copied in, so `evarnode replay` and `evarnode run`\n"
+      "take the session as it is. A report of what arrived and what was lost goes beside it\n"
+      "(record_report.json).\n"
+      "Example: evarnode record --camera EVAR001 --carm serial:/dev/ttyUSB0 --scene plan/scene.json\n"
+      "         --registration plan/registration.json --pixel-spacing 0.154 --out session-01");
+  auto* cam = rd->add_option("--camera", record.camera, "GigE Vision camera: id, serial number or IP address (see `evarnode devices`)");
+  auto* v4l = rd->add_option("--v4l2", record.v4l2, "V4L2 frame grabber instead, e.g. /dev/video0");
+  cam->excludes(v4l);
+  rd->add_option("--pixel-format", record.pixel_format, "GigE pixel format")
+      ->check(CLI::IsMember({"mono8", "mono12", "mono16"}))
+      ->capture_default_str();
+  rd->add_option("--v4l2-format", record.v4l2_format, "V4L2 format: Y16, GREY, YUYV or MJPG (default: the deepest grey offered)")
+      ->needs(v4l);
+  rd->add_option("--width", record.width, "image width (pixels); default: the device's")->check(CLI::Range(16, 16384));
+  rd->add_option("--height", record.height, "image height (pixels); default: the device's")->check(CLI::Range(16, 16384));
+  rd->add_option("--fps", record.fps, "frame rate (Hz); default: the device's")->check(CLI::Range(0.1, 1000.0));
+  rd->add_option("--carm", record.carm,
+                 "the C-arm link (docs/CARM_LINK_PROTOCOL.md): serial:/dev/ttyUSB0[,baud=115200][,parity=none|even|odd][,stop=1|2]\n"
+                 "or usb:VID:PID[:SERIAL]")
+      ->required();
+  rd->add_option("--scene", record.scene, "the patient's scene.json (docs/FORMATS.md)")->required()->check(CLI::ExistingFile);
+  rd->add_option("--registration", record.registration, "CT-to-C-arm registration ({\"matrix\": 4x4})")
+      ->required()
+      ->check(CLI::ExistingFile);
+  rd->add_option("--pixel-spacing", record.pixel_spacing_mm, "detector pixel spacing (mm, at the detector)")
+      ->required()
+      ->check(CLI::Range(0.001, 10.0));
+  rd->add_option("--device-thickness", record.device_thickness_mm, "device thickness (mm); default: the scene's")
+      ->check(CLI::Range(0.0, 15.0));
+  rd->add_option("--seconds", record.seconds, "stop after this long")->check(CLI::PositiveNumber);
+  rd->add_option("--frames", record.frames, "stop after this many frames are written")->check(CLI::PositiveNumber);
+  rd->add_option("--out", record.out, "the new session directory (must not exist or be empty)")->required();
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -225,6 +273,8 @@ int run_cli(const std::vector<std::string>& args) {
     if (sp->parsed()) return run_sim_patient(sim_patient);
     if (ss->parsed()) return run_sim_session(sim_session);
     if (rp->parsed()) return run_replay(replay);
+    if (dv->parsed()) return run_devices(devices);
+    if (rd->parsed()) return run_record(record);
   } catch (const geometry::InputError& err) {
     log().error("{}", err.what());
     return 1;

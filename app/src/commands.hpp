@@ -66,6 +66,28 @@ struct ReplayCommand {
 };
 int run_replay(const ReplayCommand& cmd);
 
+struct DevicesCommand {
+  bool json = false;
+  std::string usb;  ///< VID:PID[:SERIAL]: only the matching USB devices
+};
+int run_devices(const DevicesCommand& cmd);
+
+struct RecordCommand {
+  std::string camera;                 ///< GigE camera id, serial or address ("" = the only one)
+  std::string pixel_format = "mono16";
+  std::string v4l2;                   ///< /dev/videoN instead of a GigE camera
+  std::string v4l2_format;            ///< Y16, GREY, YUYV or MJPG ("" = the deepest offered)
+  std::optional<int> width, height;
+  std::optional<double> fps;
+  std::string carm;                   ///< serial:PATH[,baud=N,...] or usb:VID:PID[:SERIAL]
+  std::filesystem::path out, scene, registration;
+  double pixel_spacing_mm = 0.0;
+  std::optional<double> device_thickness_mm;
+  std::optional<double> seconds;
+  std::optional<int> frames;
+};
+int run_record(const RecordCommand& cmd);
+
 /// Options shared by segment and reconstruct.
 struct SegmentParams {
   double diameter_mm = 0.89;             ///< device diameter (0.035" guidewire), for its shadow width

@@ -1,6 +1,5 @@
 // `evarnode replay`: plays a recorded session through the acquisition interfaces and
 // reports what arrived.
-#include <csignal>
 #include <map>
 #include <mutex>
 #include <optional>
@@ -10,17 +9,12 @@
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/serial_carm_server.hpp"
 #include "evar/sim/session_replay.hpp"
+#include "interrupt.hpp"
 #include "json_file.hpp"
 #include "logging.hpp"
 #include "progress_bar.hpp"
 
 namespace evar::app {
-namespace {
-
-std::atomic<bool> interrupted{false};
-extern "C" void on_interrupt(int) { interrupted = true; }
-
-}  // namespace
 
 int run_replay(const ReplayCommand& cmd) {
   const sim::Session session = sim::read_session(cmd.session);
@@ -50,11 +44,7 @@ int run_replay(const ReplayCommand& cmd) {
   }
   std::string transport_error;  // the first failure to serve; the replay goes on
   sim::SessionReplay replay(session, {cmd.fast ? 0.0 : cmd.speed, cmd.loops});
-  // Ctrl-C stops the replay cleanly; the previous handler comes back on every way out.
-  struct SignalGuard {
-    void (*previous)(int);
-    ~SignalGuard() { std::signal(SIGINT, previous); }
-  } guard{std::signal(SIGINT, on_interrupt)};
+  const InterruptGuard ctrl_c;  // Ctrl-C stops the replay cleanly
   replay.carm().start(
       [&](const acquisition::CArmState& s) {
         std::string failed;  // the link is written outside the report's lock
@@ -91,7 +81,7 @@ int run_replay(const ReplayCommand& cmd) {
   const std::size_t total = cmd.loops == 0 ? 0 : session.frames.size() * static_cast<std::size_t>(cmd.loops);
   const auto start = std::chrono::steady_clock::now();
   while (!replay.wait(std::chrono::milliseconds(100))) {
-    if (interrupted) {
+    if (ctrl_c.interrupted()) {
       replay.frames().stop();
       break;
     }
@@ -131,7 +121,7 @@ int run_replay(const ReplayCommand& cmd) {
                             {"seconds", seconds},
                             {"device_seconds", static_cast<double>(last_ns - first_ns.value_or(last_ns)) * 1e-9},
                             {"frames_per_view", views},
-                            {"interrupted", interrupted.load()},
+                            {"interrupted", ctrl_c.interrupted()},
                             {"error", replay.error()}});
   }
   return replay.error().empty() ? 0 : 1;

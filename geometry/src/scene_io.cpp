@@ -2,6 +2,7 @@
 #include "evar/geometry/scene.hpp"
 #include "evar/geometry/polyline.hpp"
 
+#include <cctype>
 #include <cmath>
 #include <set>
 #include <stdexcept>
@@ -196,6 +197,42 @@ void write_scene_manifest(const std::filesystem::path& scene_json, const SceneMa
   if (!manifest.landmarks.empty()) root["landmarks"] = manifest.landmarks;
   root["device_thickness_mm"] = manifest.device_thickness_mm;
   detail::write_file(scene_json, root.dump(2, ' ', false, ordered::error_handler_t::replace) + "\n");
+}
+
+std::filesystem::path copy_scene(const Scene& scene, const std::filesystem::path& directory) {
+  namespace fs = std::filesystem;
+  fs::create_directories(directory);
+  // Vessel names are free text: keep letters, digits, '-' and '_' in the file names.
+  auto file_stem = [](const std::string& name) {
+    std::string s;
+    for (char c : name) s += std::isalnum(static_cast<unsigned char>(c)) || c == '-' || c == '_' ? c : '_';
+    return s;
+  };
+  auto copy = [&](const fs::path& from, const std::string& to) {
+    fs::copy_file(from, directory / to, fs::copy_options::overwrite_existing);
+    return to;
+  };
+  auto markup_suffix = [](const fs::path& p) {
+    const std::string n = p.filename().string();
+    return n.size() > 9 && n.ends_with(".mrk.json") ? std::string(".mrk.json") : p.extension().string();
+  };
+  SceneManifest m;
+  m.device_thickness_mm = scene.device_thickness_mm;
+  std::set<std::string> used;
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    const Vessel& v = scene.vessels[i];
+    std::string stem = file_stem(v.name);
+    if (!used.insert(stem).second) {  // two names that clean alike
+      stem += '_';
+      stem += std::to_string(i);
+    }
+    m.vessels.push_back({v.name, to_string(v.kind), copy(v.mesh_path, stem + v.mesh_path.extension().string()),
+                         copy(v.centerline_path, std::string(stem).append(".centerline").append(markup_suffix(v.centerline_path)))});
+  }
+  if (!scene.landmarks_path.empty()) m.landmarks = copy(scene.landmarks_path, std::string("landmarks").append(markup_suffix(scene.landmarks_path)));
+  const fs::path json = directory / "scene.json";
+  write_scene_manifest(json, m);
+  return json;
 }
 
 }  // namespace evar::geometry

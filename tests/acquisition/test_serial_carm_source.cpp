@@ -17,6 +17,7 @@
 #include "evar/acquisition/carm_link_protocol.hpp"
 #include "evar/acquisition/pseudo_terminal.hpp"
 #include "evar/acquisition/serial_carm_source.hpp"
+#include "evar/acquisition/serial_ports.hpp"
 #include "support/stream_log.hpp"
 
 namespace acq = evar::acquisition;
@@ -202,4 +203,22 @@ TEST(CArmSerialSettings, ParityNamesParse) {
   EXPECT_THROW(acq::parse_parity("mark"), std::invalid_argument);
   EXPECT_TRUE(acq::is_supported_baud(921600));
   EXPECT_FALSE(acq::is_supported_baud(100000));
+}
+
+TEST(SerialPorts, ListsAdaptersInNumberOrderWithTheirStableNames) {
+  const auto dev = std::filesystem::temp_directory_path() / ("evar-dev-" + std::to_string(::getpid()));
+  std::filesystem::create_directories(dev / "serial" / "by-id");
+  for (const char* n : {"ttyUSB10", "ttyUSB2", "ttyACM0", "ttyS0", "tty1", "video0"}) std::ofstream(dev / n).put('\n');
+  std::filesystem::create_symlink("../../ttyUSB2", dev / "serial" / "by-id" / "usb-FTDI_FT232R_A1B2C3-if00-port0");
+  const auto ports = acq::list_serial_ports(dev);
+  std::filesystem::remove_all(dev);
+  // ttyS0 here is a plain file, not a UART the kernel reports: left out like an empty ttyS slot.
+  ASSERT_EQ(ports.size(), 3u);
+  EXPECT_EQ(std::filesystem::path(ports[0].path).filename(), "ttyACM0");
+  EXPECT_EQ(ports[0].kind, "USB CDC ACM");
+  EXPECT_EQ(std::filesystem::path(ports[1].path).filename(), "ttyUSB2");
+  ASSERT_EQ(ports[1].by_id.size(), 1u);
+  EXPECT_NE(ports[1].by_id[0].find("usb-FTDI_FT232R_A1B2C3"), std::string::npos);
+  EXPECT_EQ(std::filesystem::path(ports[2].path).filename(), "ttyUSB10");
+  EXPECT_TRUE(ports[2].by_id.empty());
 }

@@ -48,6 +48,11 @@ struct SceneManifest {
 };
 void write_scene_manifest(const std::filesystem::path& scene_json, const SceneManifest& manifest);
 
+/// Copies a loaded scene's files (meshes, centerlines, landmarks, as they are) into
+/// `directory` under names made from the vessel names, with a scene.json naming them, so a
+/// recorded session carries its own patient. Returns the new scene.json.
+std::filesystem::path copy_scene(const Scene& scene, const std::filesystem::path& directory);
+
 const char* to_string(VesselKind kind);
 
 }  // namespace evar::geometry

@@ -1,0 +1,280 @@
+#include "evar/sim/session_recorder.hpp"
+
+#include <algorithm>
+#include <condition_variable>
+#include <cstdio>
+#include <deque>
+#include <fstream>
+#include <limits>
+#include <mutex>
+#include <nlohmann/json.hpp>
+#include <stdexcept>
+#include <thread>
+#include <vector>
+
+#include "evar/geometry/scene.hpp"
+
+namespace evar::sim {
+
+namespace fs = std::filesystem;
+using acquisition::CArmState;
+using acquisition::Frame;
+using acquisition::PixelFormat;
+using acquisition::StreamState;
+
+cv::Mat to_session_image(const Frame& f) {
+  if (f.width <= 0 || f.height <= 0) throw std::invalid_argument("frame has no size");
+  const int bpp = acquisition::bytes_per_pixel(f.format);
+  if (f.stride_bytes < f.width * bpp ||
+      f.pixels.size() < static_cast<std::size_t>(f.stride_bytes) * static_cast<std::size_t>(f.height - 1) +
+                            static_cast<std::size_t>(f.width * bpp))
+    throw std::invalid_argument("frame of " + std::to_string(f.width) + "x" + std::to_string(f.height) + " holds only " +
+                                std::to_string(f.pixels.size()) + " bytes");
+  cv::Mat out(f.height, f.width, CV_16UC1);
+  for (int y = 0; y < f.height; ++y) {
+    const std::uint8_t* in = f.pixels.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(f.stride_bytes);
+    auto* o = out.ptr<std::uint16_t>(y);
+    for (int x = 0; x < f.width; ++x) {
+      if (f.format == PixelFormat::Mono8) {
+        o[x] = static_cast<std::uint16_t>(in[x] * 257);
+      } else {
+        const auto v = static_cast<std::uint16_t>(in[2 * x] | (in[2 * x + 1] << 8));  // little-endian words
+        o[x] = f.format == PixelFormat::Mono12 ? static_cast<std::uint16_t>(std::min<int>(v, 4095) * 16) : v;
+      }
+    }
+  }
+  return out;
+}
+
+namespace {
+
+std::int64_t ns_of(std::chrono::steady_clock::time_point t) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
+}
+
+// C-arm samples on the host clock: per stretch of the C-arm's clock (a restarted C-arm
+// starts a new one), host ≈ device + offset with the offset the smallest arrival delay
+// seen (transport and scheduling only ever add delay).
+std::vector<CArmSample> carm_on_host_clock(const std::vector<CArmState>& states) {
+  std::vector<CArmSample> out;
+  std::size_t begin = 0;
+  while (begin < states.size()) {
+    std::size_t end = begin + 1;
+    while (end < states.size() && states[end].device_time_ns >= states[end - 1].device_time_ns) ++end;
+    std::int64_t offset = std::numeric_limits<std::int64_t>::max();
+    for (std::size_t i = begin; i < end; ++i) offset = std::min(offset, ns_of(states[i].host_arrival) - states[i].device_time_ns);
+    for (std::size_t i = begin; i < end; ++i) {
+      const CArmState& s = states[i];
+      CArmSample c;
+      c.timestamp_ns = s.device_time_ns + offset;
+      if (!out.empty()) c.timestamp_ns = std::max(c.timestamp_ns, out.back().timestamp_ns);  // the format: never decreasing
+      c.primary_deg = s.primary_deg;
+      c.secondary_deg = s.secondary_deg;
+      c.sid_mm = s.sid_mm;
+      c.sod_mm = s.sod_mm;
+      c.table_mm = {s.table_mm[0], s.table_mm[1], s.table_mm[2]};
+      c.fluoro_on = s.fluoro_on;
+      c.moving = s.moving;
+      out.push_back(c);
+    }
+    begin = end;
+  }
+  return out;
+}
+
+}  // namespace
+
+struct SessionRecorder::Impl {
+  RecorderOptions options;
+  acquisition::FrameSource& frames;
+  acquisition::CArmGeometrySource& carm;
+  geometry::Scene scene;
+
+  mutable std::mutex mutex;
+  std::condition_variable wake;
+  std::deque<std::pair<FrameRecord, Frame>> queue;
+  bool closing = false;
+  std::thread writer;
+  std::chrono::steady_clock::time_point started;
+  RecorderStatistics stats;
+  std::optional<std::pair<int, int>> size;  // the first frame's (cols, rows)
+  std::vector<FrameRecord> written;
+  std::vector<CArmState> states;
+  std::int64_t next_frame = 1;
+  std::int64_t last_frame_ns = std::numeric_limits<std::int64_t>::min();
+
+  Impl(RecorderOptions o, acquisition::FrameSource& f, acquisition::CArmGeometrySource& c)
+      : options(std::move(o)), frames(f), carm(c) {}
+
+  void on_frame(const Frame& f) {
+    std::lock_guard lock(mutex);
+    ++stats.frames_received;
+    if (!size) size = std::make_pair(f.width, f.height);
+    if (size->first != f.width || size->second != f.height) {
+      ++stats.frames_refused;
+      stats.last_error = "frame of " + std::to_string(f.width) + "x" + std::to_string(f.height) + " in a session of " +
+                         std::to_string(size->first) + "x" + std::to_string(size->second) + " not recorded";
+      return;
+    }
+    if (queue.size() >= options.max_queued_frames) {
+      ++stats.frames_not_recorded;
+      stats.last_error = "the disk fell behind: " + std::to_string(queue.size()) + " frames waiting";
+      return;
+    }
+    FrameRecord r;
+    r.frame = next_frame++;
+    r.timestamp_ns = std::max(ns_of(f.device_time_on_host), last_frame_ns);
+    last_frame_ns = r.timestamp_ns;
+    r.source = options.source;
+    char name[32];
+    std::snprintf(name, sizeof name, "f%07lld.png", static_cast<long long>(r.frame));
+    r.file = name;
+    queue.emplace_back(r, f);
+    wake.notify_one();
+  }
+
+  void write_frames() {
+    for (;;) {
+      std::unique_lock lock(mutex);
+      wake.wait(lock, [&] { return closing || !queue.empty(); });
+      if (queue.empty()) return;
+      auto [record, frame] = std::move(queue.front());
+      queue.pop_front();
+      lock.unlock();
+      std::string error;
+      try {
+        write_session_frame(options.out, record, to_session_image(frame));
+      } catch (const std::exception& e) {
+        error = "frame " + std::to_string(record.frame) + ": " + e.what();
+      }
+      lock.lock();
+      if (error.empty()) {
+        written.push_back(record);
+        ++stats.frames_written;
+      } else {
+        stats.last_error = error;
+      }
+    }
+  }
+
+  void write_report(const Session* session) const {
+    const RecorderStatistics s = stats;
+    nlohmann::ordered_json j = {
+        {"format", "evarnode-record-report"},
+        {"version", 1},
+        {"seconds", s.seconds},
+        {"frames",
+         {{"received", s.frames_received},
+          {"written", s.frames_written},
+          {"not_recorded_disk_behind", s.frames_not_recorded},
+          {"refused_size_changed", s.frames_refused},
+          {"source", frames.description()},
+          {"statistics",
+           {{"received", frames.statistics().received},
+            {"dropped", frames.statistics().dropped},
+            {"out_of_order", frames.statistics().out_of_order}}},
+          {"last_state", acquisition::to_string(s.video)},
+          {"last_reason", s.video_reason}}},
+        {"carm",
+         {{"samples", s.carm_samples},
+          {"source", carm.description()},
+          {"last_state", acquisition::to_string(s.carm)},
+          {"last_reason", s.carm_reason}}},
+        {"last_error", s.last_error},
+        {"session_written", session != nullptr}};
+    if (session && !session->frames.empty())
+      j["frames"]["span_s"] = 1e-9 * static_cast<double>(session->frames.back().timestamp_ns - session->frames.front().timestamp_ns);
+    std::ofstream(options.out / "record_report.json") << j.dump(2) << "\n";
+  }
+};
+
+SessionRecorder::SessionRecorder(RecorderOptions options, acquisition::FrameSource& frames,
+                                 acquisition::CArmGeometrySource& carm) {
+  if (options.out.empty()) throw std::invalid_argument("record: no output directory");
+  if (fs::exists(options.out) && !(fs::is_directory(options.out) && fs::is_empty(options.out)))
+    throw std::invalid_argument(options.out.string() + ": exists and is not an empty directory; choose a new session directory");
+  if (!(options.pixel_spacing_mm > 0.0 && options.pixel_spacing_mm < 10.0))
+    throw std::invalid_argument("record: the detector pixel spacing must be in (0, 10) mm");
+  if (options.max_queued_frames < 1) throw std::invalid_argument("record: the frame queue needs room for a frame");
+  impl_ = std::make_unique<Impl>(std::move(options), frames, carm);
+  impl_->scene = geometry::load_scene(impl_->options.scene);
+  if (impl_->options.device_thickness_mm && !(*impl_->options.device_thickness_mm >= 0.0 && *impl_->options.device_thickness_mm <= 15.0))
+    throw std::invalid_argument("record: device thickness must be 0 to 15 mm");
+}
+
+SessionRecorder::~SessionRecorder() {
+  if (impl_->writer.joinable()) {
+    try {
+      finish();
+    } catch (...) {  // a destructor must not throw; finish() was the caller's to call
+    }
+  }
+}
+
+void SessionRecorder::start() {
+  Impl& d = *impl_;
+  if (d.writer.joinable()) throw std::logic_error("record: already started");
+  fs::create_directories(d.options.out / "frames");
+  geometry::copy_scene(d.scene, d.options.out / "patient");
+  d.started = std::chrono::steady_clock::now();
+  d.writer = std::thread([&d] { d.write_frames(); });
+  d.carm.start(
+      [&d](const CArmState& s) {
+        std::lock_guard lock(d.mutex);
+        d.states.push_back(s);
+        ++d.stats.carm_samples;
+      },
+      [&d](StreamState s, const std::string& why) {
+        std::lock_guard lock(d.mutex);
+        d.stats.carm = s;
+        d.stats.carm_reason = why;
+      });
+  d.frames.start([&d](const Frame& f) { d.on_frame(f); },
+                 [&d](StreamState s, const std::string& why) {
+                   std::lock_guard lock(d.mutex);
+                   d.stats.video = s;
+                   d.stats.video_reason = why;
+                 });
+}
+
+RecorderStatistics SessionRecorder::statistics() const {
+  std::lock_guard lock(impl_->mutex);
+  RecorderStatistics s = impl_->stats;
+  if (impl_->writer.joinable()) s.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - impl_->started).count();
+  return s;
+}
+
+Session SessionRecorder::finish() {
+  Impl& d = *impl_;
+  if (!d.writer.joinable()) throw std::logic_error("record: finish() without start()");
+  d.frames.stop();  // no callback after these
+  d.carm.stop();
+  {
+    std::lock_guard lock(d.mutex);
+    d.closing = true;
+    d.stats.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - d.started).count();
+  }
+  d.wake.notify_all();
+  d.writer.join();
+
+  Session s;
+  s.directory = d.options.out;
+  s.scene = "patient/scene.json";
+  s.ct_to_carm = d.options.ct_to_carm;
+  s.device_thickness_mm = d.options.device_thickness_mm.value_or(d.scene.device_thickness_mm);
+  s.frames = d.written;
+  s.carm = carm_on_host_clock(d.states);
+  if (d.size) s.detector = {d.size->first, d.size->second, d.options.pixel_spacing_mm, d.options.pixel_spacing_mm};
+  if (s.frames.empty() || s.carm.empty()) {
+    d.write_report(nullptr);
+    throw std::runtime_error(std::string("nothing usable was recorded: ") +
+                             (s.frames.empty() ? "no frame (video: " + d.stats.video_reason + ")"
+                                               : "no C-arm sample (C-arm: " + d.stats.carm_reason + ")") +
+                             "; see " + (d.options.out / "record_report.json").string());
+  }
+  write_session_files(d.options.out, s);
+  d.write_report(&s);
+  return s;
+}
+
+}  // namespace evar::sim
