@@ -9,6 +9,7 @@
 
 #include "evar/acquisition/clock_offset.hpp"
 #include "evar/acquisition/sequence_tracker.hpp"
+#include "stream_state_reporter.hpp"
 
 namespace evar::acquisition {
 
@@ -75,7 +76,6 @@ std::vector<GigECameraInfo> list_gige_cameras() {
 struct GigECameraSource::Impl {
   GigECameraOptions options;
   FrameCallback on_frame;
-  StateCallback on_state;
 
   std::thread thread;
   std::atomic<bool> stop{false};
@@ -84,8 +84,7 @@ struct GigECameraSource::Impl {
   std::condition_variable wake;
 
   mutable std::mutex mutex;  // guards what other threads read
-  StreamState state = StreamState::Stopped;
-  std::string reason;
+  StreamStateReporter reporter;
   GigEStatistics stats;
   SequenceStats earlier_epochs;  // frames of connections before the current one
   SequenceTracker tracker{64, 1024};
@@ -99,15 +98,7 @@ struct GigECameraSource::Impl {
   std::optional<std::uint64_t> last_raw_id;
   std::uint64_t id_epoch = 0;  // unwraps 16-bit GVSP 1.x block ids (0 is never used)
 
-  void set_state(StreamState s, const std::string& why) {
-    {
-      std::lock_guard lock(mutex);
-      if (s == state && why == reason) return;
-      state = s;
-      reason = why;
-    }
-    if (on_state) on_state(s, why);
-  }
+  void set_state(StreamState s, const std::string& why) { reporter.set(s, why); }
 
   bool wait_for_stop(std::chrono::milliseconds d) {
     std::unique_lock lock(wait_mutex);
@@ -328,7 +319,7 @@ struct GigECameraSource::Impl {
             still_there = true;
           }
         }
-        if (lost.empty() && silent > options.stall_after && state != StreamState::Stalled)
+        if (lost.empty() && silent > options.stall_after && reporter.state() != StreamState::Stalled)
           set_state(StreamState::Stalled, "GigE camera " + stats.camera_id + ": no frame for " +
                                               std::to_string(options.stall_after.count()) + " ms");
       }
@@ -365,7 +356,7 @@ GigECameraSource::~GigECameraSource() { stop(); }
 void GigECameraSource::start(FrameCallback on_frame, StateCallback on_state) {
   if (impl_->thread.joinable()) throw std::logic_error("GigE source already started");
   impl_->on_frame = std::move(on_frame);
-  impl_->on_state = std::move(on_state);
+  impl_->reporter.listen(std::move(on_state));
   impl_->stop = false;
   impl_->thread = std::thread([this] { impl_->run(); });
 }
@@ -381,8 +372,7 @@ void GigECameraSource::stop() {
 }
 
 StreamState GigECameraSource::state() const {
-  std::lock_guard lock(impl_->mutex);
-  return impl_->state;
+  return impl_->reporter.state();
 }
 
 SequenceStats GigECameraSource::statistics() const {

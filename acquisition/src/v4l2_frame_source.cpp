@@ -17,6 +17,7 @@
 #include <utility>
 
 #include "evar/acquisition/sequence_tracker.hpp"
+#include "stream_state_reporter.hpp"
 
 namespace evar::acquisition {
 
@@ -181,29 +182,19 @@ struct V4l2FrameSource::Impl {
   V4l2Options options;
   V4l2Io& io;
   FrameCallback on_frame;
-  StateCallback on_state;
   std::thread thread;
   std::atomic<bool> stop{false};
   int wake_fd = -1;  // eventfd: stop() wakes the capture thread's poll
 
   mutable std::mutex mutex;  // guards what other threads read
-  StreamState state = StreamState::Stopped;
-  std::string reason;
+  StreamStateReporter reporter;
   V4l2Statistics stats;
   SequenceStats earlier;  // frames of openings before the current one
   SequenceTracker tracker{32, 1024};  // v4l2_buffer.sequence is 32 bits
 
   Impl(V4l2Options o, V4l2Io& i) : options(std::move(o)), io(i) {}
 
-  void set_state(StreamState s, const std::string& why) {
-    {
-      std::lock_guard lock(mutex);
-      if (s == state && why == reason) return;
-      state = s;
-      reason = why;
-    }
-    if (on_state) on_state(s, why);
-  }
+  void set_state(StreamState s, const std::string& why) { reporter.set(s, why); }
 
   bool wait_for_stop(std::chrono::milliseconds d) {
     pollfd p{wake_fd, POLLIN, 0};
@@ -385,7 +376,7 @@ struct V4l2FrameSource::Impl {
         const auto silent = Clock::now() - last_frame;
         if (silent > options.restart_after) {
           restart = true;
-        } else if (silent > options.stall_after && state_now() != StreamState::Stalled) {
+        } else if (silent > options.stall_after && reporter.state() != StreamState::Stalled) {
           set_state(StreamState::Stalled, options.device + ": no frame for " + std::to_string(options.stall_after.count()) + " ms");
         }
       }
@@ -412,10 +403,6 @@ struct V4l2FrameSource::Impl {
     set_state(StreamState::Stopped, "V4L2 source " + options.device + " stopped");
   }
 
-  StreamState state_now() const {
-    std::lock_guard lock(mutex);
-    return state;
-  }
 };
 
 V4l2FrameSource::V4l2FrameSource(V4l2Options options, V4l2Io& io) {
@@ -447,7 +434,7 @@ void V4l2FrameSource::start(FrameCallback on_frame, StateCallback on_state) {
   while (::read(impl_->wake_fd, &drain_count, sizeof drain_count) > 0) {
   }
   impl_->on_frame = std::move(on_frame);
-  impl_->on_state = std::move(on_state);
+  impl_->reporter.listen(std::move(on_state));
   impl_->stop = false;
   impl_->thread = std::thread([this] { impl_->run(); });
 }
@@ -460,7 +447,7 @@ void V4l2FrameSource::stop() {
   impl_->thread.join();  // the thread reported Stopped as its last word
 }
 
-StreamState V4l2FrameSource::state() const { return impl_->state_now(); }
+StreamState V4l2FrameSource::state() const { return impl_->reporter.state(); }
 
 SequenceStats V4l2FrameSource::statistics() const {
   std::lock_guard lock(impl_->mutex);

@@ -80,6 +80,17 @@ V4l2Options quick_options(const std::string& path) {
   return o;
 }
 
+// A scripted device with a started grabber on it (the log outlives the grabber).
+struct Grabbing {
+  FakeV4l2Device device;
+  FrameLog log;
+  V4l2FrameSource source;
+  explicit Grabbing(const FakeV4l2Device::Config& c) : Grabbing(c, quick_options(c.path)) {}
+  Grabbing(const FakeV4l2Device::Config& c, const V4l2Options& o) : device(c), source(o, device) {
+    source.start(log.frame_callback(), log.state_callback());
+  }
+};
+
 // ---- conversions -------------------------------------------------------------------------
 
 TEST(V4l2Formats, FourccNamesRoundTripAndUnknownNamesAreRefused) {
@@ -165,14 +176,12 @@ TEST(V4l2FrameSource, TakesTheDeepestOfferedGreyAndUsesTheSizeTheDriverGrants) {
   c.max_width = 640;
   c.max_height = 480;
   c.width_step = 16;
-  FakeV4l2Device device(c);
   V4l2Options o = quick_options(c.path);
   o.width = 1000;  // more than the grabber can
   o.height = 700;
   o.frame_rate_hz = 25.0;
-  FrameLog log;
-  V4l2FrameSource source(o, device);
-  source.start(log.frame_callback(), log.state_callback());
+  Grabbing g(c, o);
+  auto& [device, log, source] = g;
   ASSERT_TRUE(device.wait_streaming(5s));
   EXPECT_EQ(device.format().pixelformat, V4L2_PIX_FMT_GREY);
   EXPECT_EQ(device.format().width, 640u);
@@ -196,10 +205,8 @@ TEST(V4l2FrameSource, TakesTheDeepestOfferedGreyAndUsesTheSizeTheDriverGrants) {
 TEST(V4l2FrameSource, ADeviceWithoutAReadableFormatIsReportedNamingWhatItOffers) {
   FakeV4l2Device::Config c;
   c.formats = {V4L2_PIX_FMT_RGB24, V4L2_PIX_FMT_NV12};
-  FakeV4l2Device device(c);
-  FrameLog log;
-  V4l2FrameSource source(quick_options(c.path), device);
-  source.start(log.frame_callback(), log.state_callback());
+  Grabbing g(c);
+  auto& [device, log, source] = g;
   ASSERT_TRUE(log.wait([&] { return log.said({"offers RGB3, NV12", "Y16 , GREY, YUYV, MJPG"}); }, 5s));
   EXPECT_EQ(source.state(), StreamState::Connecting);
   source.stop();
@@ -210,10 +217,8 @@ TEST(V4l2FrameSource, ADeviceWithoutAReadableFormatIsReportedNamingWhatItOffers)
 TEST(V4l2FrameSource, ANodeThatIsNotACaptureDeviceIsRefused) {
   FakeV4l2Device::Config c;
   c.capture = false;  // e.g. the metadata node a UVC grabber also creates
-  FakeV4l2Device device(c);
-  FrameLog log;
-  V4l2FrameSource source(quick_options(c.path), device);
-  source.start(log.frame_callback(), log.state_callback());
+  Grabbing g(c);
+  auto& [device, log, source] = g;
   ASSERT_TRUE(log.wait([&] { return log.said({"not a video capture device"}); }, 5s));
   source.stop();
 }
@@ -238,10 +243,8 @@ TEST(V4l2FrameSource, StreamsEveryFrameInOrderWithPixelsAndMonotonicTimes) {
   c.row_padding = 24;  // a driver that pads its lines
   c.width = 200;
   c.height = 120;
-  FakeV4l2Device device(c);
-  FrameLog log;
-  V4l2FrameSource source(quick_options(c.path), device);
-  source.start(log.frame_callback(), log.state_callback());
+  Grabbing g(c);
+  auto& [device, log, source] = g;
   ASSERT_TRUE(device.wait_streaming(5s));
   ASSERT_EQ(device.format().pixelformat, V4L2_PIX_FMT_Y16) << "Y16 is preferred when offered";
   constexpr int n = 40;
@@ -278,10 +281,8 @@ TEST(V4l2FrameSource, YuyvAndMjpegGrabbersDeliverGreyFrames) {
   for (std::uint32_t fourcc : {V4L2_PIX_FMT_YUYV, V4L2_PIX_FMT_MJPEG}) {
     FakeV4l2Device::Config c;
     c.formats = {fourcc};
-    FakeV4l2Device device(c);
-    FrameLog log;
-    V4l2FrameSource source(quick_options(c.path), device);
-    source.start(log.frame_callback(), log.state_callback());
+    Grabbing g(c);
+    auto& [device, log, source] = g;
     ASSERT_TRUE(device.wait_streaming(5s));
     const auto fmt = device.format();
     std::vector<std::uint8_t> payload;
@@ -307,10 +308,8 @@ TEST(V4l2FrameSource, YuyvAndMjpegGrabbersDeliverGreyFrames) {
 TEST(V4l2FrameSource, SequenceGapsAreDropsAndBadBuffersAreCountedNotDelivered) {
   FakeV4l2Device::Config c;
   c.formats = {V4L2_PIX_FMT_GREY};
-  FakeV4l2Device device(c);
-  FrameLog log;
-  V4l2FrameSource source(quick_options(c.path), device);
-  source.start(log.frame_callback(), log.state_callback());
+  Grabbing g(c);
+  auto& [device, log, source] = g;
   ASSERT_TRUE(device.wait_streaming(5s));
   const auto fmt = device.format();
   auto next = [&](std::size_t expect_frames) {
@@ -340,10 +339,8 @@ TEST(V4l2FrameSource, SequenceGapsAreDropsAndBadBuffersAreCountedNotDelivered) {
 TEST(V4l2FrameSource, BufferTimesNotOnTheMonotonicClockAreReplacedByArrival) {
   FakeV4l2Device::Config c;
   c.timestamp_flags = V4L2_BUF_FLAG_TIMESTAMP_COPY;
-  FakeV4l2Device device(c);
-  FrameLog log;
-  V4l2FrameSource source(quick_options(c.path), device);
-  source.start(log.frame_callback(), log.state_callback());
+  Grabbing g(c);
+  auto& [device, log, source] = g;
   ASSERT_TRUE(device.wait_streaming(5s));
   device.produce(payload_for(device.format(), 0));
   ASSERT_TRUE(log.wait([&] { return !log.frames.empty(); }, 5s));
@@ -357,10 +354,8 @@ TEST(V4l2FrameSource, BufferTimesNotOnTheMonotonicClockAreReplacedByArrival) {
 TEST(V4l2FrameSource, AnUnpluggedGrabberIsReportedTornDownAndReopenedWhenItReturns) {
   FakeV4l2Device::Config c;
   c.formats = {V4L2_PIX_FMT_GREY};
-  FakeV4l2Device device(c);
-  FrameLog log;
-  V4l2FrameSource source(quick_options(c.path), device);
-  source.start(log.frame_callback(), log.state_callback());
+  Grabbing g(c);
+  auto& [device, log, source] = g;
   ASSERT_TRUE(device.wait_streaming(5s));
   for (int i = 0; i < 5; ++i) {
     ASSERT_TRUE(log.wait([&] { return static_cast<int>(log.frames.size()) >= i; }, 5s));
@@ -396,10 +391,8 @@ TEST(V4l2FrameSource, AnUnpluggedGrabberIsReportedTornDownAndReopenedWhenItRetur
 TEST(V4l2FrameSource, EnodevFromDequeueTearsDownAndReopens) {
   FakeV4l2Device::Config c;
   c.formats = {V4L2_PIX_FMT_GREY};
-  FakeV4l2Device device(c);
-  FrameLog log;
-  V4l2FrameSource source(quick_options(c.path), device);
-  source.start(log.frame_callback(), log.state_callback());
+  Grabbing g(c);
+  auto& [device, log, source] = g;
   ASSERT_TRUE(device.wait_streaming(5s));
   device.fail_next_dqbuf(ENODEV);
   device.produce(payload_for(device.format(), 0));  // wakes the grabber into the failing DQBUF
@@ -415,10 +408,8 @@ TEST(V4l2FrameSource, EnodevFromDequeueTearsDownAndReopens) {
 TEST(V4l2FrameSource, TheWatchdogReportsAStallThenReopensAHungDevice) {
   FakeV4l2Device::Config c;
   c.formats = {V4L2_PIX_FMT_GREY};
-  FakeV4l2Device device(c);
-  FrameLog log;
-  V4l2FrameSource source(quick_options(c.path), device);
-  source.start(log.frame_callback(), log.state_callback());
+  Grabbing g(c);
+  auto& [device, log, source] = g;
   ASSERT_TRUE(device.wait_streaming(5s));
   device.produce(payload_for(device.format(), 0));
   ASSERT_TRUE(log.wait([&] { return !log.frames.empty(); }, 5s));
