@@ -191,6 +191,7 @@ struct V4l2FrameSource::Impl {
   V4l2Statistics stats;
   SequenceStats earlier;  // frames of openings before the current one
   SequenceTracker tracker{32, 1024};  // v4l2_buffer.sequence is 32 bits
+  std::optional<bool> use_buffer_times;  // per connection: buffer times (true) or arrival
 
   Impl(V4l2Options o, V4l2Io& i) : options(std::move(o)), io(i) {}
 
@@ -230,7 +231,7 @@ struct V4l2FrameSource::Impl {
     fmt.fmt.pix.pixelformat = fourcc;
     if (options.width) fmt.fmt.pix.width = static_cast<std::uint32_t>(*options.width);
     if (options.height) fmt.fmt.pix.height = static_cast<std::uint32_t>(*options.height);
-    fmt.fmt.pix.field = V4L2_FIELD_ANY;
+    fmt.fmt.pix.field = V4L2_FIELD_NONE;  // whole frames; interlaced ones (both fields in one buffer) are taken too
     fmt.fmt.pix.bytesperline = 0;  // let the driver choose its padding
     d->call(VIDIOC_S_FMT, &fmt, "VIDIOC_S_FMT");
     // The driver answers with what it will really do; that, not the request, is used.
@@ -238,6 +239,14 @@ struct V4l2FrameSource::Impl {
     if (!is_readable_v4l2_format(pix.pixelformat))
       throw V4l2Error(options.device + ": asked for " + fourcc_to_string(fourcc) + ", the driver set " +
                           fourcc_to_string(pix.pixelformat) + ", which evarnode does not read",
+                      EINVAL);
+    // A buffer must hold a whole frame, its lines in order: progressive, or both fields
+    // interleaved. Fields one per buffer or one after the other would be read as garbage.
+    if (pix.field != V4L2_FIELD_NONE && pix.field != V4L2_FIELD_INTERLACED && pix.field != V4L2_FIELD_INTERLACED_TB &&
+        pix.field != V4L2_FIELD_INTERLACED_BT && pix.field != V4L2_FIELD_ANY)
+      throw V4l2Error(options.device + ": the driver delivers field order " + std::to_string(pix.field) +
+                          " (fields in separate buffers or one after the other); evarnode reads progressive or "
+                          "interleaved frames only",
                       EINVAL);
     if (pix.width == 0 || pix.height == 0 || pix.width > 16384 || pix.height > 16384)
       throw V4l2Error(options.device + ": the driver set an implausible size " + size_text(static_cast<int>(pix.width), static_cast<int>(pix.height)), EINVAL);
@@ -278,23 +287,22 @@ struct V4l2FrameSource::Impl {
     ++stats.connections;
     earlier += tracker.stats();
     tracker.reset();
+    use_buffer_times.reset();
     return d;
   }
 
-  // Takes every filled buffer off the queue; returns why the device is lost, or empty.
+  // Takes the filled buffers off the queue, at most one round of the pool so stop() and
+  // the watchdog are never starved by a camera faster than the frame handling; returns why
+  // the device is lost, or empty.
   std::string drain(OpenDevice& d, Clock::time_point& last_frame) {
-    for (;;) {
+    for (std::size_t taken = 0; taken < d.buffer_count() && !stop; ++taken) {
       v4l2_buffer buf{};
       buf.type = V4L2_BUF_TYPE_VIDEO_CAPTURE;
       buf.memory = V4L2_MEMORY_MMAP;
       if (const int e = d.try_call(VIDIOC_DQBUF, &buf); e != 0) {
         if (e == EAGAIN) return {};
-        if (e == EIO) {  // a bad frame (signal loss): the driver may have kept capturing
-          std::lock_guard lock(mutex);
-          ++stats.bad_buffers;
-          stats.last_error = d.path() + ": VIDIOC_DQBUF reported EIO (a bad frame)";
-          return {};
-        }
+        // EIO: videobuf2 has put the queue in its error state (it stays there until the
+        // stream is turned off), so the device is reopened like a lost one.
         return "VIDIOC_DQBUF failed: " + device_gone_reason(e);
       }
       const Clock::time_point arrival = Clock::now();
@@ -302,6 +310,7 @@ struct V4l2FrameSource::Impl {
       handle(d, buf, arrival, last_frame);
       if (const int e = d.try_call(VIDIOC_QBUF, &buf); e != 0) return "VIDIOC_QBUF failed: " + device_gone_reason(e);
     }
+    return {};
   }
 
   void handle(OpenDevice& d, const v4l2_buffer& buf, Clock::time_point arrival, Clock::time_point& last_frame) {
@@ -326,16 +335,19 @@ struct V4l2FrameSource::Impl {
     f.host_arrival = arrival;
     const std::int64_t t_ns = std::int64_t{buf.timestamp.tv_sec} * 1'000'000'000 + std::int64_t{buf.timestamp.tv_usec} * 1000;
     f.device_time_ns = t_ns;
-    // Monotonic buffer times are on the host's steady clock (CLOCK_MONOTONIC) already;
-    // one taken after it arrived, or long before, is not believed.
-    const bool monotonic = (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+    // Monotonic buffer times are on the host's steady clock (CLOCK_MONOTONIC) already. Which
+    // clock a connection's frames carry is decided once, on its first frame (a time after
+    // arrival or long before is not believed), so frames never switch between two clocks.
     const Clock::time_point t{std::chrono::nanoseconds(t_ns)};
-    const bool believable = monotonic && t <= arrival && arrival - t < std::chrono::seconds(2);
-    f.device_time_on_host = believable ? t : arrival;
+    if (!use_buffer_times) {
+      const bool monotonic = (buf.flags & V4L2_BUF_FLAG_TIMESTAMP_MASK) == V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+      use_buffer_times = monotonic && t <= arrival && arrival - t < std::chrono::seconds(2);
+    }
+    f.device_time_on_host = *use_buffer_times ? t : arrival;
     {
       std::lock_guard lock(mutex);
       tracker.observe(buf.sequence);
-      stats.monotonic_timestamps = believable;
+      stats.monotonic_timestamps = *use_buffer_times;
     }
     last_frame = arrival;
     set_state(StreamState::Streaming, options.device + " streaming " + fourcc_to_string(layout.fourcc) + " " +
@@ -345,6 +357,7 @@ struct V4l2FrameSource::Impl {
 
   void run() {
     bool in_outage = false;
+    int restarts_without_frames = 0;
     while (!stop) {
       set_state(StreamState::Connecting, "opening " + options.device);
       std::unique_ptr<OpenDevice> device;
@@ -361,9 +374,14 @@ struct V4l2FrameSource::Impl {
       }
       in_outage = false;
       set_state(StreamState::Connecting, options.device + " open, " + agreed + ", waiting for the first frame");
-      Clock::time_point last_frame = Clock::now();
+      const Clock::time_point opened = Clock::now();
+      Clock::time_point last_frame = opened;
       std::string lost;
       bool restart = false;
+      // A grabber with no video signal delivers nothing; reopening it every few seconds
+      // would only renegotiate the bus. Restarts back off while no frame comes.
+      const auto restart_after = std::min<std::chrono::milliseconds>(
+          options.restart_after * (1 << std::min(restarts_without_frames, 4)), std::chrono::seconds(60));
       while (!stop && lost.empty() && !restart) {
         pollfd fds[2] = {{device->fd(), POLLIN, 0}, {wake_fd, POLLIN, 0}};
         const int n = io.poll(fds, 2, 100);
@@ -374,8 +392,12 @@ struct V4l2FrameSource::Impl {
           lost = drain(*device, last_frame);
         if (!lost.empty() || stop) break;
         const auto silent = Clock::now() - last_frame;
-        if (silent > options.restart_after) {
+        if (last_frame != opened) restarts_without_frames = 0;
+        if (silent > restart_after) {
           restart = true;
+        } else if (silent > options.stall_after && last_frame == opened) {
+          set_state(StreamState::Connecting, options.device + " open, " + agreed +
+                                                 ", no frame yet (is there a video signal?)");
         } else if (silent > options.stall_after && reporter.state() != StreamState::Stalled) {
           set_state(StreamState::Stalled, options.device + ": no frame for " + std::to_string(options.stall_after.count()) + " ms");
         }
@@ -387,8 +409,12 @@ struct V4l2FrameSource::Impl {
           std::lock_guard lock(mutex);
           ++stats.restarts;
         }
-        set_state(StreamState::Stalled, options.device + ": no frame for " + std::to_string(options.restart_after.count()) +
-                                            " ms; reopening the device");
+        const bool had_frames = last_frame != opened;
+        if (!had_frames) ++restarts_without_frames;
+        set_state(had_frames ? StreamState::Stalled : StreamState::Connecting,
+                  options.device + ": no frame for " +
+                      std::to_string(std::chrono::duration_cast<std::chrono::milliseconds>(restart_after).count()) +
+                      " ms; reopening the device");
         continue;
       }
       if (!in_outage) {

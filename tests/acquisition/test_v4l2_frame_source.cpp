@@ -8,6 +8,8 @@
 #include <filesystem>
 #include <fstream>
 #include <opencv2/imgcodecs.hpp>
+#include <atomic>
+#include <future>
 #include <thread>
 
 #include "evar/acquisition/v4l2_formats.hpp"
@@ -75,7 +77,7 @@ V4l2Options quick_options(const std::string& path) {
   V4l2Options o;
   o.device = path;
   o.stall_after = 150ms;
-  o.restart_after = 600ms;
+  o.restart_after = 20s;  // never within a test, except where the watchdog is the subject
   o.reconnect_interval = 50ms;
   return o;
 }
@@ -408,7 +410,9 @@ TEST(V4l2FrameSource, EnodevFromDequeueTearsDownAndReopens) {
 TEST(V4l2FrameSource, TheWatchdogReportsAStallThenReopensAHungDevice) {
   FakeV4l2Device::Config c;
   c.formats = {V4L2_PIX_FMT_GREY};
-  Grabbing g(c);
+  V4l2Options o = quick_options(c.path);
+  o.restart_after = 600ms;
+  Grabbing g(c, o);
   auto& [device, log, source] = g;
   ASSERT_TRUE(device.wait_streaming(5s));
   device.produce(payload_for(device.format(), 0));
@@ -416,7 +420,7 @@ TEST(V4l2FrameSource, TheWatchdogReportsAStallThenReopensAHungDevice) {
   // The sensor falls silent: stalled after 150 ms, reopened after 600 ms.
   ASSERT_TRUE(log.wait([&] { return log.saw(StreamState::Stalled); }, 5s));
   ASSERT_TRUE(device.wait_streaming(5s, 2));
-  EXPECT_TRUE(log.said({"reopening the device"}));
+  EXPECT_TRUE(log.wait([&] { return log.said({"reopening the device"}); }, 1s));
   EXPECT_EQ(device.opens(), 2);
   device.produce(payload_for(device.format(), 1));
   ASSERT_TRUE(log.wait([&] { return log.frames.size() == 2; }, 5s));
@@ -425,6 +429,71 @@ TEST(V4l2FrameSource, TheWatchdogReportsAStallThenReopensAHungDevice) {
   const auto stats = source.v4l2_statistics();
   EXPECT_GE(stats.restarts, 1u);
   EXPECT_EQ(stats.outages, 0u) << "a hang is not a lost device";
+}
+
+TEST(V4l2FrameSource, AGrabberWithoutSignalWaitsForOneAndBacksOffItsReopening) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_GREY};
+  V4l2Options o = quick_options(c.path);
+  o.restart_after = 300ms;
+  Grabbing g(c, o);
+  auto& [device, log, source] = g;
+  ASSERT_TRUE(log.wait([&] { return log.said({"no frame yet", "video signal"}); }, 5s));
+  // Reopened after 0.3, 0.6, 1.2 s, ...: three reopenings take 2.1 s, not 0.9 s.
+  std::this_thread::sleep_for(1500ms);
+  EXPECT_LE(device.opens(), 3) << "reopening does not back off";
+  EXPECT_FALSE(log.wait([&] { return log.saw(StreamState::Stalled); }, 10ms)) << "a stream never started is not stalled";
+  device.produce(payload_for(device.format(), 0));  // the signal comes (once streaming again)
+  ASSERT_TRUE(device.wait_streaming(5s));
+  while (!log.wait([&] { return !log.frames.empty(); }, 50ms)) device.produce(payload_for(device.format(), 0));
+  source.stop();
+}
+
+TEST(V4l2FrameSource, AQueueInItsErrorStateIsReopened) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_GREY};
+  Grabbing g(c);
+  auto& [device, log, source] = g;
+  ASSERT_TRUE(device.wait_streaming(5s));
+  device.queue_error();  // videobuf2: EIO from DQBUF, POLLERR, until stream off
+  ASSERT_TRUE(device.wait_streaming(5s, 2));
+  device.produce(payload_for(device.format(), 3));
+  ASSERT_TRUE(log.wait([&] { return !log.frames.empty(); }, 5s));
+  source.stop();
+  EXPECT_EQ(mismatches(log.frames[0], 3), 0);
+  EXPECT_EQ(source.v4l2_statistics().outages, 1u);
+}
+
+TEST(V4l2FrameSource, FieldsInSeparateBuffersAreRefusedNamingTheFieldOrder) {
+  FakeV4l2Device::Config c;
+  c.field = V4L2_FIELD_ALTERNATE;  // an analog grabber that sends one field per buffer
+  Grabbing g(c);
+  auto& [device, log, source] = g;
+  ASSERT_TRUE(log.wait([&] { return log.said({"field order", "interleaved frames only"}); }, 5s));
+  source.stop();
+  EXPECT_TRUE(log.frames.empty());
+}
+
+TEST(V4l2FrameSource, StopReturnsWhileACameraOutrunsTheFrameHandling) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_GREY};
+  FakeV4l2Device device(c);
+  test::StreamLog log;
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start([](const Frame&) { std::this_thread::sleep_for(5ms); }, [&](StreamState s, const std::string& r) { log.on_stream(s, r); });
+  ASSERT_TRUE(device.wait_streaming(5s));
+  std::atomic<bool> flooding{true};
+  std::thread sensor([&] {
+    const auto payload = payload_for(device.format(), 0);
+    while (flooding) device.produce(payload);  // a filled buffer is always waiting
+  });
+  std::this_thread::sleep_for(200ms);
+  auto stopping = std::async(std::launch::async, [&] { source.stop(); });
+  const bool stopped = stopping.wait_for(2s) == std::future_status::ready;
+  flooding = false;  // unblocks a starved stop() so the test ends either way
+  sensor.join();
+  stopping.wait();
+  EXPECT_TRUE(stopped) << "stop() was starved by the stream";
 }
 
 // ---- enumeration -------------------------------------------------------------------------

@@ -45,6 +45,7 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
     std::uint32_t max_buffers = 8;
     bool takes_frame_rate = true;
     std::uint32_t timestamp_flags = V4L2_BUF_FLAG_TIMESTAMP_MONOTONIC;
+    std::uint32_t field = V4L2_FIELD_NONE;  ///< the field order the driver insists on
   };
 
   explicit FakeV4l2Device(Config c) : config_(std::move(c)) {
@@ -103,10 +104,17 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
     unplugged_ = false;
     update_ready();
   }
-  /// The next VIDIOC_DQBUF fails with this errno (e.g. ENODEV, EIO).
+  /// The next VIDIOC_DQBUF fails with this errno (e.g. ENODEV).
   void fail_next_dqbuf(int error) {
     std::lock_guard lock(mutex_);
     dqbuf_error_ = error;
+  }
+  /// The queue enters videobuf2's error state: DQBUF answers EIO and poll POLLERR until
+  /// the stream is turned off.
+  void queue_error() {
+    std::lock_guard lock(mutex_);
+    queue_error_ = true;
+    update_ready();
   }
 
   // ---- what the grabber did -----------------------------------------------------------
@@ -169,6 +177,7 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
       queued_.clear();
       done_.clear();
       owner_ = -1;
+      queue_error_ = false;
       retire_buffers();
       update_ready();
     }
@@ -220,8 +229,8 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
         fds[i].revents = real[i].revents;
       } else if (it->second || unplugged_) {
         fds[i].revents = POLLERR | POLLHUP;
-      } else if (!streaming_ || owner_ != fds[i].fd) {
-        fds[i].revents = POLLERR;  // as V4L2 does when the descriptor is not streaming
+      } else if (!streaming_ || owner_ != fds[i].fd || queue_error_) {
+        fds[i].revents = POLLERR;  // as V4L2 does when the descriptor is not streaming or the queue failed
       } else if (!done_.empty()) {
         fds[i].revents = POLLIN;
       }
@@ -312,6 +321,7 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
       case VIDIOC_DQBUF: {
         auto* b = static_cast<v4l2_buffer*>(arg);
         if (dqbuf_error_) return fail(std::exchange(dqbuf_error_, 0));
+        if (queue_error_) return fail(EIO);
         if (!streaming_ || owner_ != fd) return fail(EINVAL);
         if (done_.empty()) return fail(EAGAIN);
         const Filled f = done_.front();
@@ -336,6 +346,7 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
         return 0;
       case VIDIOC_STREAMOFF:
         streaming_ = false;
+        queue_error_ = false;
         queued_.clear();
         done_.clear();
         update_ready();
@@ -369,7 +380,7 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
     w -= w % std::max(1, config_.width_step);
     format_.width = static_cast<std::uint32_t>(w);
     format_.height = static_cast<std::uint32_t>(h);
-    format_.field = V4L2_FIELD_NONE;
+    format_.field = config_.field;
     const int bpp = format_.pixelformat == V4L2_PIX_FMT_GREY ? 1 : 2;
     if (format_.pixelformat == V4L2_PIX_FMT_MJPEG) {
       format_.bytesperline = 0;
@@ -383,7 +394,7 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
   // the kernel keeps a vanished device's buffers until they are unmapped.
   void retire_buffers() { buffers_ = nullptr; }
   void update_ready() {
-    const bool want = unplugged_ || !done_.empty();
+    const bool want = unplugged_ || queue_error_ || !done_.empty();
     if (want == signalled_) return;
     std::uint64_t v = 1;
     [[maybe_unused]] const auto n = want ? ::write(ready_fd_, &v, sizeof v) : ::read(ready_fd_, &v, sizeof v);
@@ -403,7 +414,7 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
   std::vector<std::vector<std::uint8_t>>* buffers_ = nullptr;  // the current set
   std::deque<std::uint32_t> queued_;
   std::deque<Filled> done_;
-  bool streaming_ = false, unplugged_ = false;
+  bool streaming_ = false, unplugged_ = false, queue_error_ = false;
   std::uint32_t next_sequence_ = 0, lost_in_driver_ = 0;
   int dqbuf_error_ = 0;
   int opens_ = 0, stream_ons_ = 0, mapped_ = 0;
