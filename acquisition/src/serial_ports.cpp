@@ -1,11 +1,9 @@
 #include "evar/acquisition/serial_ports.hpp"
 
-#include <fcntl.h>
 #include <linux/serial.h>
-#include <sys/ioctl.h>
-#include <unistd.h>
 
 #include <algorithm>
+#include <fstream>
 #include <cctype>
 #include <map>
 #include <system_error>
@@ -16,14 +14,13 @@ namespace {
 
 namespace fs = std::filesystem;
 
-// ttyS0..31 exist whether or not a UART is behind them; the kernel says which have one.
-bool uart_present(const fs::path& p) {
-  const int fd = ::open(p.c_str(), O_RDWR | O_NONBLOCK | O_NOCTTY | O_CLOEXEC);
-  if (fd < 0) return false;
-  serial_struct s{};
-  const bool present = ::ioctl(fd, TIOCGSERIAL, &s) == 0 && s.type != PORT_UNKNOWN;
-  ::close(fd);
-  return present;
+// ttyS0..31 exist whether or not a UART is behind them; sysfs says which have one (its
+// type is not PORT_UNKNOWN). Read there rather than by opening the port: opening a tty
+// raises DTR and RTS, and closing drops them, which resets some attached equipment.
+bool uart_present(const fs::path& sys_class_tty, const std::string& name) {
+  std::ifstream in(sys_class_tty / name / "type");
+  int type = PORT_UNKNOWN;
+  return (in >> type) && type != PORT_UNKNOWN;
 }
 
 // "ttyUSB10" → ("ttyUSB", 10) so ports sort in number order.
@@ -35,7 +32,7 @@ std::pair<std::string, long> sort_key(const std::string& name) {
 
 }  // namespace
 
-std::vector<SerialPortInfo> list_serial_ports(const fs::path& dev_dir) {
+std::vector<SerialPortInfo> list_serial_ports(const fs::path& dev_dir, const fs::path& sys_class_tty) {
   std::error_code ec;
   std::map<std::string, std::vector<std::string>> links;  // canonical target → by-id links
   for (const auto& e : fs::directory_iterator(dev_dir / "serial" / "by-id", ec)) {
@@ -49,7 +46,7 @@ std::vector<SerialPortInfo> list_serial_ports(const fs::path& dev_dir) {
     if (name.starts_with("ttyUSB")) kind = "USB serial";
     else if (name.starts_with("ttyACM")) kind = "USB CDC ACM";
     else if (name.starts_with("ttyAMA") || name.starts_with("ttyTHS")) kind = "UART";
-    else if (name.starts_with("ttyS") && uart_present(e.path())) kind = "UART";
+    else if (name.starts_with("ttyS") && uart_present(sys_class_tty, name)) kind = "UART";
     if (kind.empty()) continue;
     SerialPortInfo info{e.path().string(), kind, {}};
     const fs::path canonical = fs::weakly_canonical(e.path(), ec);

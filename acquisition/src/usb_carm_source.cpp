@@ -224,7 +224,13 @@ struct UsbCArmSource::Impl {
           continue;
         }
       }
-      const UsbEndpointChoice choice = choose_usb_endpoint(interfaces_of(dev), options.interface_number, options.endpoint);
+      UsbEndpointChoice choice;
+      try {
+        choice = choose_usb_endpoint(interfaces_of(dev), options.interface_number, options.endpoint);
+      } catch (const std::runtime_error& e) {  // another device with these ids may fit
+        seen += (seen.empty() ? "" : "; ") + std::string("one does not fit: ") + e.what();
+        continue;
+      }
       libusb_set_auto_detach_kernel_driver(h.p, 1);  // e.g. cdc_acm bound to a serial adapter
       if (const int rc = libusb_claim_interface(h.p, choice.interface_number); rc != 0)
         throw std::runtime_error("cannot claim interface " + std::to_string(choice.interface_number) + ": " + usb_error(rc));

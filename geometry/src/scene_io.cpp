@@ -209,7 +209,7 @@ std::filesystem::path copy_scene(const Scene& scene, const std::filesystem::path
     return s;
   };
   auto copy = [&](const fs::path& from, const std::string& to) {
-    fs::copy_file(from, directory / to, fs::copy_options::overwrite_existing);
+    fs::copy_file(from, directory / to);  // throws rather than overwrite: every file is new
     return to;
   };
   auto markup_suffix = [](const fs::path& p) {
@@ -222,9 +222,10 @@ std::filesystem::path copy_scene(const Scene& scene, const std::filesystem::path
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
     const Vessel& v = scene.vessels[i];
     std::string stem = file_stem(v.name);
-    if (!used.insert(stem).second) {  // two names that clean alike
+    for (int k = 1; !used.insert(stem).second; ++k) {  // two names that clean alike
+      stem = file_stem(v.name);
       stem += '_';
-      stem += std::to_string(i);
+      stem += std::to_string(k);
     }
     m.vessels.push_back({v.name, to_string(v.kind), copy(v.mesh_path, stem + v.mesh_path.extension().string()),
                          copy(v.centerline_path, std::string(stem).append(".centerline").append(markup_suffix(v.centerline_path)))});

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <limits>
 #include <mutex>
+#include <set>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <thread>
@@ -52,21 +53,32 @@ std::int64_t ns_of(std::chrono::steady_clock::time_point t) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
 }
 
-// C-arm samples on the host clock: per stretch of the C-arm's clock (a restarted C-arm
-// starts a new one), host ≈ device + offset with the offset the smallest arrival delay
-// seen (transport and scheduling only ever add delay).
+}  // namespace
+
+// C-arm samples on the host clock. arrival − device time is the clock offset plus a delay
+// that is never negative, so the smallest difference near a sample (within ±30 s of C-arm
+// time, short enough that a crystal's drift stays under a few ms) is its offset. A stretch
+// of the C-arm's clock ends where the clock goes back (a restarted C-arm) or jumps ahead
+// (the difference falls by more than a second: delays only ever raise it).
 std::vector<CArmSample> carm_on_host_clock(const std::vector<CArmState>& states) {
+  constexpr std::int64_t kWindowNs = 30'000'000'000, kJumpNs = 1'000'000'000;
+  std::vector<std::int64_t> diff(states.size());
+  for (std::size_t i = 0; i < states.size(); ++i) diff[i] = ns_of(states[i].host_arrival) - states[i].device_time_ns;
   std::vector<CArmSample> out;
   std::size_t begin = 0;
   while (begin < states.size()) {
     std::size_t end = begin + 1;
-    while (end < states.size() && states[end].device_time_ns >= states[end - 1].device_time_ns) ++end;
-    std::int64_t offset = std::numeric_limits<std::int64_t>::max();
-    for (std::size_t i = begin; i < end; ++i) offset = std::min(offset, ns_of(states[i].host_arrival) - states[i].device_time_ns);
+    while (end < states.size() && states[end].device_time_ns >= states[end - 1].device_time_ns &&
+           diff[end] > diff[end - 1] - kJumpNs)
+      ++end;
+    std::multiset<std::int64_t> window;  // diffs of the samples within ±30 s of sample i
+    std::size_t lo = begin, hi = begin;
     for (std::size_t i = begin; i < end; ++i) {
+      while (hi < end && states[hi].device_time_ns <= states[i].device_time_ns + kWindowNs) window.insert(diff[hi++]);
+      while (states[lo].device_time_ns < states[i].device_time_ns - kWindowNs) window.erase(window.find(diff[lo++]));
       const CArmState& s = states[i];
       CArmSample c;
-      c.timestamp_ns = s.device_time_ns + offset;
+      c.timestamp_ns = s.device_time_ns + *window.begin();
       if (!out.empty()) c.timestamp_ns = std::max(c.timestamp_ns, out.back().timestamp_ns);  // the format: never decreasing
       c.primary_deg = s.primary_deg;
       c.secondary_deg = s.secondary_deg;
@@ -81,8 +93,6 @@ std::vector<CArmSample> carm_on_host_clock(const std::vector<CArmState>& states)
   }
   return out;
 }
-
-}  // namespace
 
 struct SessionRecorder::Impl {
   RecorderOptions options;
@@ -265,15 +275,17 @@ Session SessionRecorder::finish() {
   s.frames = d.written;
   s.carm = carm_on_host_clock(d.states);
   if (d.size) s.detector = {d.size->first, d.size->second, d.options.pixel_spacing_mm, d.options.pixel_spacing_mm};
-  if (s.frames.empty() || s.carm.empty()) {
+  if (s.frames.empty()) {
     d.write_report(nullptr);
-    throw std::runtime_error(std::string("nothing usable was recorded: ") +
-                             (s.frames.empty() ? "no frame (video: " + d.stats.video_reason + ")"
-                                               : "no C-arm sample (C-arm: " + d.stats.carm_reason + ")") +
-                             "; see " + (d.options.out / "record_report.json").string());
+    throw std::runtime_error("nothing was recorded: no frame arrived (video: " + d.stats.video_reason + "); see " +
+                             (d.options.out / "record_report.json").string());
   }
-  write_session_files(d.options.out, s);
+  write_session_files(d.options.out, s);  // frames are kept even without geometry
   d.write_report(&s);
+  if (s.carm.empty())
+    throw std::runtime_error(std::to_string(s.frames.size()) + " frames were recorded but no C-arm sample (C-arm: " +
+                             d.stats.carm_reason + "): " + d.options.out.string() +
+                             " holds the frames without geometry; it replays, but cannot be deformed or overlaid");
   return s;
 }
 

@@ -208,17 +208,24 @@ TEST(CArmSerialSettings, ParityNamesParse) {
 TEST(SerialPorts, ListsAdaptersInNumberOrderWithTheirStableNames) {
   const auto dev = std::filesystem::temp_directory_path() / ("evar-dev-" + std::to_string(::getpid()));
   std::filesystem::create_directories(dev / "serial" / "by-id");
-  for (const char* n : {"ttyUSB10", "ttyUSB2", "ttyACM0", "ttyS0", "tty1", "video0"}) std::ofstream(dev / n).put('\n');
+  for (const char* n : {"ttyUSB10", "ttyUSB2", "ttyACM0", "ttyS0", "ttyS1", "tty1", "video0"}) std::ofstream(dev / n).put('\n');
   std::filesystem::create_symlink("../../ttyUSB2", dev / "serial" / "by-id" / "usb-FTDI_FT232R_A1B2C3-if00-port0");
-  const auto ports = acq::list_serial_ports(dev);
+  // sysfs: ttyS0 is an empty slot (type 0), ttyS1 a 16550A (type 4).
+  const auto sys = dev / "sys-class-tty";
+  std::filesystem::create_directories(sys / "ttyS0");
+  std::filesystem::create_directories(sys / "ttyS1");
+  std::ofstream(sys / "ttyS0" / "type") << "0\n";
+  std::ofstream(sys / "ttyS1" / "type") << "4\n";
+  const auto ports = acq::list_serial_ports(dev, sys);
   std::filesystem::remove_all(dev);
-  // ttyS0 here is a plain file, not a UART the kernel reports: left out like an empty ttyS slot.
-  ASSERT_EQ(ports.size(), 3u);
+  ASSERT_EQ(ports.size(), 4u);
   EXPECT_EQ(std::filesystem::path(ports[0].path).filename(), "ttyACM0");
   EXPECT_EQ(ports[0].kind, "USB CDC ACM");
-  EXPECT_EQ(std::filesystem::path(ports[1].path).filename(), "ttyUSB2");
-  ASSERT_EQ(ports[1].by_id.size(), 1u);
-  EXPECT_NE(ports[1].by_id[0].find("usb-FTDI_FT232R_A1B2C3"), std::string::npos);
-  EXPECT_EQ(std::filesystem::path(ports[2].path).filename(), "ttyUSB10");
-  EXPECT_TRUE(ports[2].by_id.empty());
+  EXPECT_EQ(std::filesystem::path(ports[1].path).filename(), "ttyS1");
+  EXPECT_EQ(ports[1].kind, "UART");
+  EXPECT_EQ(std::filesystem::path(ports[2].path).filename(), "ttyUSB2");
+  ASSERT_EQ(ports[2].by_id.size(), 1u);
+  EXPECT_NE(ports[2].by_id[0].find("usb-FTDI_FT232R_A1B2C3"), std::string::npos);
+  EXPECT_EQ(std::filesystem::path(ports[3].path).filename(), "ttyUSB10");
+  EXPECT_TRUE(ports[3].by_id.empty());
 }

@@ -7,7 +7,6 @@
 #include <cstring>
 #include <filesystem>
 #include <fstream>
-#include <future>
 #include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <thread>
@@ -72,31 +71,33 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
   sim::SerialCArmServer carm_link(link);
 
   const fs::path out = dir / "recorded";
-  auto recording = std::async(std::launch::async, [&] {
-    return evar::app::run_cli({"record", "--camera", serial, "--width", "128", "--height", "96", "--fps", "40", "--carm",
-                               "serial:" + link + ",baud=115200", "--scene", (dir / "plan" / "scene.json").string(),
-                               "--registration", (dir / "plan" / "registration.json").string(), "--pixel-spacing",
-                               "0.154", "--seconds", "5", "--out", out.string()});
-  });
-  // The command finds the camera and opens the link within a second or two; the replay
-  // then drives both far ends in real time.
-  std::this_thread::sleep_for(2s);
-  sim::SessionReplay replay(original, {1.0, 1});
+  // The replay loops over the session until the recording is done, so however long the
+  // command takes to find the camera and open the link, whole loops get recorded.
+  sim::SessionReplay replay(original, {1.0, 0});
   replay.carm().start([&](const evar::acquisition::CArmState& st) { carm_link.send(st); }, nullptr);
   replay.frames().start([&](const evar::acquisition::Frame& f) { camera.show(f); }, nullptr);
-  ASSERT_TRUE(replay.wait(30s));
-  ASSERT_EQ(recording.wait_for(30s), std::future_status::ready);
-  ASSERT_EQ(recording.get(), 0);
+  const int code = evar::app::run_cli({"record", "--camera", serial, "--width", "128", "--height", "96", "--fps", "40",
+                                       "--carm", "serial:" + link + ",baud=115200", "--scene",
+                                       (dir / "plan" / "scene.json").string(), "--registration",
+                                       (dir / "plan" / "registration.json").string(), "--pixel-spacing", "0.154",
+                                       "--seconds", "6", "--out", out.string()});
+  replay.frames().stop();
+  replay.carm().stop();
+  ASSERT_EQ(code, 0);
 
   const sim::Session back = sim::read_session(out);
   EXPECT_EQ(back.detector.cols, 128);
   EXPECT_DOUBLE_EQ(back.detector.col_spacing_mm, 0.154);
   EXPECT_DOUBLE_EQ(back.ct_to_carm(0, 3), -5.0);
-  ASSERT_EQ(back.carm.size(), 8u) << "every C-arm state";
-  for (std::size_t j = 0; j < 8; ++j) EXPECT_NEAR(back.carm[j].primary_deg, original.carm[j].primary_deg, 0.0005);
+  ASSERT_GE(back.carm.size(), 8u);
+  for (const auto& c : back.carm) {  // every recorded state is one the C-arm sent
+    bool known = false;
+    for (const auto& o : original.carm) known |= std::abs(c.primary_deg - o.primary_deg) < 0.0005;
+    EXPECT_TRUE(known) << c.primary_deg;
+  }
 
-  // The camera shows each picture until the next (at 40 fps), so the recording holds every
-  // original frame, in order, repeated; blank frames come before the first.
+  // The camera shows each picture until the next (at 40 fps), so the recording holds the
+  // original frames in order, each repeated, loop after loop; blank frames may come first.
   std::vector<int> first_at(8, -1);
   int last = -1;
   std::size_t unknown = 0;
@@ -109,15 +110,19 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
       unknown += cv::countNonZero(img) > 0;
       continue;
     }
-    EXPECT_GE(which, last) << "out of order at recorded frame " << i;
+    if (last >= 0) {
+      EXPECT_TRUE(which == last || which == (last + 1) % 8) << "frame " << which << " after " << last << " at " << i;
+    }
     last = which;
-    if (first_at[static_cast<std::size_t>(which)] < 0) first_at[static_cast<std::size_t>(which)] = static_cast<int>(i);
+    // Geometry in force is compared from the first C-arm state on.
+    if (first_at[static_cast<std::size_t>(which)] < 0 && back.frames[i].timestamp_ns > back.carm.front().timestamp_ns)
+      first_at[static_cast<std::size_t>(which)] = static_cast<int>(i);
   }
   EXPECT_EQ(unknown, 0u) << "recorded frames that are no original frame (torn or corrupted)";
   for (int k = 0; k < 8; ++k) {
     const int i = first_at[static_cast<std::size_t>(k)];
-    ASSERT_GE(i, 0) << "original frame " << k << " was never recorded";
-    // The geometry in force when the frame first arrived is the one in force in the original.
+    ASSERT_GE(i, 0) << "original frame " << k << " was never recorded with geometry";
+    // The geometry in force when the frame arrived is the one in force in the original.
     const auto* was = sim::carm_at(original, original.frames[static_cast<std::size_t>(k)].timestamp_ns);
     const auto* now = sim::carm_at(back, back.frames[static_cast<std::size_t>(i)].timestamp_ns);
     ASSERT_TRUE(was && now);

@@ -5,6 +5,7 @@
 
 #include <filesystem>
 #include <fstream>
+#include <random>
 #include <nlohmann/json.hpp>
 
 #include "evar/geometry/scene.hpp"
@@ -100,9 +101,10 @@ TEST_F(Recording, AReplayedSessionRecordsBackFrameForFrameWithItsGeometry) {
     EXPECT_NEAR(back.carm[k].secondary_deg, original_.carm[k].secondary_deg, 1e-9);
     EXPECT_NEAR(back.carm[k].table_mm.x(), original_.carm[k].table_mm.x(), 1e-9);
   }
-  // Intervals survive (real-time replay; scheduling adds a few ms at most).
+  // Intervals survive (real-time replay; a loaded 2-core machine may delay a frame's
+  // delivery by some tens of ms).
   const double span_ms = 1e-6 * static_cast<double>(back.frames.back().timestamp_ns - back.frames.front().timestamp_ns);
-  EXPECT_NEAR(span_ms, 660.0, 30.0);
+  EXPECT_NEAR(span_ms, 660.0, 60.0);
 
   // The patient travels with the session.
   const auto scene = geometry::load_scene(root_ / "recorded" / back.scene);
@@ -155,6 +157,42 @@ TEST_F(Recording, RefusesAnOutputThatHoldsSomethingAndReportsAnEmptyRecording) {
     EXPECT_NE(std::string(e.what()).find("no frame"), std::string::npos) << e.what();
   }
   EXPECT_TRUE(fs::exists(root_ / "recorded" / "record_report.json"));
+}
+
+TEST(CArmOnHostClock, FollowsADriftingCArmClockThroughJumpsAndRestarts) {
+  // Ten minutes at 10 Hz from a C-arm whose crystal runs 100 ppm fast (60 ms over the run,
+  // what one offset for the whole recording would get wrong), arriving 1 to 25 ms late; the
+  // C-arm clock jumps 10 s ahead at 4 min and restarts from zero at 7 min.
+  std::mt19937 rng(5);
+  std::uniform_int_distribution<int> delay_ms(1, 25);
+  std::vector<acquisition::CArmState> states;
+  std::vector<std::int64_t> truth;  // host time at which each state was measured
+  const std::int64_t host0 = 5'000'000'000'000;
+  for (int i = 0; i < 6000; ++i) {
+    const std::int64_t host = host0 + i * 100'000'000LL;
+    const std::int64_t t = host - host0;
+    std::int64_t device = 777'000'000'000 + t + t / 10'000;  // +100 ppm
+    if (i >= 2400) device += 10'000'000'000;                 // jumps ahead
+    if (i >= 4200) device = t - 420'000'000'000;             // restarted at zero
+    acquisition::CArmState s;
+    s.device_time_ns = device;
+    s.host_arrival = std::chrono::steady_clock::time_point(std::chrono::nanoseconds(host + (i % 50 == 0 ? 1 : delay_ms(rng)) * 1'000'000LL));
+    s.primary_deg = i * 0.01;
+    states.push_back(s);
+    truth.push_back(host);
+  }
+  const auto mapped = carm_on_host_clock(states);
+  ASSERT_EQ(mapped.size(), states.size());
+  double worst_ms = 0.0;
+  for (std::size_t i = 0; i < mapped.size(); ++i) {
+    worst_ms = std::max(worst_ms, std::abs(static_cast<double>(mapped[i].timestamp_ns - truth[i])) * 1e-6);
+    if (i > 0) {
+      ASSERT_GE(mapped[i].timestamp_ns, mapped[i - 1].timestamp_ns);
+    }
+  }
+  // Within the drift over ±30 s (3 ms) plus the smallest delay (1 ms).
+  EXPECT_LT(worst_ms, 4.5);
+  EXPECT_DOUBLE_EQ(mapped[4321].primary_deg, states[4321].primary_deg);
 }
 
 }  // namespace

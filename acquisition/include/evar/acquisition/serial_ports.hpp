@@ -14,6 +14,9 @@ struct SerialPortInfo {
   std::vector<std::string> by_id;   ///< /dev/serial/by-id/... links to it (stable across replugging)
 };
 
-std::vector<SerialPortInfo> list_serial_ports(const std::filesystem::path& dev_dir = "/dev");
+/// Ports under `dev_dir`; whether a ttyS* has a UART is read from `sys_class_tty`/ttySN/type
+/// (no port is opened).
+std::vector<SerialPortInfo> list_serial_ports(const std::filesystem::path& dev_dir = "/dev",
+                                              const std::filesystem::path& sys_class_tty = "/sys/class/tty");
 
 }  // namespace evar::acquisition

@@ -12,6 +12,7 @@
 #include <memory>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include "evar/acquisition/carm_geometry_source.hpp"
 #include "evar/acquisition/frame_source.hpp"
@@ -53,14 +54,20 @@ class SessionRecorder {
   void start();
   RecorderStatistics statistics() const;
   /// Stops the sources, writes what is queued and the session files and report
-  /// (out/record_report.json). Throws std::runtime_error when nothing usable was recorded
-  /// (no frame, or no C-arm sample): the directory then holds only the report.
+  /// (out/record_report.json). Throws std::runtime_error when no frame arrived (the
+  /// directory then holds the report and the copied scene) or no C-arm sample did (the
+  /// session is written with its frames and no geometry, so nothing recorded is lost).
   Session finish();
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// C-arm states on the host's steady clock: per sample, C-arm time plus the smallest
+/// arrival delay among the samples within ±30 s of C-arm time around it; a clock that goes
+/// back or jumps ahead by more than a second starts a new stretch. Timestamps never decrease.
+std::vector<CArmSample> carm_on_host_clock(const std::vector<acquisition::CArmState>& states);
 
 /// A grabbed frame as the session's 16-bit image (Mono8 ×257, Mono12 ×16, Mono16 as is).
 cv::Mat to_session_image(const acquisition::Frame& frame);
