@@ -258,3 +258,29 @@ TEST(VesselKindName, MatchesTheSceneFileSpelling) {
   EXPECT_STREQ(to_string(VesselKind::Aorta), "aorta");
   EXPECT_STREQ(to_string(VesselKind::Iliac), "iliac");
 }
+
+TEST(CopyScene, CarriesEveryFileUnderUniqueNamesAndNeverOverwrites) {
+  const fs::path dir = test_dir();
+  const fs::path file = make_scene(dir);
+  json j = read_json(file);
+  // Two vessel names that make the same file name once cleaned ("iliac right" and "iliac/right").
+  j["vessels"][1]["name"] = "iliac right";
+  j["vessels"].push_back(j["vessels"][1]);
+  j["vessels"][2]["name"] = "iliac/right";
+  write_json(file, j);
+  const Scene original = load_scene(file);
+
+  const fs::path copy = copy_scene(original, dir / "copy");
+  const Scene back = load_scene(copy);
+  ASSERT_EQ(back.vessels.size(), 3u);
+  EXPECT_NE(back.vessels[1].mesh_path, back.vessels[2].mesh_path);
+  for (std::size_t i = 0; i < 3; ++i) {
+    EXPECT_EQ(back.vessels[i].name, original.vessels[i].name);
+    EXPECT_EQ(back.vessels[i].mesh.mesh.V, original.vessels[i].mesh.mesh.V);
+    EXPECT_EQ(back.vessels[i].centerline, original.vessels[i].centerline);
+  }
+  EXPECT_EQ(back.landmarks.size(), original.landmarks.size());
+  EXPECT_DOUBLE_EQ(back.device_thickness_mm, original.device_thickness_mm);
+  // A second copy into the same place would overwrite: refused.
+  EXPECT_THROW(copy_scene(original, dir / "copy"), fs::filesystem_error);
+}
