@@ -17,6 +17,7 @@
 #include "logging.hpp"
 
 namespace evar::app {
+namespace {
 
 std::unique_ptr<acquisition::CArmGeometrySource> make_carm_source(const std::string& spec) {
   if (spec.starts_with("usb:")) {
@@ -78,6 +79,8 @@ std::unique_ptr<acquisition::FrameSource> make_frame_source(const RecordCommand&
   o.frame_rate_hz = cmd.fps;
   return std::make_unique<acquisition::GigECameraSource>(o);
 }
+
+}  // namespace
 
 int run_record(const RecordCommand& cmd) {
   auto frames = make_frame_source(cmd);

@@ -113,9 +113,13 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
     if (last >= 0) {
       EXPECT_TRUE(which == last || which == (last + 1) % 8) << "frame " << which << " after " << last << " at " << i;
     }
+    // Geometry in force is compared where a frame is seen coming in (the step from its
+    // predecessor, so within a camera period of when it was shown; the recording may start
+    // in the middle of a picture) and the C-arm link was already up.
+    const bool arrives = last >= 0 && which == (last + 1) % 8;
     last = which;
-    // Geometry in force is compared from the first C-arm state on.
-    if (first_at[static_cast<std::size_t>(which)] < 0 && back.frames[i].timestamp_ns > back.carm.front().timestamp_ns)
+    if (arrives && first_at[static_cast<std::size_t>(which)] < 0 &&
+        back.frames[i].timestamp_ns > back.carm.front().timestamp_ns)
       first_at[static_cast<std::size_t>(which)] = static_cast<int>(i);
   }
   EXPECT_EQ(unknown, 0u) << "recorded frames that are no original frame (torn or corrupted)";
