@@ -1,7 +1,8 @@
 #include "evar/acquisition/serial_carm_source.hpp"
 
+#include "wake_event.hpp"
+
 #include <poll.h>
-#include <sys/eventfd.h>
 #include <unistd.h>
 
 #include <array>
@@ -21,30 +22,25 @@ SerialCArmSource::SerialCArmSource(SerialLinkOptions options)
   if (options_.path.empty()) throw std::invalid_argument("serial C-arm link: no device path");
   if (!is_supported_baud(options_.settings.baud))
     throw std::invalid_argument("serial C-arm link: unsupported baud rate " + std::to_string(options_.settings.baud));
-  wake_fd_ = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
-  if (wake_fd_ < 0) throw std::runtime_error(std::string("serial C-arm link: eventfd: ") + std::strerror(errno));
+  wake_ = std::make_unique<WakeEvent>("serial C-arm link");
 }
 
 SerialCArmSource::~SerialCArmSource() {
   stop();
-  ::close(wake_fd_);
 }
 
 void SerialCArmSource::start(StateCallback on_state, StreamCallback on_stream) {
   if (thread_.joinable()) throw std::logic_error("serial C-arm link: already started");
   receiver_.set_callbacks(std::move(on_state), std::move(on_stream));
   stop_ = false;
-  std::uint64_t drain = 0;
-  while (::read(wake_fd_, &drain, sizeof drain) > 0) {
-  }
+  wake_->clear();
   thread_ = std::thread([this] { run(); });
 }
 
 void SerialCArmSource::stop() {
   if (!thread_.joinable()) return;
   stop_ = true;
-  const std::uint64_t one = 1;
-  [[maybe_unused]] const ssize_t n = ::write(wake_fd_, &one, sizeof one);
+  wake_->signal();
   thread_.join();  // the thread reported Stopped as its last word
 }
 
@@ -59,8 +55,7 @@ std::string SerialCArmSource::description() const {
 CArmLinkStatistics SerialCArmSource::statistics() const { return receiver_.statistics(); }
 
 bool SerialCArmSource::wait_for_stop(std::chrono::milliseconds d) {
-  pollfd p{wake_fd_, POLLIN, 0};
-  ::poll(&p, 1, static_cast<int>(d.count()));
+  wake_->wait(d);
   return stop_;
 }
 
@@ -79,7 +74,7 @@ void SerialCArmSource::run() {
     receiver_.connected();
     std::string lost;  // why the port went away, empty while it is up
     while (!stop_ && lost.empty()) {
-      std::array<pollfd, 2> p{{{port->fd(), POLLIN, 0}, {wake_fd_, POLLIN, 0}}};
+      std::array<pollfd, 2> p{{{port->fd(), POLLIN, 0}, {wake_->fd(), POLLIN, 0}}};
       const int r = ::poll(p.data(), p.size(), kPollMs);
       if (r < 0 && errno != EINTR) lost = std::string("poll: ") + std::strerror(errno);
       if (r > 0 && (p[0].revents & (POLLIN | POLLHUP | POLLERR | POLLNVAL))) {

@@ -2,7 +2,6 @@
 
 #include <fcntl.h>
 #include <linux/videodev2.h>
-#include <sys/eventfd.h>
 #include <sys/mman.h>
 #include <unistd.h>
 
@@ -18,6 +17,7 @@
 
 #include "evar/acquisition/sequence_tracker.hpp"
 #include "stream_state_reporter.hpp"
+#include "wake_event.hpp"
 
 namespace evar::acquisition {
 
@@ -184,7 +184,7 @@ struct V4l2FrameSource::Impl {
   FrameCallback on_frame;
   std::thread thread;
   std::atomic<bool> stop{false};
-  int wake_fd = -1;  // eventfd: stop() wakes the capture thread's poll
+  WakeEvent wake{"V4L2 source"};  // stop() wakes the capture thread's poll
 
   mutable std::mutex mutex;  // guards what other threads read
   StreamStateReporter reporter;
@@ -198,8 +198,7 @@ struct V4l2FrameSource::Impl {
   void set_state(StreamState s, const std::string& why) { reporter.set(s, why); }
 
   bool wait_for_stop(std::chrono::milliseconds d) {
-    pollfd p{wake_fd, POLLIN, 0};
-    return ::poll(&p, 1, static_cast<int>(d.count())) > 0 || stop;
+    return wake.wait(d) || stop;
   }
 
   void note_error(const std::string& e) {
@@ -383,7 +382,7 @@ struct V4l2FrameSource::Impl {
       const auto restart_after = std::min<std::chrono::milliseconds>(
           options.restart_after * (1 << std::min(restarts_without_frames, 4)), std::chrono::seconds(60));
       while (!stop && lost.empty() && !restart) {
-        pollfd fds[2] = {{device->fd(), POLLIN, 0}, {wake_fd, POLLIN, 0}};
+        pollfd fds[2] = {{device->fd(), POLLIN, 0}, {wake.fd(), POLLIN, 0}};
         const int n = io.poll(fds, 2, 100);
         if (n < 0 && errno != EINTR) lost = "poll failed: " + errno_text(errno);
         if (n > 0 && (fds[0].revents & (POLLERR | POLLHUP | POLLNVAL)))
@@ -447,18 +446,11 @@ V4l2FrameSource::V4l2FrameSource(V4l2Options options, V4l2Io& io) {
 
 V4l2FrameSource::~V4l2FrameSource() {
   stop();
-  if (impl_->wake_fd >= 0) ::close(impl_->wake_fd);
 }
 
 void V4l2FrameSource::start(FrameCallback on_frame, StateCallback on_state) {
   if (impl_->thread.joinable()) throw std::logic_error("V4L2 source already started");
-  if (impl_->wake_fd < 0) {
-    impl_->wake_fd = ::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK);
-    if (impl_->wake_fd < 0) throw std::runtime_error("V4L2: eventfd failed: " + errno_text(errno));
-  }
-  std::uint64_t drain_count;
-  while (::read(impl_->wake_fd, &drain_count, sizeof drain_count) > 0) {
-  }
+  impl_->wake.clear();
   impl_->on_frame = std::move(on_frame);
   impl_->reporter.listen(std::move(on_state));
   impl_->stop = false;
@@ -468,8 +460,7 @@ void V4l2FrameSource::start(FrameCallback on_frame, StateCallback on_state) {
 void V4l2FrameSource::stop() {
   if (!impl_->thread.joinable()) return;
   impl_->stop = true;
-  const std::uint64_t one = 1;
-  [[maybe_unused]] const auto n = ::write(impl_->wake_fd, &one, sizeof one);
+  impl_->wake.signal();
   impl_->thread.join();  // the thread reported Stopped as its last word
 }
 

@@ -34,85 +34,83 @@ std::string formats_text(const std::vector<std::uint32_t>& formats) {
   return s.empty() ? "none" : s;
 }
 
+ordered_json to_json(const std::vector<acquisition::GigECameraInfo>& gige,
+                     const std::vector<acquisition::V4l2DeviceInfo>& v4l2,
+                     const std::vector<acquisition::SerialPortInfo>& serial,
+                     const std::vector<acquisition::UsbDeviceInfo>& usb, const std::string& errors) {
+  ordered_json j = {{"format", "evarnode-devices"}, {"version", 1}};
+  j["gige_cameras"] = ordered_json::array();
+  for (const auto& c : gige)
+    j["gige_cameras"].push_back({{"id", c.id}, {"address", c.address}, {"serial", c.serial}, {"vendor", c.vendor}, {"model", c.model}});
+  j["v4l2_devices"] = ordered_json::array();
+  for (const auto& d : v4l2) {
+    ordered_json formats = ordered_json::array();
+    for (auto f : d.formats) formats.push_back(acquisition::fourcc_to_string(f));
+    j["v4l2_devices"].push_back({{"path", d.path}, {"driver", d.driver}, {"card", d.card}, {"bus_info", d.bus_info},
+                                 {"capture", d.can_capture}, {"formats", formats}, {"error", d.error}});
+  }
+  j["serial_ports"] = ordered_json::array();
+  for (const auto& p : serial) j["serial_ports"].push_back({{"path", p.path}, {"kind", p.kind}, {"by_id", p.by_id}});
+  j["usb_devices"] = ordered_json::array();
+  for (const auto& d : usb)
+    j["usb_devices"].push_back({{"id", acquisition::to_string(d.id)}, {"bus", d.bus}, {"address", d.address},
+                                {"manufacturer", d.manufacturer}, {"product", d.product},
+                                {"endpoints", endpoints_text(d.interfaces)}, {"error", d.error}});
+  j["errors"] = errors;
+  return j;
+}
+
 }  // namespace
 
 int run_devices(const DevicesCommand& cmd) {
-  ordered_json report = {{"format", "evarnode-devices"}, {"version", 1}};
-  std::string errors;  // parts that could not be asked; the rest is still shown
-
-  ordered_json gige = ordered_json::array();
-  for (const auto& c : acquisition::list_gige_cameras())
-    gige.push_back({{"id", c.id}, {"address", c.address}, {"serial", c.serial}, {"vendor", c.vendor}, {"model", c.model}});
-  report["gige_cameras"] = gige;
-
-  const auto v4l2_devices = acquisition::list_v4l2_devices();
-  ordered_json v4l2 = ordered_json::array();
-  for (const auto& d : v4l2_devices) {
-    ordered_json formats = ordered_json::array();
-    for (auto f : d.formats) formats.push_back(acquisition::fourcc_to_string(f));
-    v4l2.push_back({{"path", d.path}, {"driver", d.driver}, {"card", d.card}, {"bus_info", d.bus_info},
-                    {"capture", d.can_capture}, {"formats", formats}, {"error", d.error}});
-  }
-  report["v4l2_devices"] = v4l2;
-
-  ordered_json serial = ordered_json::array();
-  for (const auto& p : acquisition::list_serial_ports())
-    serial.push_back({{"path", p.path}, {"kind", p.kind}, {"by_id", p.by_id}});
-  report["serial_ports"] = serial;
-
-  ordered_json usb = ordered_json::array();
   std::optional<acquisition::UsbDeviceId> filter;
   if (!cmd.usb.empty()) filter = acquisition::parse_usb_device_id(cmd.usb);
+  const auto gige = acquisition::list_gige_cameras();
+  const auto v4l2 = acquisition::list_v4l2_devices();
+  const auto serial = acquisition::list_serial_ports();
+  std::vector<acquisition::UsbDeviceInfo> usb;
+  std::string errors;  // parts that could not be asked; the rest is still shown
   try {
-    for (const auto& d : acquisition::list_usb_devices(filter)) {
-      usb.push_back({{"id", acquisition::to_string(d.id)}, {"bus", d.bus}, {"address", d.address},
-                     {"manufacturer", d.manufacturer}, {"product", d.product}, {"endpoints", endpoints_text(d.interfaces)},
-                     {"error", d.error}});
-    }
+    usb = acquisition::list_usb_devices(filter);
   } catch (const std::exception& e) {
-    errors += std::string("USB: ") + e.what();
+    errors = std::string("USB: ") + e.what();
   }
-  report["usb_devices"] = usb;
-  report["errors"] = errors;
-
   if (cmd.json) {
-    std::cout << report.dump(2) << "\n";
+    std::cout << to_json(gige, v4l2, serial, usb, errors).dump(2) << "\n";
     return 0;
   }
-  auto heading = [](const char* h) { std::cout << h << "\n"; };
-  heading("GigE Vision cameras (discovery on every interface, loopback included):");
+
+  std::cout << "GigE Vision cameras (discovery on every interface, loopback included):\n";
   if (gige.empty()) std::cout << "  none answered\n";
   for (const auto& c : gige)
-    std::cout << "  " << c["id"].get<std::string>() << "  at " << c["address"].get<std::string>() << "  serial "
-              << c["serial"].get<std::string>() << "  (" << c["vendor"].get<std::string>() << " "
-              << c["model"].get<std::string>() << ")   --camera " << c["serial"].get<std::string>() << "\n";
-  heading("V4L2 video devices (/dev/video*):");
+    std::cout << "  " << c.id << "  at " << c.address << "  serial " << c.serial << "  (" << c.vendor << " " << c.model
+              << ")   --camera " << c.serial << "\n";
+  std::cout << "V4L2 video devices (/dev/video*):\n";
   if (v4l2.empty()) std::cout << "  none (no /dev/video* on this machine)\n";
-  for (const auto& d : v4l2_devices) {
-    std::cout << "  " << d.path;
-    if (!d.error.empty()) {
-      std::cout << "  " << d.error << "\n";
-      continue;
-    }
-    std::cout << "  " << d.card << " (" << d.driver << ", " << d.bus_info << ")  "
-              << (d.can_capture ? "capture, formats " + formats_text(d.formats) : std::string("not a capture node"))
-              << "\n";
+  for (const auto& d : v4l2) {
+    std::cout << "  " << d.path << "  ";
+    if (!d.error.empty())
+      std::cout << d.error << "\n";
+    else
+      std::cout << d.card << " (" << d.driver << ", " << d.bus_info << ")  "
+                << (d.can_capture ? "capture, formats " + formats_text(d.formats) : std::string("not a capture node"))
+                << "\n";
   }
-  heading("Serial ports:");
+  std::cout << "Serial ports:\n";
   if (serial.empty()) std::cout << "  none\n";
   for (const auto& p : serial) {
-    std::cout << "  " << p["path"].get<std::string>() << "  " << p["kind"].get<std::string>();
-    for (const auto& l : p["by_id"]) std::cout << "  " << l.get<std::string>();
+    std::cout << "  " << p.path << "  " << p.kind;
+    for (const auto& l : p.by_id) std::cout << "  " << l;
     std::cout << "\n";
   }
-  heading(filter ? ("USB devices matching " + cmd.usb + ":").c_str() : "USB devices (--usb VID:PID to show one):");
+  std::cout << (filter ? "USB devices matching " + cmd.usb + ":" : std::string("USB devices (--usb VID:PID to show one):"))
+            << "\n";
   if (usb.empty()) std::cout << "  none\n";
   for (const auto& d : usb) {
-    std::cout << "  " << d["id"].get<std::string>() << "  bus " << d["bus"] << " address " << d["address"];
-    if (!d["product"].get<std::string>().empty())
-      std::cout << "  " << d["manufacturer"].get<std::string>() << " " << d["product"].get<std::string>();
-    std::cout << "  " << d["endpoints"].get<std::string>();
-    if (!d["error"].get<std::string>().empty()) std::cout << "  (" << d["error"].get<std::string>() << ")";
+    std::cout << "  " << acquisition::to_string(d.id) << "  bus " << d.bus << " address " << d.address;
+    if (!d.product.empty()) std::cout << "  " << d.manufacturer << " " << d.product;
+    std::cout << "  " << endpoints_text(d.interfaces);
+    if (!d.error.empty()) std::cout << "  (" << d.error << ")";
     std::cout << "\n";
   }
   if (!errors.empty()) log().warn("{}", errors);

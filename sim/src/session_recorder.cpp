@@ -169,6 +169,7 @@ struct SessionRecorder::Impl {
 
   void write_report(const Session* session) const {
     const RecorderStatistics s = stats;
+    const acquisition::SequenceStats source = frames.statistics();
     nlohmann::ordered_json j = {
         {"format", "evarnode-record-report"},
         {"version", 1},
@@ -180,9 +181,7 @@ struct SessionRecorder::Impl {
           {"refused_size_changed", s.frames_refused},
           {"source", frames.description()},
           {"statistics",
-           {{"received", frames.statistics().received},
-            {"dropped", frames.statistics().dropped},
-            {"out_of_order", frames.statistics().out_of_order}}},
+           {{"received", source.received}, {"dropped", source.dropped}, {"out_of_order", source.out_of_order}}},
           {"last_state", acquisition::to_string(s.video)},
           {"last_reason", s.video_reason}}},
         {"carm",

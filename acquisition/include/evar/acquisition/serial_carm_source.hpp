@@ -14,6 +14,8 @@
 
 namespace evar::acquisition {
 
+class WakeEvent;
+
 struct SerialLinkOptions {
   std::string path;                                   ///< /dev/ttyUSB0, /dev/ttyS0, a pty or a link to one
   SerialSettings settings;
@@ -41,7 +43,7 @@ class SerialCArmSource final : public CArmGeometrySource {
 
   SerialLinkOptions options_;
   CArmLinkReceiver receiver_;
-  int wake_fd_ = -1;  // eventfd: stop() wakes the thread's poll
+  std::unique_ptr<WakeEvent> wake_;  // stop() wakes the thread's poll
   std::atomic<bool> stop_{false};
   std::thread thread_;
 };
