@@ -255,6 +255,19 @@ int run_cli(const std::vector<std::string>& args) {
   rd->add_option("--frames", record.frames, "stop after this many frames are written")->check(CLI::PositiveNumber);
   rd->add_option("--out", record.out, "the new session directory (must not exist or be empty)")->required();
 
+  EvalCommand eval;
+  auto* ev = app.add_subcommand(
+      "eval",
+      "The paper's evaluation (Table 1) on sessions with ground truth (e.g. from `evarnode sim session`):\n"
+      "each session goes through the node's steps (device candidates, view pairs, reconstruction,\n"
+      "deformation) and in every settled frame after the first adapted model the landmarks projected\n"
+      "from the preoperative and from the adapted model are compared with the true ostia: Euclidean\n"
+      "and vertical 2D distances in mm at the isocenter. Writes OUT/eval.json, OUT/eval.md,\n"
+      "OUT/per_case.png, OUT/histogram.png and OUT/snapshots/. Exit 1 when no session gave a model.");
+  ev->add_option("sessions", eval.sessions, "session directories")->required()->check(CLI::ExistingDirectory);
+  ev->add_option("--out", eval.out, "output directory (created)")->required();
+  ev->add_flag("!--no-progress", eval.progress, "no progress bars");
+
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {
     app.parse(reversed);
@@ -275,6 +288,7 @@ int run_cli(const std::vector<std::string>& args) {
     if (rp->parsed()) return run_replay(replay);
     if (dv->parsed()) return run_devices(devices);
     if (rd->parsed()) return run_record(record);
+    if (ev->parsed()) return run_eval(eval);
   } catch (const geometry::InputError& err) {
     log().error("{}", err.what());
     return 1;

@@ -110,6 +110,13 @@ struct ReconstructCommand {
 };
 int run_reconstruct(const ReconstructCommand& cmd);
 
+struct EvalCommand {
+  std::vector<std::filesystem::path> sessions;
+  std::filesystem::path out;
+  bool progress = true;
+};
+int run_eval(const EvalCommand& cmd);
+
 struct ProjectCommand {
   std::filesystem::path geometry, registration, points, out;
 };

@@ -493,35 +493,54 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
   std::vector<float> score(dist.size(), -kInf);
   std::vector<float> running(dist.size(), 0.0f);
   std::vector<float> running_contrast(dist.size(), 0.0f);
-  for (const int q : order) {
-    const int y = q / W, x = q % W;
-    const int p = parent[static_cast<std::size_t>(q)];
-    const float r = R_local.at<float>(y, x);
-    const float c = contrast_local.at<float>(y, x);
-    const float mean_so_far = p < 0 ? 0.0f : running[static_cast<std::size_t>(p)];
-    const float contrast_so_far = p < 0 ? 0.0f : running_contrast[static_cast<std::size_t>(p)];
-    // The contrast (Δp) too: noise is stronger over bone (fewer quanta), and a chain of
-    // noise maxima there can pass on noise units but never has a device's Δp.
-    const bool ridge = near_confident.at<std::uint8_t>(y, x) && r >= 0.35f * mean_so_far && c >= 0.5f * contrast_so_far;
-    // Only pixels that pass update the means, so a long faint line cannot drag them down.
-    running[static_cast<std::size_t>(q)] =
-        !ridge ? mean_so_far : (mean_so_far == 0.0f ? r : mean_so_far + (r - mean_so_far) / 30.0f);
-    running_contrast[static_cast<std::size_t>(q)] =
-        !ridge ? contrast_so_far : (contrast_so_far == 0.0f ? c : contrast_so_far + (c - contrast_so_far) / 30.0f);
-    float gain = ridge ? 1.0f : -1.5f;
-    if (const int a = ancestor(q, 8); a >= 0)
-      if (const int b = ancestor(a, 8); b >= 0) {
-        const Eigen::Vector2f v1(x - a % W, y - a / W), v2(a % W - b % W, a / W - b / W);
-        if (v1.dot(v2) < std::cos(50.0f * 3.14159265f / 180.0f) * v1.norm() * v2.norm()) gain -= 5.0f;
-      }
-    score[static_cast<std::size_t>(q)] = (p < 0 ? 0.0f : score[static_cast<std::size_t>(p)]) + gain;
-  }
-  int tip = -1;
-  for (const int q : order) {
-    const int y = q / W, x = q % W;
-    if (!line_like.at<std::uint8_t>(y, x)) continue;
-    if (o.seed_px && (Eigen::Vector2d(x, y) - *o.seed_px).norm() > o.seed_radius_px) continue;
-    if (tip < 0 || score[static_cast<std::size_t>(q)] > score[static_cast<std::size_t>(tip)]) tip = q;
+  const auto choose_tip = [&] {
+    for (const int q : order) {
+      const int y = q / W, x = q % W;
+      const int p = parent[static_cast<std::size_t>(q)];
+      const float r = R_local.at<float>(y, x);
+      const float c = contrast_local.at<float>(y, x);
+      const float mean_so_far = p < 0 ? 0.0f : running[static_cast<std::size_t>(p)];
+      const float contrast_so_far = p < 0 ? 0.0f : running_contrast[static_cast<std::size_t>(p)];
+      // The contrast (Δp) too: noise is stronger over bone (fewer quanta), and a chain of
+      // noise maxima there can pass on noise units but never has a device's Δp.
+      const bool ridge = near_confident.at<std::uint8_t>(y, x) && r >= 0.35f * mean_so_far && c >= 0.5f * contrast_so_far;
+      // Only pixels that pass update the means, so a long faint line cannot drag them down.
+      running[static_cast<std::size_t>(q)] =
+          !ridge ? mean_so_far : (mean_so_far == 0.0f ? r : mean_so_far + (r - mean_so_far) / 30.0f);
+      running_contrast[static_cast<std::size_t>(q)] =
+          !ridge ? contrast_so_far : (contrast_so_far == 0.0f ? c : contrast_so_far + (c - contrast_so_far) / 30.0f);
+      float gain = ridge ? 1.0f : -1.5f;
+      if (const int a = ancestor(q, 8); a >= 0)
+        if (const int b = ancestor(a, 8); b >= 0) {
+          const Eigen::Vector2f v1(x - a % W, y - a / W), v2(a % W - b % W, a / W - b / W);
+          if (v1.dot(v2) < std::cos(50.0f * 3.14159265f / 180.0f) * v1.norm() * v2.norm()) gain -= 5.0f;
+        }
+      score[static_cast<std::size_t>(q)] = (p < 0 ? 0.0f : score[static_cast<std::size_t>(p)]) + gain;
+    }
+    int tip = -1;
+    for (const int q : order) {
+      const int y = q / W, x = q % W;
+      if (!line_like.at<std::uint8_t>(y, x)) continue;
+      if (o.seed_px && (Eigen::Vector2d(x, y) - *o.seed_px).norm() > o.seed_radius_px) continue;
+      if (tip < 0 || score[static_cast<std::size_t>(q)] > score[static_cast<std::size_t>(tip)]) tip = q;
+    }
+    return tip;
+  };
+  int tip = choose_tip();
+  if (tip >= 0 && border_reachable) {
+    // Every pixel's path runs to its nearest border, so a device that crosses the whole
+    // field (both ends outside it) splits where the two ways out cost the same, and the
+    // tip found is that middle. Rooted at the border end of the path found, the same
+    // choice sees the device's whole visible length.
+    int root = tip;
+    while (parent[static_cast<std::size_t>(root)] >= 0) root = parent[static_cast<std::size_t>(root)];
+    std::fill(dist.begin(), dist.end(), kInf);
+    std::fill(parent.begin(), parent.end(), -1);
+    dist[static_cast<std::size_t>(root)] = 0.0f;
+    heap.emplace(0.0f, root);
+    run_dijkstra();
+    std::fill(score.begin(), score.end(), -kInf);
+    tip = choose_tip();
   }
   if (tip < 0) {
     result.reason = o.seed_px ? "nothing device-like within " + std::to_string(static_cast<int>(k * o.seed_radius_px)) + " px of the seed"
@@ -606,6 +625,22 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     result.reason = "the strongest curve has a contrast of " + std::to_string(result.contrast) +
                     " (attenuation, −log units), below the " + std::to_string(o.min_contrast) +
                     " of a device: no device in the image";
+    result.points.clear();
+    return result;
+  }
+  // The measure is in noise units: on a device most of the path is confident (above the
+  // high threshold). A chain of noise maxima strung together by the minimal path has only a
+  // few confident pixels and a median below it, and is short: the path bridges at most
+  // gap_radius_px between confident pixels, so chance alignments rarely run longer than a
+  // few such gaps. A weak curve (low dose) is believed only when it is long.
+  const double weak_length_px = 4.0 * o.gap_radius_px;
+  if (result.median_response < o.high_threshold &&
+      (result.median_response < o.low_threshold || result.length_px < weak_length_px)) {
+    result.reason = "the strongest curve is only " + std::to_string(result.median_response).substr(0, 4) +
+                    " noise units strong along its length and " + std::to_string(static_cast<int>(k * result.length_px)) +
+                    " px long (a device is above " + std::to_string(o.high_threshold).substr(0, 4) + ", or above " +
+                    std::to_string(o.low_threshold).substr(0, 4) + " over " +
+                    std::to_string(static_cast<int>(k * weak_length_px)) + " px): no device in the image";
     result.points.clear();
     return result;
   }

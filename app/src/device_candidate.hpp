@@ -1,0 +1,31 @@
+#pragma once
+// Whether a frame shows the device well enough to reconstruct from: the segmentation set
+// up for the frame's view (the shadow width from the magnification and the pixel spacing)
+// and a confidence floor.
+#include <string>
+
+#include <opencv2/core.hpp>
+
+#include "evar/geometry/device_segmentation.hpp"
+#include "frame_view.hpp"
+
+namespace evar::app {
+
+struct CandidateOptions {
+  double device_diameter_mm = 0.89;  ///< 0.035" guidewire
+  /// Least attenuation contrast (−log units) of raw linear detector data; 0 for processed
+  /// (log or windowed) video (geometry::SegmentationOptions::min_contrast).
+  double min_contrast = 0.25;
+  double min_confidence = 0.5;       ///< geometry::DeviceCurve2D::confidence
+};
+
+struct FrameAnalysis {
+  bool candidate = false;
+  std::string reason;              ///< why not, when not
+  geometry::DeviceCurve2D curve;
+};
+
+/// Segments `image` (CV_8UC1 or CV_16UC1). Never throws on image content.
+FrameAnalysis analyse_frame(const cv::Mat& image, const FrameView& view, const CandidateOptions& options);
+
+}  // namespace evar::app

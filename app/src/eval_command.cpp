@@ -1,0 +1,101 @@
+// `evarnode eval`: the paper's Table 1 on sessions with ground truth (session_evaluation.hpp):
+// eval.json, eval.md and the pictures (evaluation_plots.hpp) in --out.
+#include <cstdio>
+#include <sstream>
+
+#include "commands.hpp"
+#include "evaluation_plots.hpp"
+#include "json_file.hpp"
+#include "logging.hpp"
+#include "progress_bar.hpp"
+#include "session_evaluation.hpp"
+
+namespace evar::app {
+
+namespace {
+
+struct Metric {
+  const char* name;
+  double LandmarkError::*initial;
+  double LandmarkError::*adapted;
+};
+constexpr Metric kMetrics[] = {{"euclidean", &LandmarkError::initial_mm, &LandmarkError::adapted_mm},
+                               {"vertical", &LandmarkError::initial_vertical_mm, &LandmarkError::adapted_vertical_mm}};
+
+nlohmann::json to_json(const Statistic& s) {
+  return {{"mean_mm", s.mean}, {"sd_mm", s.sd}, {"median_mm", s.median}, {"n", s.n}};
+}
+
+std::string fmt(const Statistic& s) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%.2f ± %.2f (median %.2f)", s.mean, s.sd, s.median);
+  return b;
+}
+
+}  // namespace
+
+int run_eval(const EvalCommand& cmd) {
+  std::filesystem::create_directories(cmd.out);
+  std::vector<CaseEvaluation> cases;
+  nlohmann::json jcases = nlohmann::json::array();
+  for (const auto& dir : cmd.sessions) {
+    ProgressBar bar(dir.filename().string(), cmd.progress);
+    CaseEvaluation c = evaluate_session(dir, {}, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
+    bar.finish();
+    nlohmann::json lm = nlohmann::json::array();
+    for (const auto& l : c.landmarks)
+      lm.push_back({{"label", l.label}, {"frames", l.frames}, {"initial_mm", l.initial_mm}, {"adapted_mm", l.adapted_mm},
+                    {"initial_vertical_mm", l.initial_vertical_mm}, {"adapted_vertical_mm", l.adapted_vertical_mm}});
+    nlohmann::json model = nullptr;
+    if (c.model)
+      model = {{"frames", {c.model->frame_earlier, c.model->frame_later}},
+               {"separation_deg", c.model->reconstruction.separation_deg},
+               {"mean_residual_px", c.model->reconstruction.mean_residual_px},
+               {"device_points", c.model->reconstruction.points.size()},
+               {"matched_fraction", {c.model->reconstruction.matched_fraction_1, c.model->reconstruction.matched_fraction_2}},
+               {"reliable_fraction", c.model->reconstruction.reliable_fraction},
+               {"reconstruct_ms", c.model->reconstruct_ms},
+               {"deform_ms", c.model->deform_ms}};
+    jcases.push_back({{"session", dir.string()}, {"frames", c.frames}, {"candidates", c.candidates}, {"pairs", c.pairs},
+                      {"adaptations", c.adaptations}, {"failures", c.failures}, {"frames_evaluated", c.frames_evaluated},
+                      {"landmarks", lm}, {"model", model}, {"seconds", c.seconds}});
+    if (!c.model) log().warn("{}: no adapted model ({} candidates, {} pairs{}{})", dir.string(), c.candidates, c.pairs,
+                             c.failures.empty() ? "" : "; ", c.failures.empty() ? "" : c.failures.back());
+    else
+      log().info("{}: {} frames evaluated, model from frames {}+{} ({:.0f}° apart)", dir.string(), c.frames_evaluated,
+                 c.model->frame_earlier, c.model->frame_later, c.model->reconstruction.separation_deg);
+    cases.push_back(std::move(c));
+  }
+  nlohmann::json summary;
+  std::ostringstream md;
+  md << "| distance | initial (mm) | adapted (mm) |\n|---|---|---|\n";
+  std::size_t without_model = 0;
+  for (const auto& c : cases) without_model += c.model ? 0 : 1;
+  for (const Metric& m : kMetrics) {
+    std::vector<double> initial, adapted;
+    for (const auto& c : cases)
+      for (const auto& l : c.landmarks) {
+        initial.push_back(l.*m.initial);
+        adapted.push_back(l.*m.adapted);
+      }
+    const Statistic si = statistic(initial), sa = statistic(adapted);
+    summary[m.name] = {{"initial", to_json(si)}, {"adapted", to_json(sa)}};
+    md << "| " << m.name << " | " << fmt(si) << " | " << fmt(sa) << " |\n";
+  }
+  md << "\n" << cases.size() << " sessions, " << cases.size() - without_model
+     << " with an adapted model; one value per landmark and session (its mean over the evaluated frames).\n";
+  summary["sessions"] = cases.size();
+  summary["sessions_without_model"] = without_model;
+  write_json(cmd.out / "eval.json", {{"summary", summary}, {"cases", jcases}});
+  {
+    std::ofstream f(cmd.out / "eval.md");
+    f << "# Ostium distances, initial versus adapted\n\n" << md.str();
+    if (!f) throw std::runtime_error((cmd.out / "eval.md").string() + ": cannot write");
+  }
+  write_evaluation_plots(cmd.out, cases);
+  std::fputs(md.str().c_str(), stdout);
+  log().info("wrote {} (eval.json, eval.md, per_case.png, histogram.png, snapshots/)", cmd.out.string());
+  return without_model == cases.size() ? 1 : 0;
+}
+
+}  // namespace evar::app

@@ -1,0 +1,56 @@
+#include "model_adaptation.hpp"
+
+#include <chrono>
+#include <cstdio>
+
+#include "evar/geometry/input_error.hpp"
+
+namespace evar::app {
+
+namespace {
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+}  // namespace
+
+AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& pair, const AdaptationOptions& options,
+                         const deform::SceneDeformation* previous) {
+  AdaptedModel m;
+  m.frame_earlier = pair.earlier.frame;
+  m.frame_later = pair.later.frame;
+  m.time_ns = pair.later.time_ns;
+  auto t0 = std::chrono::steady_clock::now();
+  try {
+    m.reconstruction = geometry::reconstruct_two_view(pair.earlier.curve_px, pair.earlier.geometry.P_ct,
+                                                      pair.later.curve_px, pair.later.geometry.P_ct,
+                                                      options.reconstruction);
+  } catch (const geometry::ReconstructionError& e) {
+    throw AdaptationError(std::string("reconstruction failed: ") + e.what());
+  }
+  m.reconstruct_ms = ms_since(t0);
+  const auto& r = m.reconstruction;
+  char why[160];
+  if (r.mean_residual_px > options.max_mean_residual_px) {
+    std::snprintf(why, sizeof why, "reconstruction refused: the device reprojects %.1f px from its curves (limit %.1f)",
+                  r.mean_residual_px, options.max_mean_residual_px);
+    throw AdaptationError(why);
+  }
+  const double length = r.points.size() < 2 ? 0.0 : geometry::arc_lengths(r.points).back();
+  if (length < options.min_length_mm) {
+    std::snprintf(why, sizeof why, "reconstruction refused: only %.0f mm of device seen in both views (need %.0f)",
+                  length, options.min_length_mm);
+    throw AdaptationError(why);
+  }
+  t0 = std::chrono::steady_clock::now();
+  try {
+    m.deformation = deformer.deform(r.points, previous);
+  } catch (const geometry::InputError& e) {
+    throw AdaptationError(std::string("deformation refused the device: ") + e.what());
+  } catch (const std::runtime_error& e) {
+    throw AdaptationError(std::string("deformation failed: ") + e.what());
+  }
+  m.deform_ms = ms_since(t0);
+  return m;
+}
+
+}  // namespace evar::app

@@ -1,0 +1,40 @@
+#pragma once
+// From a view pair to the adapted vessel model: the device triangulated from its two
+// curves (in CT coordinates, through the registered projections), checked, and the scene
+// deformed to contain it (paper 2.2-2.3).
+#include <cstdint>
+#include <stdexcept>
+
+#include "evar/deform/scene_deformation.hpp"
+#include "evar/geometry/two_view_reconstruction.hpp"
+#include "view_pair_selector.hpp"
+
+namespace evar::app {
+
+struct AdaptationOptions {
+  geometry::ReconstructionOptions reconstruction;
+  /// A device whose 3D curve projects farther than this from its 2D curves on average is
+  /// a wrong match (two different wires, a false segmentation), not a measurement.
+  double max_mean_residual_px = 4.0;
+  double min_length_mm = 20.0;  ///< shorter reconstructions cannot place the vessels
+};
+
+struct AdaptedModel {
+  std::uint64_t frame_earlier = 0, frame_later = 0;
+  std::int64_t time_ns = 0;                 ///< of the later view's frame
+  geometry::Reconstruction reconstruction;  ///< CT LPS mm
+  deform::SceneDeformation deformation;
+  double reconstruct_ms = 0.0, deform_ms = 0.0;
+};
+
+/// Thrown when a pair gives no usable model; what() says why (for the screen and the log).
+class AdaptationError : public std::runtime_error {
+ public:
+  using std::runtime_error::runtime_error;
+};
+
+/// `previous`: the last model's deformation, to warm-start the solve (SceneDeformer::deform).
+AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& pair, const AdaptationOptions& options,
+                         const deform::SceneDeformation* previous = nullptr);
+
+}  // namespace evar::app

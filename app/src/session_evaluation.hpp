@@ -1,0 +1,58 @@
+#pragma once
+// The paper's evaluation (Table 1) on recorded sessions with ground truth: the session's
+// frames go through the node's own steps in order (candidates, view pairs, reconstruction,
+// deformation), and in every settled frame from the first adapted model on, each
+// landmark is projected from the preoperative (initial) and from the adapted model and
+// compared with where the true ostium projects. Distances are in mm at the isocenter
+// (pixels · spacing · SOD/SID); "vertical" is the image-row component, the paper's
+// cranio-caudal error.
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+#include "device_candidate.hpp"
+#include "model_adaptation.hpp"
+#include "view_pair_selector.hpp"
+
+namespace evar::app {
+
+struct EvaluationOptions {
+  CandidateOptions candidate;
+  ViewPairOptions pairs;
+  AdaptationOptions adaptation;
+  deform::DeformOptions deform;
+};
+
+struct LandmarkError {
+  std::string label;
+  int frames = 0;  ///< frames it was measured in
+  double initial_mm = 0, adapted_mm = 0;                    ///< mean Euclidean distance over those frames
+  double initial_vertical_mm = 0, adapted_vertical_mm = 0;  ///< mean |row difference|
+};
+
+struct CaseEvaluation {
+  std::filesystem::path session;
+  std::size_t frames = 0, candidates = 0, pairs = 0, adaptations = 0;
+  std::vector<std::string> failures;  ///< why pairs gave no model
+  std::size_t frames_evaluated = 0;
+  std::vector<LandmarkError> landmarks;  ///< only those measured
+  std::shared_ptr<const AdaptedModel> model;  ///< the last adapted model (null when none)
+  std::size_t snapshot_frame = 0;       ///< index of the last evaluated frame (for pictures)
+  double seconds = 0.0;
+};
+
+/// Throws geometry::InputError for a session without ground truth or with unreadable
+/// files. `progress(done, total)` after each frame.
+CaseEvaluation evaluate_session(const std::filesystem::path& session, const EvaluationOptions& options = {},
+                                const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+struct Statistic {
+  double mean = 0, sd = 0, median = 0;
+  std::size_t n = 0;
+};
+/// Sample mean, standard deviation (n − 1) and median; zeros for no values.
+Statistic statistic(std::vector<double> values);
+
+}  // namespace evar::app

@@ -1,0 +1,41 @@
+#include "view_pair_selector.hpp"
+
+#include <stdexcept>
+
+#include "evar/geometry/two_view_reconstruction.hpp"
+
+namespace evar::app {
+
+ViewPairSelector::ViewPairSelector(ViewPairOptions options) : options_(options) {
+  if (!(options_.same_view_deg > 0 && options_.same_view_deg < options_.min_separation_deg &&
+        options_.min_separation_deg < 90) || options_.max_views < 2)
+    throw std::invalid_argument("view pairs: need 0 < same_view_deg < min_separation_deg < 90 and max_views >= 2");
+}
+
+std::optional<ViewPair> ViewPairSelector::add(ViewCandidate candidate) {
+  const auto separation = [&](const ViewCandidate& other) {
+    return geometry::view_separation_deg(other.geometry.P_ct, candidate.geometry.P_ct);
+  };
+  const bool same_as_current = !views_.empty() && separation(views_.back()) < options_.same_view_deg;
+  const bool new_view = !same_as_current;
+  if (same_as_current) {
+    views_.back() = candidate;
+  } else {
+    // A view seen before (the C-arm came back) moves to the end with its new candidate.
+    std::erase_if(views_, [&](const ViewCandidate& v) { return separation(v) < options_.same_view_deg; });
+    views_.push_back(candidate);
+    if (views_.size() > options_.max_views) views_.erase(views_.begin());
+  }
+  if (!new_view && !retry_) return std::nullopt;
+  // The partner: the newest earlier view far enough away.
+  for (auto it = views_.rbegin() + 1; it != views_.rend(); ++it) {
+    const double sep = separation(*it);
+    if (sep >= options_.min_separation_deg && sep <= 180.0 - options_.min_separation_deg) {
+      retry_ = false;
+      return ViewPair{*it, candidate, sep};
+    }
+  }
+  return std::nullopt;
+}
+
+}  // namespace evar::app

@@ -1,0 +1,197 @@
+#include "evar/overlay/frame_compositor.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstring>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+
+#include "evar/overlay/perspective_projection.hpp"
+
+namespace evar::overlay {
+
+namespace {
+
+// Colours (BGR) interventionalists can tell apart on grey fluoroscopy.
+constexpr Bgr kInitial{235, 200, 120};   // pale blue: the preoperative roadmap
+constexpr Bgr kAdapted{40, 150, 255};    // orange: the adapted roadmap
+constexpr Bgr kDevice{80, 255, 120};     // green: the reconstructed device
+constexpr Bgr kLandmark{60, 230, 255};   // yellow: ostia
+constexpr Bgr kText{245, 245, 245};
+constexpr Bgr kAlert{0, 190, 255};       // amber
+
+void check_frame(const GreyFrame& f) {
+  if (f.width <= 0 || f.height <= 0)
+    throw std::invalid_argument("compose: frame size " + std::to_string(f.width) + " x " + std::to_string(f.height));
+  if (f.bits != 8 && f.bits != 16) throw std::invalid_argument("compose: " + std::to_string(f.bits) + "-bit frame (8 or 16)");
+  if (f.data == nullptr) throw std::invalid_argument("compose: frame without pixels");
+  if (f.stride_bytes < f.width * (f.bits / 8))
+    throw std::invalid_argument("compose: stride " + std::to_string(f.stride_bytes) + " bytes is shorter than a row");
+}
+
+// Value of pixel (x, y).
+inline unsigned value(const GreyFrame& f, int x, int y) {
+  const std::uint8_t* row = f.data + static_cast<std::size_t>(y) * static_cast<std::size_t>(f.stride_bytes);
+  if (f.bits == 8) return row[x];
+  return static_cast<unsigned>(row[2 * x]) | (static_cast<unsigned>(row[2 * x + 1]) << 8);
+}
+
+}  // namespace
+
+const char* to_string(RoadmapMode mode) {
+  switch (mode) {
+    case RoadmapMode::Undeformed: return "undeformed";
+    case RoadmapMode::Adapted: return "adapted";
+    case RoadmapMode::Both: return "both";
+  }
+  return "?";
+}
+
+std::optional<RoadmapMode> parse_roadmap_mode(std::string_view text) {
+  if (text == "undeformed") return RoadmapMode::Undeformed;
+  if (text == "adapted") return RoadmapMode::Adapted;
+  if (text == "both") return RoadmapMode::Both;
+  return std::nullopt;
+}
+
+Overlay roadmap_overlay(const RoadmapModel& model, RoadmapMode mode) {
+  Overlay o;
+  const bool adapted = !model.adapted.empty();
+  const bool show_initial = mode != RoadmapMode::Adapted || !adapted;
+  const bool show_adapted = mode != RoadmapMode::Undeformed && adapted;
+  if (show_initial) {
+    // Beside the adapted model the preoperative one is only a reference: fainter, unlabelled.
+    const bool reference = show_adapted;
+    o.layers.push_back({"preoperative", model.initial, kInitial, reference ? 0.12 : 0.25, true, 1});
+    for (const auto& p : model.initial_landmarks)
+      o.markers.push_back({p.position_lps, reference ? "" : p.label, "", kLandmark, false, reference ? 4 : 6});
+  }
+  if (show_adapted) {
+    o.layers.push_back({"adapted", model.adapted, kAdapted, 0.25, true, 1});
+    for (const auto& p : model.adapted_landmarks)
+      o.markers.push_back({p.position_lps, p.label, "", kLandmark, true, 5});
+  }
+  if (mode != RoadmapMode::Undeformed && model.device.size() >= 2)
+    o.polylines.push_back({"", model.device, kDevice, 2});
+  return o;
+}
+
+FrameCompositor::FrameCompositor(CompositorOptions options) : options_(options) {
+  if (options_.supersample < 1 || options_.supersample > 8)
+    throw std::invalid_argument("compositor: supersample " + std::to_string(options_.supersample) + " (1 to 8)");
+  if (!(options_.window_level.window >= 0.0)) throw std::invalid_argument("compositor: negative window");
+}
+
+void FrameCompositor::update_lut(const GreyFrame& f) {
+  WindowLevel wl = options_.window_level;
+  if (wl.window <= 0.0) {
+    // The 1st and 99th percentiles of a sparse grid of pixels: robust to the collimator's
+    // black and to burnt-out skin line, cheap enough for every frame.
+    const int step = std::max(1, static_cast<int>(std::sqrt(static_cast<double>(f.width) * f.height / 16384.0)));
+    samples_.clear();
+    for (int y = step / 2; y < f.height; y += step)
+      for (int x = step / 2; x < f.width; x += step) samples_.push_back(static_cast<std::uint16_t>(value(f, x, y)));
+    const auto at = [&](double q) {
+      auto it = samples_.begin() + static_cast<std::ptrdiff_t>(q * static_cast<double>(samples_.size() - 1));
+      std::nth_element(samples_.begin(), it, samples_.end());
+      return static_cast<double>(*it);
+    };
+    const double lo = at(0.01), hi = at(0.99);
+    wl.window = std::max(hi - lo, 1.0);
+    wl.level = 0.5 * (lo + hi);
+  }
+  last_window_ = wl;
+  if (lut_bits_ == f.bits && lut_window_.window == wl.window && lut_window_.level == wl.level) return;
+  const std::size_t n = std::size_t{1} << f.bits;
+  lut_.resize(n);
+  const double low = wl.level - 0.5 * wl.window;
+  for (std::size_t v = 0; v < n; ++v)
+    lut_[v] = static_cast<std::uint8_t>(std::clamp(std::lround(255.0 * (static_cast<double>(v) - low) / wl.window), 0L, 255L));
+  lut_bits_ = f.bits;
+  lut_window_ = wl;
+}
+
+void FrameCompositor::render_layer(const LayerKey& key, const RoadmapModel& model) {
+  const PerspectiveProjection view(key.P, key.width, key.height);
+  const Overlay overlay = roadmap_overlay(model, key.mode);
+  DrawOptions draw;
+  draw.supersample = options_.supersample;
+  draw.label_font_scale = std::max(0.4, 0.55 * key.height / 1024.0);
+  Image black = Image::filled(key.width, key.height, {0, 0, 0});
+  Image white = Image::filled(key.width, key.height, {255, 255, 255});
+  composite(black, view, overlay, draw);
+  composite(white, view, overlay, draw);
+  layer_b_ = std::move(black.bgr);
+  layer_k_.resize(layer_b_.size());
+  for (std::size_t i = 0; i < layer_b_.size(); ++i)
+    layer_k_[i] = static_cast<std::uint8_t>(std::max(0, int{white.bgr[i]} - int{layer_b_[i]}));
+  ++layer_renders_;
+}
+
+Image FrameCompositor::compose(const GreyFrame& frame, const geometry::ProjectionMatrix* P_ct,
+                               const std::shared_ptr<const RoadmapModel>& model, RoadmapMode mode,
+                               const StatusBlock& status) {
+  check_frame(frame);
+  update_lut(frame);
+  const bool roadmap = P_ct != nullptr && model != nullptr;
+  if (roadmap) {
+    LayerKey key{*P_ct, model.get(), mode, frame.width, frame.height};
+    if (!key_ || !(*key_ == key)) {
+      key_.reset();  // a throw below leaves no half-made layer behind
+      render_layer(key, *model);
+      key_ = key;
+      layer_model_ = model;
+    }
+  }
+  Image out;
+  out.width = frame.width;
+  out.height = frame.height;
+  out.bgr.resize(static_cast<std::size_t>(frame.width) * frame.height * 3);
+  const std::uint8_t* lut = lut_.data();
+  for (int y = 0; y < frame.height; ++y) {
+    std::uint8_t* o = out.bgr.data() + static_cast<std::size_t>(y) * frame.width * 3;
+    const std::uint8_t* row = frame.data + static_cast<std::size_t>(y) * frame.stride_bytes;
+    if (!roadmap) {
+      for (int x = 0; x < frame.width; ++x) {
+        const std::uint8_t g = frame.bits == 8 ? lut[row[x]] : lut[row[2 * x] | (row[2 * x + 1] << 8)];
+        o[3 * x] = o[3 * x + 1] = o[3 * x + 2] = g;
+      }
+      continue;
+    }
+    const std::uint8_t* b = layer_b_.data() + static_cast<std::size_t>(y) * frame.width * 3;
+    const std::uint8_t* k = layer_k_.data() + static_cast<std::size_t>(y) * frame.width * 3;
+    for (int x = 0; x < frame.width; ++x) {
+      const unsigned g = frame.bits == 8 ? lut[row[x]] : lut[row[2 * x] | (row[2 * x + 1] << 8)];
+      for (int c = 0; c < 3; ++c) {
+        const unsigned i = 3u * static_cast<unsigned>(x) + static_cast<unsigned>(c);
+        o[i] = static_cast<std::uint8_t>(b[i] + (g * k[i] + 127u) / 255u);
+      }
+    }
+  }
+  if (!status.lines.empty() || !status.alerts.empty()) {
+    cv::Mat canvas(out.height, out.width, CV_8UC3, out.bgr.data());
+    const double scale = std::max(0.4, 0.6 * out.height / 1024.0);
+    const int thickness = out.height >= 768 ? 2 : 1;
+    int baseline = 0;
+    const int line_px = cv::getTextSize("Ag", cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).height + baseline + 6;
+    int width = 0;
+    for (const auto* group : {&status.lines, &status.alerts})
+      for (const auto& s : *group)
+        width = std::max(width, cv::getTextSize(s, cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).width);
+    const int lines = static_cast<int>(status.lines.size() + status.alerts.size());
+    const cv::Rect box = cv::Rect(0, 0, width + 16, lines * line_px + 10) & cv::Rect(0, 0, out.width, out.height);
+    cv::Mat roi = canvas(box);
+    roi.convertTo(roi, -1, 0.35);  // darken behind the text so it reads on any background
+    int y = 4 + line_px - baseline - 3;
+    const auto put = [&](const std::string& s, Bgr c) {
+      cv::putText(canvas, s, {8, y}, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(c.b, c.g, c.r), thickness, cv::LINE_AA);
+      y += line_px;
+    };
+    for (const auto& s : status.lines) put(s, kText);
+    for (const auto& s : status.alerts) put(s, kAlert);
+  }
+  return out;
+}
+
+}  // namespace evar::overlay
