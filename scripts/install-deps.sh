@@ -8,6 +8,8 @@ packages=(
   libeigen3-dev libembree-dev libassimp-dev libsuitesparse-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
+  libopencv-videoio-dev libopencv-highgui-dev
+  libopenigtlink-dev openigtlink-examples
   libdcmtk-dev
   libaravis-dev aravis-tools
   libusb-1.0-0-dev umockdev libumockdev-dev

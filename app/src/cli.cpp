@@ -255,6 +255,34 @@ int run_cli(const std::vector<std::string>& args) {
   rd->add_option("--frames", record.frames, "stop after this many frames are written")->check(CLI::PositiveNumber);
   rd->add_option("--out", record.out, "the new session directory (must not exist or be empty)")->required();
 
+  RunCommand run;
+  auto* rn = app.add_subcommand(
+      "run",
+      "The live node: grabs frames and the C-arm geometry (node.json: GigE or V4L2, serial or USB) or\n"
+      "replays a recorded session, reconstructs the device from two views in the background, adapts\n"
+      "the vessels and composites the roadmap (translucent fill, outline, labelled ostia, device,\n"
+      "status) onto every frame. Outputs in --out: the video, snapshots before/after each new model,\n"
+      "run_report.json (counts, latency p50/p99) and, for sessions with ground truth, eval.md; and\n"
+      "OpenIGTLink (IMAGE, POLYDATA, POINT) to 3D Slicer on 127.0.0.1:18944.");
+  rn->add_option("--config", run.config, "node.json (docs/FORMATS.md); optional with --replay")->check(CLI::ExistingFile);
+  rn->add_option("--replay", run.replay, "a recorded session instead of live sources")->check(CLI::ExistingDirectory);
+  rn->add_option("--out", run.out, "output directory (created)")->capture_default_str();
+  rn->add_option("--video", run.video, "video file in --out: .avi (Motion-JPEG), .mp4 or .mkv")->capture_default_str();
+  rn->add_flag("--no-video", run.no_video, "write no video");
+  rn->add_flag("!--no-igtl", run.igtl, "no OpenIGTLink server");
+  rn->add_option("--igtl-port", run.igtl_port, "OpenIGTLink port (0 = any free one)")->check(CLI::Range(0, 65535))->capture_default_str();
+  rn->add_option("--igtl-bind", run.igtl_bind, "address the server listens on (0.0.0.0 = every interface)")->capture_default_str();
+  rn->add_flag("--display", run.display, "show the frames in a window (keys: m mode, s snapshot, f fullscreen, q quit)");
+  rn->add_flag("--fullscreen", run.fullscreen, "the window fullscreen (the bedside monitor)");
+  rn->add_option("--mode", run.mode, "roadmap: undeformed, adapted or both (both: preoperative faint, adapted over it)")
+      ->check(CLI::IsMember({"undeformed", "adapted", "both"}))
+      ->capture_default_str();
+  auto* rspeed = rn->add_option("--speed", run.speed, "replay speed (1 = real time)")->check(CLI::PositiveNumber)->capture_default_str();
+  rn->add_flag("--fast", run.fast, "replay as fast as the node takes the frames")->excludes(rspeed);
+  rn->add_option("--loop", run.loops, "replay loops; 0 = until interrupted")->check(CLI::NonNegativeNumber)->capture_default_str();
+  rn->add_option("--seconds", run.seconds, "stop after this long")->check(CLI::PositiveNumber);
+  rn->add_flag("!--no-progress", run.progress, "no progress bar");
+
   EvalCommand eval;
   auto* ev = app.add_subcommand(
       "eval",
@@ -289,6 +317,7 @@ int run_cli(const std::vector<std::string>& args) {
     if (dv->parsed()) return run_devices(devices);
     if (rd->parsed()) return run_record(record);
     if (ev->parsed()) return run_eval(eval);
+    if (rn->parsed()) return run_node(run);
   } catch (const geometry::InputError& err) {
     log().error("{}", err.what());
     return 1;

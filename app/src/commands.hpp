@@ -117,6 +117,23 @@ struct EvalCommand {
 };
 int run_eval(const EvalCommand& cmd);
 
+struct RunCommand {
+  std::filesystem::path config, replay, out = "out/run";
+  std::string video = "overlay.avi";
+  bool no_video = false;
+  bool igtl = true;
+  int igtl_port = 18944;
+  std::string igtl_bind = "127.0.0.1";
+  bool display = false, fullscreen = false;
+  std::string mode = "both";
+  double speed = 1.0;
+  bool fast = false;
+  int loops = 1;
+  std::optional<double> seconds;
+  bool progress = true;
+};
+int run_node(const RunCommand& cmd);
+
 struct ProjectCommand {
   std::filesystem::path geometry, registration, points, out;
 };

@@ -13,14 +13,36 @@
 
 namespace evar::app {
 
-namespace {
+bool OstiumErrors::add(const geometry::ProjectionMatrix& P_ct, double mm_per_px,
+                       const std::vector<geometry::ControlPoint>& adapted, const std::vector<sim::OstiumTruth>& truth) {
+  bool any = false;
+  for (const sim::OstiumTruth& t : truth)
+    for (std::size_t k = 0; k < initial_.size() && k < adapted.size(); ++k) {
+      if (initial_[k].label != t.label) continue;
+      const auto before = geometry::project(P_ct, initial_[k].position_lps);
+      const auto after = geometry::project(P_ct, adapted[k].position_lps);
+      if (!before || !after) continue;
+      auto it = std::find_if(sums_.begin(), sums_.end(), [&](const auto& s) { return s.first == t.label; });
+      if (it == sums_.end()) it = sums_.insert(sums_.end(), {t.label, Sums{}});
+      Sums& s = it->second;
+      ++s.frames;
+      s.initial += (*before - t.pixel).norm() * mm_per_px;
+      s.adapted += (*after - t.pixel).norm() * mm_per_px;
+      s.initial_v += std::abs(before->y() - t.pixel.y()) * mm_per_px;
+      s.adapted_v += std::abs(after->y() - t.pixel.y()) * mm_per_px;
+      any = true;
+    }
+  return any;
+}
 
-struct Sums {
-  int frames = 0;
-  double initial = 0, adapted = 0, initial_v = 0, adapted_v = 0;
-};
-
-}  // namespace
+std::vector<LandmarkError> OstiumErrors::result() const {
+  std::vector<LandmarkError> out;
+  for (const auto& [label, s] : sums_)
+    out.push_back({label, s.frames, s.initial / s.frames, s.adapted / s.frames, s.initial_v / s.frames,
+                   s.adapted_v / s.frames});
+  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.label < b.label; });
+  return out;
+}
 
 CaseEvaluation evaluate_session(const std::filesystem::path& directory, const EvaluationOptions& options,
                                 const std::function<void(std::size_t, std::size_t)>& progress) {
@@ -43,7 +65,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   result.frames = session.frames.size();
   ViewPairSelector selector(options.pairs);
   std::shared_ptr<const AdaptedModel> model;
-  std::map<std::string, Sums> sums;
+  OstiumErrors errors(scene.landmarks);
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const sim::FrameRecord& record = session.frames[i];
     const sim::CArmSample* sample = sim::carm_at(session, record.timestamp_ns);
@@ -73,35 +95,17 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
       }
     }
     if (model) {
-      const double mm_per_px = mm_at_isocenter_per_px(view.view);
-      bool any = false;
+      std::vector<sim::OstiumTruth> truth;
       const auto [lo, hi] = truth_by_frame.equal_range(record.frame);
-      for (auto it = lo; it != hi; ++it) {
-        const sim::OstiumTruth& truth = *it->second;
-        for (std::size_t k = 0; k < scene.landmarks.size(); ++k) {
-          if (scene.landmarks[k].label != truth.label) continue;
-          const auto before = geometry::project(view.P_ct, scene.landmarks[k].position_lps);
-          const auto after = geometry::project(view.P_ct, model->deformation.landmarks[k].position_lps);
-          if (!before || !after) continue;
-          Sums& s = sums[truth.label];
-          ++s.frames;
-          s.initial += (*before - truth.pixel).norm() * mm_per_px;
-          s.adapted += (*after - truth.pixel).norm() * mm_per_px;
-          s.initial_v += std::abs(before->y() - truth.pixel.y()) * mm_per_px;
-          s.adapted_v += std::abs(after->y() - truth.pixel.y()) * mm_per_px;
-          any = true;
-        }
-      }
-      if (any) {
+      for (auto it = lo; it != hi; ++it) truth.push_back(*it->second);
+      if (errors.add(view.P_ct, mm_at_isocenter_per_px(view.view), model->deformation.landmarks, truth)) {
         ++result.frames_evaluated;
         result.snapshot_frame = i;
       }
     }
     if (progress) progress(i + 1, session.frames.size());
   }
-  for (const auto& [label, s] : sums)
-    result.landmarks.push_back({label, s.frames, s.initial / s.frames, s.adapted / s.frames, s.initial_v / s.frames,
-                                s.adapted_v / s.frames});
+  result.landmarks = errors.result();
   result.model = model;
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;

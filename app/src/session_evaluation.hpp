@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "device_candidate.hpp"
+#include "evar/sim/session.hpp"
 #include "model_adaptation.hpp"
 #include "view_pair_selector.hpp"
 
@@ -30,6 +31,29 @@ struct LandmarkError {
   int frames = 0;  ///< frames it was measured in
   double initial_mm = 0, adapted_mm = 0;                    ///< mean Euclidean distance over those frames
   double initial_vertical_mm = 0, adapted_vertical_mm = 0;  ///< mean |row difference|
+};
+
+/// Sums landmark distances frame by frame (the per-frame step of the evaluation, shared
+/// with `evarnode run` on sessions with ground truth).
+class OstiumErrors {
+ public:
+  /// The preoperative landmarks (CT LPS mm, labelled as in the truth).
+  explicit OstiumErrors(std::vector<geometry::ControlPoint> initial) : initial_(std::move(initial)) {}
+  /// One frame: its projection, mm at the isocenter per pixel, the adapted landmarks (same
+  /// order as the initial ones) and where the true ostia project in it. True when at least
+  /// one landmark was measured.
+  bool add(const geometry::ProjectionMatrix& P_ct, double mm_per_px, const std::vector<geometry::ControlPoint>& adapted,
+           const std::vector<sim::OstiumTruth>& truth);
+  /// The means per landmark (only those measured).
+  std::vector<LandmarkError> result() const;
+
+ private:
+  struct Sums {
+    int frames = 0;
+    double initial = 0, adapted = 0, initial_v = 0, adapted_v = 0;
+  };
+  std::vector<geometry::ControlPoint> initial_;
+  std::vector<std::pair<std::string, Sums>> sums_;
 };
 
 struct CaseEvaluation {

@@ -1,0 +1,461 @@
+#include "live_node.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+#include <opencv2/core.hpp>
+
+#include "logging.hpp"
+
+namespace evar::app {
+
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+double ms_between(Clock::time_point a, Clock::time_point b) {
+  return std::chrono::duration<double, std::milli>(b - a).count();
+}
+
+std::int64_t steady_ns(Clock::time_point t) {
+  return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
+}
+
+cv::Mat wrap(const acquisition::Frame& f) {
+  const int type = f.format == acquisition::PixelFormat::Mono8 ? CV_8UC1 : CV_16UC1;
+  return {f.height, f.width, type, const_cast<std::uint8_t*>(f.pixels.data()), static_cast<std::size_t>(f.stride_bytes)};
+}
+
+std::string angulation(double primary_deg, double secondary_deg) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%s %.0f  %s %.0f", primary_deg >= 0 ? "LAO" : "RAO", std::abs(primary_deg),
+                secondary_deg >= 0 ? "CRA" : "CAU", std::abs(secondary_deg));
+  return b;
+}
+
+}  // namespace
+
+struct LiveNode::Analysis {
+  acquisition::Frame frame;
+  FrameView view;
+};
+
+Percentiles percentiles(std::vector<double> v) {
+  Percentiles p;
+  p.n = v.size();
+  if (v.empty()) return p;
+  std::sort(v.begin(), v.end());
+  const auto rank = [&](double q) {
+    const auto i = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
+    return v[std::clamp<std::size_t>(i, 1, v.size()) - 1];
+  };
+  p.p50 = rank(0.50);
+  p.p99 = rank(0.99);
+  p.max = v.back();
+  return p;
+}
+
+LiveNode::LiveNode(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks)
+    : scene_(scene),
+      options_(std::move(options)),
+      sinks_(std::move(sinks)),
+      mode_(options_.mode),
+      input_(options_.input_queue),
+      output_(options_.output_queue),
+      analysis_(std::make_unique<LatestSlot<Analysis>>()),
+      timeline_(options_.timeline) {
+  if (options_.detector.cols <= 0 || options_.detector.rows <= 0 || !(options_.detector.row_spacing_mm > 0) ||
+      !(options_.detector.col_spacing_mm > 0))
+    throw std::invalid_argument("node: the detector needs a size and pixel spacings");
+  (void)ViewPairSelector(options_.pairs);  // checks the options now rather than on a thread
+  options_.deform.control.device_thickness_mm = scene.device_thickness_mm;
+  deformer_ = std::make_unique<deform::SceneDeformer>(scene, options_.deform);
+  auto initial = std::make_shared<overlay::RoadmapModel>();
+  for (const auto& v : scene.vessels) initial->initial.push_back(v.mesh.mesh);
+  initial->initial_landmarks = scene.landmarks;
+  initial_roadmap_ = initial;
+  auto m = std::make_shared<PublishedModel>();
+  m->roadmap = initial_roadmap_;
+  m->ready = Clock::now();
+  model_ = m;
+  log().info("node: {} vessels prepared for deformation in {:.0f} ms", scene.vessels.size(), deformer_->precompute_ms());
+}
+
+LiveNode::~LiveNode() { stop(); }
+
+void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm) {
+  if (running_) throw std::logic_error("node: already started");
+  frames_ = &frames;
+  carm_ = &carm;
+  compose_thread_ = std::thread([this] { compose_loop(); });
+  analysis_thread_ = std::thread([this] { analysis_loop(); });
+  adaptation_thread_ = std::thread([this] { adaptation_loop(); });
+  output_thread_ = std::thread([this] { output_loop(); });
+  running_ = true;
+  try {
+    carm.start(
+        [this](const acquisition::CArmState& s) {
+          std::lock_guard lock(timeline_mutex_);
+          timeline_.add(s);
+        },
+        [this](acquisition::StreamState s, const std::string& reason) {
+          if (acquisition::is_live(s)) {
+            clear_alert("carm-source");
+            log().info("C-arm link: {} ({})", acquisition::to_string(s), reason);
+          } else {
+            set_alert("carm-source", std::string("C-arm link ") + acquisition::to_string(s) + ": " + reason, false);
+          }
+        });
+    frames.start([this](const acquisition::Frame& f) { on_frame(f); },
+                 [this](acquisition::StreamState s, const std::string& reason) {
+                   if (acquisition::is_live(s)) {
+                     clear_alert("video-source");
+                     log().info("video: {} ({})", acquisition::to_string(s), reason);
+                   } else {
+                     set_alert("video-source", std::string("video ") + acquisition::to_string(s) + ": " + reason, false);
+                   }
+                 });
+  } catch (...) {
+    stop();
+    throw;
+  }
+}
+
+void LiveNode::stop() {
+  if (!running_) return;
+  running_ = false;
+  frames_->stop();
+  carm_->stop();
+  input_.close();
+  compose_thread_.join();
+  analysis_->close();
+  analysis_thread_.join();
+  pairs_.close();
+  adaptation_thread_.join();
+  output_.close();
+  output_thread_.join();
+}
+
+void LiveNode::on_frame(const acquisition::Frame& frame) {
+  {
+    std::lock_guard lock(stats_mutex_);
+    ++stats_.frames_in;
+  }
+  if (options_.backpressure) {
+    input_.push_wait(frame);
+    return;
+  }
+  if (input_.push(frame)) {
+    std::uint64_t dropped;
+    {
+      std::lock_guard lock(stats_mutex_);
+      dropped = ++stats_.dropped_input;
+    }
+    if (dropped == 1 || dropped % 100 == 0)
+      log().warn("node: compositing cannot keep up, {} frame(s) dropped so far (the oldest waiting goes)", dropped);
+  }
+}
+
+void LiveNode::set_alert(const std::string& key, const std::string& text, bool hold) {
+  const auto until = hold ? Clock::now() + options_.alert_hold : Clock::time_point::max();
+  bool changed = true;
+  {
+    std::lock_guard lock(alerts_mutex_);
+    auto it = std::find_if(alerts_.begin(), alerts_.end(), [&](const auto& a) { return a.first == key; });
+    if (it != alerts_.end()) {
+      // A lasting condition whose figures change (an age) is news once; a new failure is news.
+      changed = hold && it->second.text != text;
+      it->second = {text, until};
+    } else {
+      alerts_.push_back({key, {text, until}});
+    }
+  }
+  if (changed) log().warn("{}", text);
+}
+
+void LiveNode::clear_alert(const std::string& key) {
+  std::size_t removed;
+  {
+    std::lock_guard lock(alerts_mutex_);
+    removed = std::erase_if(alerts_, [&](const auto& a) { return a.first == key; });
+  }
+  if (removed > 0 && key == "geometry") log().info("C-arm geometry fresh again");
+}
+
+std::vector<std::string> LiveNode::current_alerts() {
+  std::lock_guard lock(alerts_mutex_);
+  const auto now = Clock::now();
+  std::erase_if(alerts_, [&](const auto& a) { return a.second.until <= now; });
+  std::vector<std::string> out;
+  for (const auto& a : alerts_) out.push_back(a.second.text);
+  return out;
+}
+
+void LiveNode::compose_loop() {
+  overlay::FrameCompositor compositor(options_.compositor);
+  auto last_frame = Clock::now();
+  bool any_frame = false, stalled = false;
+  double last_latency_ms = 0.0;
+  for (;;) {
+    std::optional<acquisition::Frame> f = input_.pop(std::chrono::milliseconds(100));
+    if (!f) {
+      if (input_.closed()) break;
+      const auto now = Clock::now();
+      if (any_frame && !stalled && now - last_frame > options_.video_stall) {
+        stalled = true;
+        {
+          std::lock_guard lock(stats_mutex_);
+          ++stats_.video_stalls;
+        }
+        set_alert("video-stall", "no video for " + std::to_string(options_.video_stall.count()) + " ms", false);
+      }
+      continue;
+    }
+    if (stalled) {
+      log().info("video: frames again after {:.1f} s", ms_between(last_frame, Clock::now()) / 1000.0);
+      clear_alert("video-stall");
+      stalled = false;
+    }
+    any_frame = true;
+    last_frame = Clock::now();
+
+    const bool size_ok = f->width == options_.detector.cols && f->height == options_.detector.rows;
+    if (!size_ok) {
+      set_alert("frame-size",
+                "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the detector's " +
+                    std::to_string(options_.detector.cols) + " x " + std::to_string(options_.detector.rows) +
+                    ": no roadmap",
+                true);
+      std::lock_guard lock(stats_mutex_);
+      ++stats_.frames_wrong_size;
+    }
+    std::optional<acquisition::FrameGeometry> g;
+    {
+      std::lock_guard lock(timeline_mutex_);
+      g = timeline_.at(f->device_time_on_host);
+    }
+    std::optional<FrameView> view;
+    std::vector<std::string> lines;
+    char line[160];
+    if (!g) {
+      set_alert("geometry", "no C-arm geometry yet: roadmap hidden", false);
+    } else {
+      if (g->stale) {
+        std::snprintf(line, sizeof line, "C-arm geometry stale (%.1f s old): roadmap at the last known position",
+                      static_cast<double>(g->age_ns) * 1e-9);
+        set_alert("geometry", line, false);
+      } else {
+        clear_alert("geometry");
+      }
+      if (!g->moving && size_ok) {
+        try {
+          view = frame_view(options_.detector, options_.registration, g->state);
+        } catch (const std::invalid_argument& e) {
+          set_alert("geometry", std::string("C-arm geometry unusable: ") + e.what(), true);
+        }
+      }
+      std::snprintf(line, sizeof line, "%s  SID %.0f mm%s%s", angulation(g->state.primary_deg, g->state.secondary_deg).c_str(),
+                    g->state.sid_mm, g->state.fluoro_on ? "" : "  beam off", g->moving ? "  C-arm moving: roadmap hidden" : "");
+      lines.push_back(line);
+      std::lock_guard lock(stats_mutex_);
+      stats_.stale_geometry_frames += g->stale ? 1 : 0;
+      stats_.moving_frames += g->moving ? 1 : 0;
+    }
+    if (view && !g->stale && g->state.fluoro_on) {
+      if (analysis_->put(Analysis{*f, *view})) {
+        std::lock_guard lock(stats_mutex_);
+        ++stats_.analysis_skipped;
+      }
+    }
+    const std::shared_ptr<const PublishedModel> model = this->model();
+    const auto now = Clock::now();
+    std::string last_failure;
+    {
+      std::lock_guard lock(stats_mutex_);
+      last_failure = stats_.last_failure;
+    }
+    if (!model->adapted) {
+      lines.push_back("model: preoperative (undeformed), waiting for two views of the device");
+    } else {
+      std::snprintf(line, sizeof line, "model: %s from frames %llu+%llu, %.0f s ago",
+                    last_failure.empty() ? "adapted" : "STALE (last adaptation failed), adapted",
+                    static_cast<unsigned long long>(model->adapted->frame_earlier),
+                    static_cast<unsigned long long>(model->adapted->frame_later), ms_between(model->ready, now) / 1000.0);
+      lines.push_back(line);
+    }
+    const overlay::RoadmapMode mode = mode_.load();
+    std::snprintf(line, sizeof line, "roadmap: %s   latency %.0f ms", overlay::to_string(mode), last_latency_ms);
+    lines.push_back(line);
+    const std::optional<geometry::ProjectionMatrix> P =
+        view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
+    ComposedFrame out;
+    try {
+      const int bits = f->format == acquisition::PixelFormat::Mono8 ? 8 : 16;
+      out.image = compositor.compose({f->width, f->height, f->stride_bytes, bits, f->pixels.data()}, P ? &*P : nullptr,
+                                     model->roadmap, mode, {lines, current_alerts()});
+    } catch (const std::exception& e) {
+      set_alert("compose", std::string("frame not shown: ") + e.what(), true);
+      continue;
+    }
+    out.sequence = f->sequence;
+    out.device_time_ns = f->device_time_ns;
+    out.arrival = f->host_arrival;
+    out.latency_ms = ms_between(f->host_arrival, Clock::now());
+    out.roadmap = P.has_value();
+    out.P_ct = P;
+    out.model = model;
+    last_latency_ms = out.latency_ms;
+    {
+      std::lock_guard lock(stats_mutex_);
+      ++stats_.frames_composited;
+      stats_.frames_with_roadmap += P ? 1 : 0;
+      latencies_.push_back(out.latency_ms);
+      if (options_.keep_frame_log)
+        frame_log_.push_back({out.sequence, P, view ? mm_at_isocenter_per_px(view->view) : 0.0, model});
+    }
+    if (options_.backpressure) {
+      output_.push_wait(std::move(out));
+    } else if (output_.push(std::move(out))) {
+      std::lock_guard lock(stats_mutex_);
+      ++stats_.dropped_output;
+    }
+  }
+}
+
+void LiveNode::analysis_loop() {
+  ViewPairSelector selector(options_.pairs);
+  while (std::optional<Analysis> a = analysis_->take()) {
+    if (retry_pair_.exchange(false)) selector.retry();
+    FrameAnalysis r = analyse_frame(wrap(a->frame), a->view, options_.candidate);
+    {
+      std::lock_guard lock(stats_mutex_);
+      ++stats_.analysed;
+      stats_.candidates += r.candidate ? 1 : 0;
+    }
+    if (!r.candidate) {
+      log().debug("frame {}: no candidate: {}", a->frame.sequence, r.reason);
+      continue;
+    }
+    ViewCandidate c{a->frame.sequence, steady_ns(a->frame.host_arrival), a->view, std::move(r.curve.points),
+                    r.curve.confidence};
+    if (std::optional<ViewPair> pair = selector.add(std::move(c))) {
+      log().info("view pair: frames {} and {}, {:.0f}° apart: adapting", pair->earlier.frame, pair->later.frame,
+                 pair->separation_deg);
+      const bool superseded = pairs_.put(std::move(*pair));
+      std::lock_guard lock(stats_mutex_);
+      ++stats_.pairs;
+      stats_.pairs_superseded += superseded ? 1 : 0;
+    }
+  }
+}
+
+void LiveNode::adaptation_loop() {
+  while (std::optional<ViewPair> pair = pairs_.take()) {
+    try {
+      auto m = std::make_shared<const AdaptedModel>(
+          adapt_model(*deformer_, *pair, options_.adaptation, last_adapted_ ? &last_adapted_->deformation : nullptr));
+      last_adapted_ = m;
+      publish(m);
+      const double ready_ms = static_cast<double>(steady_ns(Clock::now()) - pair->later.time_ns) * 1e-6;
+      {
+        std::lock_guard lock(stats_mutex_);
+        ++stats_.adaptations;
+        stats_.last_failure.clear();
+        adaptation_latencies_.push_back(ready_ms);
+      }
+      clear_alert("adaptation");
+      log().info("adapted model from frames {}+{}: device {} points, residual {:.2f} px; reconstruction {:.1f} ms, "
+                 "deformation {:.1f} ms; ready {:.0f} ms after the second view arrived",
+                 m->frame_earlier, m->frame_later, m->reconstruction.points.size(), m->reconstruction.mean_residual_px,
+                 m->reconstruct_ms, m->deform_ms, ready_ms);
+    } catch (const std::exception& e) {
+      {
+        std::lock_guard lock(stats_mutex_);
+        ++stats_.adaptation_failures;
+        stats_.last_failure = e.what();
+      }
+      retry_pair_ = true;
+      set_alert("adaptation", std::string("frames ") + std::to_string(pair->earlier.frame) + "+" +
+                                  std::to_string(pair->later.frame) + ": " + e.what() + "; last good model kept",
+                true);
+    }
+  }
+}
+
+void LiveNode::publish(std::shared_ptr<const AdaptedModel> adapted) {
+  auto roadmap = std::make_shared<overlay::RoadmapModel>(*initial_roadmap_);
+  for (const auto& v : adapted->deformation.vessels) roadmap->adapted.push_back(v.mesh);
+  roadmap->adapted_landmarks = adapted->deformation.landmarks;
+  roadmap->device = adapted->reconstruction.points;
+  auto m = std::make_shared<PublishedModel>();
+  m->adapted = std::move(adapted);
+  m->roadmap = std::move(roadmap);
+  m->ready = Clock::now();
+  std::lock_guard lock(model_mutex_);
+  m->version = model_->version + 1;
+  model_ = std::move(m);
+}
+
+void LiveNode::output_loop() {
+  // The sinks hear of every model, the preoperative one (version 0) included.
+  std::uint64_t shown_version = std::numeric_limits<std::uint64_t>::max();
+  std::vector<std::string> last_error(sinks_.size());
+  const auto guarded = [&](std::size_t i, const auto& call) {
+    try {
+      call(*sinks_[i]);
+      last_error[i].clear();
+    } catch (const std::exception& e) {
+      {
+        std::lock_guard lock(stats_mutex_);
+        ++stats_.sink_errors;
+      }
+      if (last_error[i] != e.what()) log().error("output {}: {} (the node goes on)", sinks_[i]->name(), e.what());
+      last_error[i] = e.what();
+    }
+  };
+  for (;;) {
+    std::optional<ComposedFrame> f = output_.pop(std::chrono::milliseconds(100));
+    if (!f) {
+      if (output_.closed()) break;
+      continue;
+    }
+    if (f->model && f->model->version != shown_version) {
+      shown_version = f->model->version;
+      for (std::size_t i = 0; i < sinks_.size(); ++i) guarded(i, [&](OutputSink& s) { s.model_changed(*f->model); });
+    }
+    for (std::size_t i = 0; i < sinks_.size(); ++i) guarded(i, [&](OutputSink& s) { s.write(*f); });
+  }
+  for (std::size_t i = 0; i < sinks_.size(); ++i) guarded(i, [&](OutputSink& s) { s.finish(); });
+}
+
+NodeStatistics LiveNode::statistics() const {
+  // The source's own counters first, outside the node's locks (its callbacks take them).
+  const std::uint64_t lost = frames_ != nullptr ? frames_->statistics().dropped : 0;
+  std::lock_guard lock(stats_mutex_);
+  NodeStatistics s = stats_;
+  s.latency_ms = percentiles(latencies_);
+  s.adaptation_ms = percentiles(adaptation_latencies_);
+  s.analysis_skipped = stats_.analysis_skipped;
+  s.dropped_input = input_.dropped();
+  s.dropped_output = output_.dropped();
+  s.frames_lost_by_source = lost;
+  {
+    std::lock_guard tl(timeline_mutex_);
+    s.carm_clock_offset_ns = timeline_.carm_clock_offset_ns();
+  }
+  return s;
+}
+
+std::shared_ptr<const PublishedModel> LiveNode::model() const {
+  std::lock_guard lock(model_mutex_);
+  return model_;
+}
+
+std::vector<FrameLogEntry> LiveNode::frame_log() const {
+  std::lock_guard lock(stats_mutex_);
+  return frame_log_;
+}
+
+}  // namespace evar::app

@@ -1,0 +1,190 @@
+#pragma once
+// The live node (`evarnode run`): frames and C-arm states from acquisition's interfaces
+// (hardware or a replayed session) in, composited roadmap frames out to the sinks.
+//
+//   source thread   → input queue (4, oldest dropped) →
+//   compose thread  : geometry at the frame's time (GeometryTimeline), roadmap composited
+//                     with the current model, status block; eligible frames (beam on,
+//                     C-arm still, geometry fresh) offered to analysis (latest only)
+//                   → output queue (8, oldest dropped) → output thread → sinks
+//   analysis thread : device segmentation, candidates, view pairs → adaptation (latest only)
+//   adaptation thread: reconstruction and deformation; the new model is published and the
+//                     compositor switches to it on the next frame
+//
+// Nothing waits on the deformation, and no queue grows without bound: every drop is
+// counted. Health (a stalled or lost source, stale geometry, a failed adaptation) goes to
+// the log when it changes and onto the frames while it lasts; the last good model stays.
+#include <atomic>
+#include <chrono>
+#include <cstdint>
+#include <memory>
+#include <mutex>
+#include <optional>
+#include <string>
+#include <thread>
+#include <vector>
+
+#include "evar/acquisition/carm_geometry_source.hpp"
+#include "evar/acquisition/frame_source.hpp"
+#include "evar/acquisition/geometry_timeline.hpp"
+#include "evar/geometry/scene.hpp"
+#include "evar/overlay/frame_compositor.hpp"
+#include "mailbox.hpp"
+#include "model_adaptation.hpp"
+#include "device_candidate.hpp"
+
+namespace evar::app {
+
+struct NodeOptions {
+  sim::DetectorSpec detector;                 ///< the frames' detector (size checked per frame)
+  Eigen::Matrix4d registration = Eigen::Matrix4d::Identity();  ///< CT → C-arm at table 0
+  CandidateOptions candidate;
+  ViewPairOptions pairs;
+  AdaptationOptions adaptation;
+  deform::DeformOptions deform;
+  overlay::CompositorOptions compositor;
+  overlay::RoadmapMode mode = overlay::RoadmapMode::Both;
+  acquisition::GeometryTimelineOptions timeline;
+  std::chrono::milliseconds video_stall{1000};  ///< no frame for this long: "no video"
+  std::chrono::milliseconds alert_hold{5000};   ///< a failed adaptation stays on screen this long
+  std::size_t input_queue = 4, output_queue = 8;
+  bool keep_frame_log = false;                  ///< remember every frame's geometry and model (evaluation)
+  /// Make the source wait when the input queue is full instead of dropping the oldest frame:
+  /// for replays, whose source can wait; live sources cannot.
+  bool backpressure = false;
+};
+
+/// A model the node adapted, with the roadmap drawn from it.
+struct PublishedModel {
+  std::uint64_t version = 0;                     ///< 0 = the preoperative model
+  std::shared_ptr<const AdaptedModel> adapted;   ///< null for version 0
+  std::shared_ptr<const overlay::RoadmapModel> roadmap;
+  std::chrono::steady_clock::time_point ready;
+};
+
+struct ComposedFrame {
+  overlay::Image image;
+  std::uint64_t sequence = 0;
+  std::int64_t device_time_ns = 0;
+  std::chrono::steady_clock::time_point arrival;
+  double latency_ms = 0.0;                        ///< arrival → composited
+  bool roadmap = false;                           ///< a roadmap was drawn (usable geometry)
+  std::optional<geometry::ProjectionMatrix> P_ct;
+  std::shared_ptr<const PublishedModel> model;
+};
+
+/// Where composited frames go: a window, a video file, snapshots, OpenIGTLink. Called on
+/// the output thread only; an exception is logged and counted, and the node goes on.
+class OutputSink {
+ public:
+  virtual ~OutputSink() = default;
+  virtual std::string name() const = 0;
+  virtual void write(const ComposedFrame& frame) = 0;
+  /// A new model was published (called before the first frame that shows it).
+  virtual void model_changed(const PublishedModel&) {}
+  /// The node is stopping: flush and close.
+  virtual void finish() {}
+};
+
+struct Percentiles {
+  double p50 = 0, p99 = 0, max = 0;
+  std::size_t n = 0;
+};
+
+struct NodeStatistics {
+  std::uint64_t frames_in = 0, frames_composited = 0, frames_with_roadmap = 0;
+  std::uint64_t dropped_input = 0, dropped_output = 0, frames_lost_by_source = 0;
+  std::uint64_t frames_wrong_size = 0;
+  std::uint64_t analysed = 0, analysis_skipped = 0, candidates = 0, pairs = 0, pairs_superseded = 0;
+  std::uint64_t adaptations = 0, adaptation_failures = 0;
+  std::uint64_t video_stalls = 0, stale_geometry_frames = 0, moving_frames = 0, sink_errors = 0;
+  Percentiles latency_ms;            ///< frame arrival → composited
+  Percentiles adaptation_ms;         ///< second view's frame arrival → model ready
+  std::string last_failure;          ///< the last adaptation failure ("" if none)
+  std::optional<std::int64_t> carm_clock_offset_ns;
+};
+
+/// Per frame, when NodeOptions::keep_frame_log is set.
+struct FrameLogEntry {
+  std::uint64_t sequence = 0;
+  std::optional<geometry::ProjectionMatrix> P_ct;  ///< empty: no usable geometry (none, moving)
+  double mm_per_px = 0.0;                          ///< at the isocenter, with P_ct
+  std::shared_ptr<const PublishedModel> model;
+};
+
+class LiveNode {
+ public:
+  /// The scene must outlive the node. Throws geometry::InputError for a scene the
+  /// deformation cannot use, std::invalid_argument for bad options.
+  LiveNode(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks);
+  ~LiveNode();
+  LiveNode(const LiveNode&) = delete;
+  LiveNode& operator=(const LiveNode&) = delete;
+
+  /// Starts the threads and the sources (C-arm first). The sources must outlive stop().
+  /// Throws what the sources throw when they cannot be opened (nothing left running).
+  void start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm);
+  /// Stops the sources, lets the queued frames through, waits for a running adaptation,
+  /// finishes the sinks. Idempotent.
+  void stop();
+
+  void set_mode(overlay::RoadmapMode mode) { mode_.store(mode); }
+  overlay::RoadmapMode mode() const { return mode_.load(); }
+  NodeStatistics statistics() const;
+  std::shared_ptr<const PublishedModel> model() const;
+  std::vector<FrameLogEntry> frame_log() const;
+
+ private:
+  struct Analysis;   // a frame offered to the analysis thread
+  void on_frame(const acquisition::Frame& frame);
+  void compose_loop();
+  void analysis_loop();
+  void adaptation_loop();
+  void output_loop();
+  void publish(std::shared_ptr<const AdaptedModel> adapted);
+  void set_alert(const std::string& key, const std::string& text, bool warn);
+  void clear_alert(const std::string& key);
+  std::vector<std::string> current_alerts();
+
+  const geometry::Scene& scene_;
+  NodeOptions options_;
+  std::vector<std::unique_ptr<OutputSink>> sinks_;
+  std::unique_ptr<deform::SceneDeformer> deformer_;
+  std::shared_ptr<const overlay::RoadmapModel> initial_roadmap_;
+  std::atomic<overlay::RoadmapMode> mode_;
+
+  acquisition::FrameSource* frames_ = nullptr;
+  acquisition::CArmGeometrySource* carm_ = nullptr;
+  BoundedQueue<acquisition::Frame> input_;
+  BoundedQueue<ComposedFrame> output_;
+  std::unique_ptr<LatestSlot<Analysis>> analysis_;
+  LatestSlot<ViewPair> pairs_;
+  std::atomic<bool> retry_pair_{false};
+
+  mutable std::mutex timeline_mutex_;
+  acquisition::GeometryTimeline timeline_;
+
+  mutable std::mutex model_mutex_;
+  std::shared_ptr<const PublishedModel> model_;
+  std::shared_ptr<const AdaptedModel> last_adapted_;  // adaptation thread only
+
+  mutable std::mutex stats_mutex_;
+  NodeStatistics stats_;
+  std::vector<double> latencies_, adaptation_latencies_;
+  std::vector<FrameLogEntry> frame_log_;
+
+  struct Alert {
+    std::string text;
+    std::chrono::steady_clock::time_point until;  // max() = until cleared
+  };
+  std::mutex alerts_mutex_;
+  std::vector<std::pair<std::string, Alert>> alerts_;
+
+  std::thread compose_thread_, analysis_thread_, adaptation_thread_, output_thread_;
+  bool running_ = false;
+};
+
+/// p50/p99/max of a sample (nearest rank); zeros for none.
+Percentiles percentiles(std::vector<double> values);
+
+}  // namespace evar::app

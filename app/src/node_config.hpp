@@ -1,0 +1,42 @@
+#pragma once
+// node.json (format "evarnode-node", version 1): what `evarnode run` needs for live
+// sources. Paths are relative to the file. docs/FORMATS.md describes it.
+//
+// {
+//   "format": "evarnode-node", "version": 1,
+//   "scene": "patient/scene.json", "registration": "registration.json",
+//   "detector": {"cols": 1024, "rows": 1024, "row_spacing_mm": 0.3, "col_spacing_mm": 0.3},
+//   "frames": {"camera": "", "pixel_format": "mono16"}   or   {"v4l2": "/dev/video0", "v4l2_format": "Y16"},
+//   "carm": "serial:/dev/ttyUSB0,baud=115200",
+//   "fps": 30,
+//   "device_diameter_mm": 0.89, "min_contrast": 0.25, "min_separation_deg": 20
+// }
+// Everything but format and version is optional for replays (the session has the patient,
+// the registration and the detector).
+#include <filesystem>
+#include <optional>
+#include <string>
+
+#include <Eigen/Core>
+
+#include "evar/sim/session.hpp"
+#include "source_factory.hpp"
+
+namespace evar::app {
+
+struct NodeConfig {
+  std::filesystem::path file;
+  std::optional<std::filesystem::path> scene, registration;
+  std::optional<sim::DetectorSpec> detector;
+  std::optional<FrameSourceSpec> frames;
+  std::optional<std::string> carm;
+  std::optional<double> fps;
+  double device_diameter_mm = 0.89;
+  double min_contrast = 0.25;
+  double min_separation_deg = 20.0;
+};
+
+/// Throws geometry::InputError "<file>: <field>: <problem>".
+NodeConfig read_node_config(const std::filesystem::path& path);
+
+}  // namespace evar::app

@@ -1,0 +1,90 @@
+#pragma once
+// The node's outputs as OutputSinks: a video file, before/after snapshots of every model
+// change (and on request), OpenIGTLink to 3D Slicer, and the bedside window.
+#include <atomic>
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <optional>
+#include <string>
+#include <vector>
+
+#include "evar/overlay/display_window.hpp"
+#include "evar/overlay/igtl_server.hpp"
+#include "evar/overlay/video_file_writer.hpp"
+#include "live_node.hpp"
+
+namespace evar::app {
+
+/// The composited video; the file is opened with the first frame's size.
+class VideoSink final : public OutputSink {
+ public:
+  VideoSink(std::filesystem::path path, double fps) : path_(std::move(path)), fps_(fps) {}
+  std::string name() const override { return "video " + path_.string(); }
+  void write(const ComposedFrame& frame) override;
+  void finish() override;
+  std::size_t frames() const { return writer_ ? writer_->frames() : 0; }
+
+ private:
+  std::filesystem::path path_;
+  double fps_;
+  std::unique_ptr<overlay::VideoFileWriter> writer_;
+};
+
+/// PNG pictures in a directory: at every model change the last frame before it
+/// (model-N-before.png) and the first frame showing it (model-N-after.png); and the next
+/// frame after request() (snapshot-SEQUENCE.png).
+class SnapshotSink final : public OutputSink {
+ public:
+  explicit SnapshotSink(std::filesystem::path directory);
+  std::string name() const override { return "snapshots in " + directory_.string(); }
+  void write(const ComposedFrame& frame) override;
+  void request() { requested_ = true; }
+  const std::vector<std::filesystem::path>& written() const { return written_; }
+
+ private:
+  void save(const overlay::Image& image, const std::string& file);
+  std::filesystem::path directory_;
+  std::optional<overlay::Image> previous_;
+  std::uint64_t previous_version_ = 0;
+  std::atomic<bool> requested_{false};
+  std::vector<std::filesystem::path> written_;
+};
+
+/// OpenIGTLink: frames as IMAGE "evarnode" (at most `max_fps`), each vessel's mesh as
+/// POLYDATA under its name (the adapted one once there is a model), the landmarks as POINT
+/// "landmarks".
+class IgtlSink final : public OutputSink {
+ public:
+  IgtlSink(overlay::IgtlServerOptions options, const geometry::Scene& scene, double mm_per_px, double max_fps);
+  std::string name() const override { return "OpenIGTLink on port " + std::to_string(server_.port()); }
+  void write(const ComposedFrame& frame) override;
+  void model_changed(const PublishedModel& model) override;
+  int port() const { return server_.port(); }
+  overlay::IgtlServerStatistics statistics() const { return server_.statistics(); }
+
+ private:
+  overlay::IgtlServer server_;
+  std::vector<std::string> vessel_names_;
+  double mm_per_px_, min_interval_ms_;
+  std::optional<std::chrono::steady_clock::time_point> last_sent_;
+};
+
+/// The bedside window. Keys: m cycles the roadmap mode, s takes a snapshot, f fullscreen,
+/// q or Esc stop.
+class WindowSink final : public OutputSink {
+ public:
+  struct Actions {
+    std::function<void()> cycle_mode, snapshot, quit;
+  };
+  WindowSink(bool fullscreen, Actions actions) : fullscreen_(fullscreen), actions_(std::move(actions)) {}
+  std::string name() const override { return "window"; }
+  void write(const ComposedFrame& frame) override;
+
+ private:
+  bool fullscreen_;
+  Actions actions_;
+  std::unique_ptr<overlay::DisplayWindow> window_;  // made on the output thread
+};
+
+}  // namespace evar::app

@@ -1,0 +1,271 @@
+// `evarnode run`: the live node on hardware sources (node.json) or on a replayed session,
+// with its outputs (video, snapshots, OpenIGTLink, window), a JSON report and, on sessions
+// with ground truth, the ostium distances of what it showed.
+#include <unistd.h>
+
+#include <algorithm>
+#include <cstdio>
+#include <fstream>
+#include <map>
+#include <sstream>
+#include <thread>
+
+#include "commands.hpp"
+#include "evar/geometry/carm_projection.hpp"
+#include "evar/geometry/input_error.hpp"
+#include "evar/sim/session_replay.hpp"
+#include "interrupt.hpp"
+#include "json_file.hpp"
+#include "live_node.hpp"
+#include "logging.hpp"
+#include "node_config.hpp"
+#include "output_sinks.hpp"
+#include "progress_bar.hpp"
+#include "session_evaluation.hpp"
+
+namespace evar::app {
+
+namespace {
+
+nlohmann::json to_json(const Percentiles& p) { return {{"p50", p.p50}, {"p99", p.p99}, {"max", p.max}, {"n", p.n}}; }
+
+// Frames per second of a session: the median interval between frames.
+double session_fps(const sim::Session& s) {
+  std::vector<double> dt;
+  for (std::size_t i = 1; i < s.frames.size(); ++i)
+    if (s.frames[i].timestamp_ns > s.frames[i - 1].timestamp_ns)
+      dt.push_back(static_cast<double>(s.frames[i].timestamp_ns - s.frames[i - 1].timestamp_ns) * 1e-9);
+  if (dt.empty()) return 15.0;
+  std::nth_element(dt.begin(), dt.begin() + static_cast<long>(dt.size() / 2), dt.end());
+  return std::clamp(1.0 / dt[dt.size() / 2], 1.0, 120.0);
+}
+
+// The ostium distances in the frames the node composited with an adapted model.
+std::optional<std::vector<LandmarkError>> evaluate_run(const sim::Session& session, const geometry::Scene& scene,
+                                                       const std::vector<FrameLogEntry>& log_entries, std::size_t* frames) {
+  if (!session.truth || session.frames.empty()) return std::nullopt;
+  std::multimap<std::int64_t, sim::OstiumTruth> truth;
+  for (const auto& o : session.truth->ostia) truth.emplace(o.frame, o);
+  OstiumErrors errors(scene.landmarks);
+  *frames = 0;
+  for (const auto& e : log_entries) {
+    if (!e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) continue;
+    const auto& record = session.frames[(e.sequence - 1) % session.frames.size()];
+    std::vector<sim::OstiumTruth> here;
+    const auto [lo, hi] = truth.equal_range(record.frame);
+    for (auto it = lo; it != hi; ++it) here.push_back(it->second);
+    if (errors.add(*e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks, here)) ++*frames;
+  }
+  return errors.result();
+}
+
+}  // namespace
+
+int run_node(const RunCommand& cmd) {
+  std::optional<NodeConfig> config;
+  if (!cmd.config.empty()) config = read_node_config(cmd.config);
+  if (cmd.replay.empty() && !config) throw geometry::InputError("run: give --config node.json or --replay SESSION");
+
+  std::optional<sim::Session> session;
+  NodeOptions options;
+  std::filesystem::path scene_path;
+  double fps = 30.0;
+  if (!cmd.replay.empty()) {
+    session = sim::read_session(cmd.replay);
+    if (session->frames.empty()) throw geometry::InputError(cmd.replay.string() + ": the session has no frames");
+    scene_path = cmd.replay / session->scene;
+    options.detector = session->detector;
+    options.registration = session->ct_to_carm;
+    fps = session_fps(*session);
+    // A C-arm that reports only when something changes leaves long gaps between samples
+    // while still; geometry is stale only beyond the longest gap the session has.
+    std::int64_t gap_ns = 0;
+    for (std::size_t i = 1; i < session->carm.size(); ++i)
+      gap_ns = std::max(gap_ns, session->carm[i].timestamp_ns - session->carm[i - 1].timestamp_ns);
+    options.timeline.stale_after =
+        std::max(options.timeline.stale_after, std::chrono::milliseconds(gap_ns / 1'000'000 + 250));
+  } else {
+    if (!config->scene) throw geometry::InputError(config->file.string() + ": scene: missing (needed for live sources)");
+    if (!config->registration) throw geometry::InputError(config->file.string() + ": registration: missing");
+    if (!config->detector) throw geometry::InputError(config->file.string() + ": detector: missing");
+    if (!config->frames) throw geometry::InputError(config->file.string() + ": frames: missing");
+    if (!config->carm) throw geometry::InputError(config->file.string() + ": carm: missing");
+    scene_path = *config->scene;
+    options.registration = geometry::read_registration(*config->registration);
+    options.detector = *config->detector;
+    fps = config->fps.value_or(30.0);
+  }
+  if (config) {
+    options.candidate.device_diameter_mm = config->device_diameter_mm;
+    options.candidate.min_contrast = config->min_contrast;
+    options.pairs.min_separation_deg = config->min_separation_deg;
+    options.adaptation.reconstruction.min_separation_deg = config->min_separation_deg;
+  }
+  const auto mode = overlay::parse_roadmap_mode(cmd.mode);
+  if (!mode) throw std::invalid_argument("--mode " + cmd.mode + ": expected undeformed, adapted or both");
+  options.mode = *mode;
+  options.keep_frame_log = session.has_value();
+  options.backpressure = session.has_value();
+  const geometry::Scene scene = geometry::load_scene(scene_path);
+
+  std::filesystem::create_directories(cmd.out);
+  std::vector<std::unique_ptr<OutputSink>> sinks;
+  VideoSink* video = nullptr;
+  SnapshotSink* snapshots = nullptr;
+  IgtlSink* igtl = nullptr;
+  if (!cmd.no_video) {
+    auto s = std::make_unique<VideoSink>(cmd.out / cmd.video, fps * (cmd.fast ? 1.0 : 1.0));
+    video = s.get();
+    sinks.push_back(std::move(s));
+  }
+  {
+    auto s = std::make_unique<SnapshotSink>(cmd.out / "snapshots");
+    snapshots = s.get();
+    sinks.push_back(std::move(s));
+  }
+  if (cmd.igtl) {
+    overlay::IgtlServerOptions o;
+    o.bind_address = cmd.igtl_bind;
+    o.port = cmd.igtl_port;
+    auto s = std::make_unique<IgtlSink>(o, scene, options.detector.col_spacing_mm, 15.0);
+    log().info("OpenIGTLink server on {}:{} (3D Slicer: OpenIGTLinkIF, client to this port)", cmd.igtl_bind, s->port());
+    igtl = s.get();
+    sinks.push_back(std::move(s));
+  }
+  std::atomic<bool> quit{false};
+  LiveNode* node_ptr = nullptr;
+  if (cmd.display) {
+    WindowSink::Actions actions;
+    actions.cycle_mode = [&] {
+      const auto m = node_ptr->mode();
+      node_ptr->set_mode(m == overlay::RoadmapMode::Both       ? overlay::RoadmapMode::Adapted
+                         : m == overlay::RoadmapMode::Adapted ? overlay::RoadmapMode::Undeformed
+                                                              : overlay::RoadmapMode::Both);
+    };
+    actions.snapshot = [&] { snapshots->request(); };
+    actions.quit = [&] { quit = true; };
+    sinks.push_back(std::make_unique<WindowSink>(cmd.fullscreen, actions));
+  }
+
+  LiveNode node(scene, options, std::move(sinks));
+  node_ptr = &node;
+  std::unique_ptr<sim::SessionReplay> replay;
+  std::unique_ptr<acquisition::FrameSource> live_frames;
+  std::unique_ptr<acquisition::CArmGeometrySource> live_carm;
+  acquisition::FrameSource* frames = nullptr;
+  acquisition::CArmGeometrySource* carm = nullptr;
+  if (session) {
+    replay = std::make_unique<sim::SessionReplay>(*session, sim::ReplayOptions{cmd.fast ? 0.0 : cmd.speed, cmd.loops});
+    frames = &replay->frames();
+    carm = &replay->carm();
+  } else {
+    live_frames = make_frame_source(*config->frames);
+    live_carm = make_carm_source(*config->carm);
+    frames = live_frames.get();
+    carm = live_carm.get();
+  }
+  log().info("running on {} and {}; roadmap {}; outputs in {}", frames->description(), carm->description(), cmd.mode,
+             cmd.out.string());
+  const InterruptGuard ctrl_c;
+  const auto t0 = std::chrono::steady_clock::now();
+  node.start(*frames, *carm);
+  {
+    ProgressBar bar("frames", cmd.progress && session.has_value());
+    const bool terminal = ::isatty(STDERR_FILENO) == 1;
+    auto last_print = t0;
+    for (;;) {
+      if (replay) {
+        const bool done = replay->wait(std::chrono::milliseconds(100));
+        const auto p = replay->progress();
+        bar.update(p.frames, p.frames_per_loop * static_cast<std::size_t>(std::max(cmd.loops, 1)));
+        if (done) break;
+      } else {
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        const auto now = std::chrono::steady_clock::now();
+        if (now - last_print >= std::chrono::seconds(terminal ? 1 : 10)) {
+          const NodeStatistics s = node.statistics();
+          std::fprintf(stderr, "%sframes %llu shown %llu (dropped %llu)  latency p50 %.1f ms  models %llu%s",
+                       terminal ? "\r" : "", static_cast<unsigned long long>(s.frames_in),
+                       static_cast<unsigned long long>(s.frames_composited),
+                       static_cast<unsigned long long>(s.dropped_input + s.dropped_output), s.latency_ms.p50,
+                       static_cast<unsigned long long>(s.adaptations), terminal ? "   " : "\n");
+          last_print = now;
+        }
+      }
+      const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      if (ctrl_c.interrupted() || quit.load() || (cmd.seconds && elapsed >= *cmd.seconds)) break;
+    }
+  }
+  node.stop();
+  const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  const NodeStatistics s = node.statistics();
+  if (replay && !replay->error().empty()) log().error("replay ended early: {}", replay->error());
+
+  nlohmann::json report = {
+      {"source", frames->description()},
+      {"seconds", seconds},
+      {"frames", {{"in", s.frames_in}, {"composited", s.frames_composited}, {"with_roadmap", s.frames_with_roadmap},
+                  {"dropped_input", s.dropped_input}, {"dropped_output", s.dropped_output},
+                  {"lost_by_source", s.frames_lost_by_source}, {"wrong_size", s.frames_wrong_size},
+                  {"stale_geometry", s.stale_geometry_frames}, {"c_arm_moving", s.moving_frames}}},
+      {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped}, {"candidates", s.candidates},
+                    {"pairs", s.pairs}, {"pairs_superseded", s.pairs_superseded}}},
+      {"adaptation", {{"models", s.adaptations}, {"failures", s.adaptation_failures}, {"last_failure", s.last_failure},
+                      {"ready_after_second_view_ms", to_json(s.adaptation_ms)}}},
+      {"latency_ms", to_json(s.latency_ms)},
+      {"video_stalls", s.video_stalls},
+      {"sink_errors", s.sink_errors},
+      {"outputs", {{"video", video ? (cmd.out / cmd.video).string() : ""},
+                   {"video_frames", video ? video->frames() : 0},
+                   {"snapshots", [&] {
+                      nlohmann::json a = nlohmann::json::array();
+                      for (const auto& p : snapshots->written()) a.push_back(p.string());
+                      return a;
+                    }()},
+                   {"igtl_port", igtl ? igtl->port() : 0},
+                   {"igtl_messages", igtl ? igtl->statistics().messages_sent : 0}}}};
+  if (s.carm_clock_offset_ns) report["carm_clock_offset_ns"] = *s.carm_clock_offset_ns;
+  std::size_t evaluated = 0;
+  if (session) {
+    if (const auto errors = evaluate_run(*session, scene, node.frame_log(), &evaluated)) {
+      nlohmann::json lm = nlohmann::json::array();
+      std::ostringstream md;
+      md << "| landmark | frames | initial (mm) | adapted (mm) | initial vertical (mm) | adapted vertical (mm) |\n"
+            "|---|---|---|---|---|---|\n";
+      std::vector<double> before, after;
+      char row[200];
+      for (const auto& l : *errors) {
+        lm.push_back({{"label", l.label}, {"frames", l.frames}, {"initial_mm", l.initial_mm}, {"adapted_mm", l.adapted_mm},
+                      {"initial_vertical_mm", l.initial_vertical_mm}, {"adapted_vertical_mm", l.adapted_vertical_mm}});
+        std::snprintf(row, sizeof row, "| %s | %d | %.2f | %.2f | %.2f | %.2f |\n", l.label.c_str(), l.frames,
+                      l.initial_mm, l.adapted_mm, l.initial_vertical_mm, l.adapted_vertical_mm);
+        md << row;
+        before.push_back(l.initial_mm);
+        after.push_back(l.adapted_mm);
+      }
+      const Statistic b = statistic(before), a = statistic(after);
+      std::snprintf(row, sizeof row, "| **mean ± sd** | | **%.2f ± %.2f** | **%.2f ± %.2f** | | |\n", b.mean, b.sd, a.mean, a.sd);
+      md << row;
+      report["evaluation"] = {{"frames", evaluated}, {"landmarks", lm}};
+      std::ofstream f(cmd.out / "eval.md");
+      f << "# Ostium distances in the frames shown with the adapted model\n\n"
+        << "2D distance between each true ostium and its landmark projected from the preoperative (initial) and the\n"
+           "adapted model, in mm at the isocenter, averaged over the "
+        << evaluated << " frames shown with an adapted model and a settled C-arm.\n\n"
+        << md.str();
+      std::fputs(md.str().c_str(), stdout);
+    }
+  }
+  write_json(cmd.out / "run_report.json", report);
+  log().info("{} frames in {:.1f} s: {} shown ({} with the roadmap), {} dropped; latency p50 {:.1f} ms, p99 {:.1f} ms; "
+             "{} model(s), {} failed",
+             s.frames_in, seconds, s.frames_composited, s.frames_with_roadmap, s.dropped_input + s.dropped_output,
+             s.latency_ms.p50, s.latency_ms.p99, s.adaptations, s.adaptation_failures);
+  if (video) log().info("video: {} ({} frames)", (cmd.out / cmd.video).string(), video->frames());
+  for (const auto& p : snapshots->written()) log().info("snapshot: {}", p.string());
+  log().info("report: {}{}", (cmd.out / "run_report.json").string(),
+             evaluated ? "; evaluation: " + (cmd.out / "eval.md").string() : "");
+  return 0;
+}
+
+}  // namespace evar::app

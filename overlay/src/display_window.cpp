@@ -1,0 +1,46 @@
+#include "evar/overlay/display_window.hpp"
+
+#include <cstdlib>
+#include <stdexcept>
+
+#include <opencv2/highgui.hpp>
+
+namespace evar::overlay {
+
+DisplayWindow::DisplayWindow(std::string title, bool fullscreen) : title_(std::move(title)), fullscreen_(fullscreen) {
+  if (std::getenv("DISPLAY") == nullptr && std::getenv("WAYLAND_DISPLAY") == nullptr)
+    throw std::runtime_error("no display to open a window on (DISPLAY is not set); write a video or use OpenIGTLink");
+  try {
+    cv::namedWindow(title_, cv::WINDOW_NORMAL | cv::WINDOW_KEEPRATIO);
+    cv::setWindowProperty(title_, cv::WND_PROP_FULLSCREEN, fullscreen_ ? cv::WINDOW_FULLSCREEN : cv::WINDOW_NORMAL);
+  } catch (const cv::Exception& e) {
+    throw std::runtime_error("cannot open a window: " + e.msg);
+  }
+}
+
+DisplayWindow::~DisplayWindow() {
+  try {
+    cv::destroyWindow(title_);
+  } catch (const cv::Exception&) {
+    // the toolkit may already be gone at exit
+  }
+}
+
+WindowKey DisplayWindow::show(const Image& frame) {
+  const cv::Mat m(frame.height, frame.width, CV_8UC3, const_cast<std::uint8_t*>(frame.bgr.data()));
+  cv::imshow(title_, m);
+  const int key = cv::waitKey(1);
+  switch (key & 0xff) {
+    case 'm': return WindowKey::CycleMode;
+    case 's': return WindowKey::Snapshot;
+    case 'q':
+    case 27: return WindowKey::Quit;
+    case 'f':
+      fullscreen_ = !fullscreen_;
+      cv::setWindowProperty(title_, cv::WND_PROP_FULLSCREEN, fullscreen_ ? cv::WINDOW_FULLSCREEN : cv::WINDOW_NORMAL);
+      return WindowKey::None;
+    default: return WindowKey::None;
+  }
+}
+
+}  // namespace evar::overlay
