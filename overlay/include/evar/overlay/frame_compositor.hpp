@@ -7,7 +7,7 @@
 // every frame: it is drawn over black and over white, which gives per pixel and channel its
 // premultiplied colour B and its transmittance K = W − B, so out = B + g·K/255 for the
 // frame's grey g. Every drawing operation is a blend linear in the background, so this is
-// exact up to rounding. While the C-arm is still a frame costs only the look-up table and
+// exact up to rounding (a few grey levels). While the C-arm is still a frame costs only the look-up table and
 // the blend.
 #include <cstdint>
 #include <memory>

@@ -1,0 +1,177 @@
+// The live node end to end on a replayed simulated session: the adapted overlay appears,
+// the ostia's projected error falls, and a failed reconstruction, a silent C-arm link and
+// a stalled video are reported while the video goes on.
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <thread>
+
+#include "evar/sim/session_generator.hpp"
+#include "evar/sim/session_replay.hpp"
+#include "live_node.hpp"
+#include "output_sinks.hpp"
+#include "session_evaluation.hpp"
+#include "view_pair_selector.hpp"
+
+namespace {
+
+using namespace evar;
+namespace fs = std::filesystem;
+
+class LiveNodeReplay : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("evar-live-node-" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    sim::SessionPlan plan;
+    plan.seed = 1;
+    plan.detector_px = 512;
+    plan.pixel_spacing_mm = 0.6;
+    generated_ = new sim::GeneratedSession(sim::generate_session(plan, dir_ / "session"));
+    scene_ = new geometry::Scene(geometry::load_scene(dir_ / "session" / generated_->session.scene));
+  }
+  static void TearDownTestSuite() {
+    delete scene_;
+    delete generated_;
+    fs::remove_all(dir_);
+  }
+  static app::NodeOptions options() {
+    app::NodeOptions o;
+    o.detector = generated_->session.detector;
+    o.registration = generated_->session.ct_to_carm;
+    return o;
+  }
+  static const sim::Session& session() { return generated_->session; }
+
+  static inline fs::path dir_;
+  static inline sim::GeneratedSession* generated_ = nullptr;
+  static inline geometry::Scene* scene_ = nullptr;
+};
+
+TEST_F(LiveNodeReplay, TheAdaptedOverlayAppearsAndTheOstiumErrorFalls) {
+  app::NodeOptions o = options();
+  o.backpressure = true;  // a replay can wait: every frame is shown
+  o.keep_frame_log = true;
+  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  auto video = std::make_unique<app::VideoSink>(dir_ / "out" / "overlay.avi", 15.0);
+  auto snapshots = std::make_unique<app::SnapshotSink>(dir_ / "out" / "snapshots");
+  auto* video_ptr = video.get();
+  auto* snapshots_ptr = snapshots.get();
+  sinks.push_back(std::move(video));
+  sinks.push_back(std::move(snapshots));
+  app::LiveNode node(*scene_, o, std::move(sinks));
+  sim::SessionReplay replay(session(), {0.0, 1});
+  node.start(replay.frames(), replay.carm());
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
+  node.stop();
+  const app::NodeStatistics s = node.statistics();
+  EXPECT_EQ(s.frames_composited, session().frames.size());
+  EXPECT_EQ(s.dropped_input + s.dropped_output, 0u);
+  ASSERT_GE(s.adaptations, 1u) << s.last_failure;
+  ASSERT_TRUE(node.model()->adapted);
+  EXPECT_EQ(video_ptr->frames(), session().frames.size());
+  EXPECT_GT(fs::file_size(dir_ / "out" / "overlay.avi"), 10000u);
+  // Before and after the first model, as pictures.
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "snapshots" / "model-1-before.png"));
+  EXPECT_TRUE(fs::exists(dir_ / "out" / "snapshots" / "model-1-after.png"));
+  EXPECT_GE(snapshots_ptr->written().size(), 2u);
+  // The frames shown with the adapted model: the ostia projected from it lie closer to the
+  // true ostia than those of the preoperative model.
+  app::OstiumErrors errors(scene_->landmarks);
+  std::size_t frames = 0;
+  for (const auto& e : node.frame_log()) {
+    if (!e.P_ct || !e.model->adapted) continue;
+    const auto& record = session().frames[(e.sequence - 1) % session().frames.size()];
+    std::vector<sim::OstiumTruth> truth;
+    for (const auto& t : session().truth->ostia)
+      if (t.frame == record.frame) truth.push_back(t);
+    frames += errors.add(*e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks, truth) ? 1 : 0;
+  }
+  ASSERT_GT(frames, 20u);
+  double before = 0, after = 0;
+  for (const auto& l : errors.result()) before += l.initial_mm, after += l.adapted_mm;
+  EXPECT_LT(after, before) << "initial " << before << " mm, adapted " << after << " mm (sums over landmarks)";
+  EXPECT_GT(s.latency_ms.n, 0u);
+}
+
+TEST_F(LiveNodeReplay, AFailedReconstructionIsReportedAndTheVideoGoesOn) {
+  app::NodeOptions o = options();
+  o.backpressure = true;
+  o.adaptation.max_mean_residual_px = 1e-9;  // every reconstruction is refused
+  app::LiveNode node(*scene_, o, {});
+  sim::SessionReplay replay(session(), {0.0, 1});
+  node.start(replay.frames(), replay.carm());
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
+  node.stop();
+  const app::NodeStatistics s = node.statistics();
+  EXPECT_EQ(s.frames_composited, session().frames.size());
+  EXPECT_GE(s.adaptation_failures, 1u);
+  EXPECT_EQ(s.adaptations, 0u);
+  EXPECT_NE(s.last_failure.find("refused"), std::string::npos) << s.last_failure;
+  EXPECT_EQ(node.model()->version, 0u);  // the preoperative model stays
+}
+
+// A C-arm link that sends one state and falls silent.
+class SilentCArm final : public acquisition::CArmGeometrySource {
+ public:
+  explicit SilentCArm(acquisition::CArmState first) : first_(first) {}
+  void start(StateCallback on_state, StreamCallback) override {
+    first_.host_arrival = std::chrono::steady_clock::now();
+    on_state(first_);
+  }
+  void stop() override {}
+  acquisition::StreamState state() const override { return acquisition::StreamState::Streaming; }
+  std::string description() const override { return "a C-arm that falls silent"; }
+
+ private:
+  acquisition::CArmState first_;
+};
+
+TEST_F(LiveNodeReplay, ASilentCArmLinkAndAStalledVideoAreReportedWhileFramesAreShown) {
+  app::NodeOptions o = options();
+  o.video_stall = std::chrono::milliseconds(300);
+  app::LiveNode node(*scene_, o, {});
+  SilentCArm carm(sim::to_carm_state(session().carm.front(), 0));
+  sim::SessionReplay replay(session(), {8.0, 1});
+  node.start(replay.frames(), carm);
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(60)));
+  // The replay is over: no more frames, which the node must notice.
+  std::this_thread::sleep_for(std::chrono::milliseconds(900));
+  const app::NodeStatistics s = node.statistics();
+  node.stop();
+  EXPECT_GT(s.frames_composited, session().frames.size() / 2);
+  EXPECT_GT(s.stale_geometry_frames, session().frames.size() / 2);
+  EXPECT_EQ(s.video_stalls, 1u);
+}
+
+TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView) {
+  sim::DetectorSpec d{256, 256, 1.0, 1.0};
+  const auto candidate = [&](std::uint64_t frame, double primary, double secondary) {
+    acquisition::CArmState s;
+    s.primary_deg = primary;
+    s.secondary_deg = secondary;
+    s.sid_mm = 1200;
+    s.sod_mm = 800;
+    app::ViewCandidate c;
+    c.frame = frame;
+    c.geometry = app::frame_view(d, Eigen::Matrix4d::Identity(), s);
+    return c;
+  };
+  app::ViewPairSelector selector;
+  EXPECT_FALSE(selector.add(candidate(1, 0, 0)));
+  EXPECT_FALSE(selector.add(candidate(2, 0.5, 0)));   // the same view
+  EXPECT_FALSE(selector.add(candidate(3, 10, 0)));    // another view, too close to AP
+  const auto pair = selector.add(candidate(4, 40, 0));
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->later.frame, 4u);
+  EXPECT_EQ(pair->earlier.frame, 3u);                 // the newest view far enough (30°)
+  EXPECT_NEAR(pair->separation_deg, 30.0, 0.5);
+  EXPECT_FALSE(selector.add(candidate(5, 40, 0)));    // still the same view: no new pair
+  selector.retry();                                   // the pair failed
+  const auto again = selector.add(candidate(6, 40, 0));
+  ASSERT_TRUE(again);
+  EXPECT_EQ(again->later.frame, 6u);
+  EXPECT_THROW(app::ViewPairSelector({10.0, 20.0, 8}), std::invalid_argument);
+}
+
+}  // namespace
