@@ -227,17 +227,17 @@ int run_cli(const std::vector<std::string>& args) {
       "(record_report.json).\n"
       "Example: evarnode record --camera EVAR001 --carm serial:/dev/ttyUSB0 --scene plan/scene.json\n"
       "         --registration plan/registration.json --pixel-spacing 0.154 --out session-01");
-  auto* cam = rd->add_option("--camera", record.camera, "GigE Vision camera: id, serial number or IP address (see `evarnode devices`)");
-  auto* v4l = rd->add_option("--v4l2", record.v4l2, "V4L2 frame grabber instead, e.g. /dev/video0");
+  auto* cam = rd->add_option("--camera", record.frames.camera, "GigE Vision camera: id, serial number or IP address (see `evarnode devices`)");
+  auto* v4l = rd->add_option("--v4l2", record.frames.v4l2, "V4L2 frame grabber instead, e.g. /dev/video0");
   cam->excludes(v4l);
-  rd->add_option("--pixel-format", record.pixel_format, "GigE pixel format")
+  rd->add_option("--pixel-format", record.frames.pixel_format, "GigE pixel format")
       ->check(CLI::IsMember({"mono8", "mono12", "mono16"}))
       ->capture_default_str();
-  rd->add_option("--v4l2-format", record.v4l2_format, "V4L2 format: Y16, GREY, YUYV or MJPG (default: the deepest grey offered)")
+  rd->add_option("--v4l2-format", record.frames.v4l2_format, "V4L2 format: Y16, GREY, YUYV or MJPG (default: the deepest grey offered)")
       ->needs(v4l);
-  rd->add_option("--width", record.width, "image width (pixels); default: the device's")->check(CLI::Range(16, 16384));
-  rd->add_option("--height", record.height, "image height (pixels); default: the device's")->check(CLI::Range(16, 16384));
-  rd->add_option("--fps", record.fps, "frame rate (Hz); default: the device's")->check(CLI::Range(0.1, 1000.0));
+  rd->add_option("--width", record.frames.width, "image width (pixels); default: the device's")->check(CLI::Range(16, 16384));
+  rd->add_option("--height", record.frames.height, "image height (pixels); default: the device's")->check(CLI::Range(16, 16384));
+  rd->add_option("--fps", record.frames.fps, "frame rate (Hz); default: the device's")->check(CLI::Range(0.1, 1000.0));
   rd->add_option("--carm", record.carm,
                  "the C-arm link (docs/CARM_LINK_PROTOCOL.md): serial:/dev/ttyUSB0[,baud=115200][,parity=none|even|odd][,stop=1|2]\n"
                  "or usb:VID:PID[:SERIAL]")
@@ -252,7 +252,7 @@ int run_cli(const std::vector<std::string>& args) {
   rd->add_option("--device-thickness", record.device_thickness_mm, "device thickness (mm); default: the scene's")
       ->check(CLI::Range(0.0, 15.0));
   rd->add_option("--seconds", record.seconds, "stop after this long")->check(CLI::PositiveNumber);
-  rd->add_option("--frames", record.frames, "stop after this many frames are written")->check(CLI::PositiveNumber);
+  rd->add_option("--frames", record.frames_to_write, "stop after this many frames are written")->check(CLI::PositiveNumber);
   rd->add_option("--out", record.out, "the new session directory (must not exist or be empty)")->required();
 
   RunCommand run;

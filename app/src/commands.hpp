@@ -6,6 +6,7 @@
 #include <vector>
 
 #include "evar/geometry/mesh_io.hpp"
+#include "source_factory.hpp"
 
 namespace evar::app {
 
@@ -73,18 +74,13 @@ struct DevicesCommand {
 int run_devices(const DevicesCommand& cmd);
 
 struct RecordCommand {
-  std::string camera;                 ///< GigE camera id, serial or address ("" = the only one)
-  std::string pixel_format = "mono16";
-  std::string v4l2;                   ///< /dev/videoN instead of a GigE camera
-  std::string v4l2_format;            ///< Y16, GREY, YUYV or MJPG ("" = the deepest offered)
-  std::optional<int> width, height;
-  std::optional<double> fps;
+  FrameSourceSpec frames;             ///< the GigE camera or V4L2 grabber
   std::string carm;                   ///< serial:PATH[,baud=N,...] or usb:VID:PID[:SERIAL]
   std::filesystem::path out, scene, registration;
   double pixel_spacing_mm = 0.0;
   std::optional<double> device_thickness_mm;
   std::optional<double> seconds;
-  std::optional<int> frames;
+  std::optional<int> frames_to_write;
 };
 int run_record(const RecordCommand& cmd);
 

@@ -79,6 +79,7 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
     else if (key == "device_diameter_mm") c.device_diameter_mm = number(value, path, key, 0.1, 10);
     else if (key == "min_contrast") c.min_contrast = number(value, path, key, 0, 5);
     else if (key == "min_separation_deg") c.min_separation_deg = number(value, path, key, 5, 80);
+    else if (key == "geometry_stale_ms") c.geometry_stale_ms = number(value, path, key, 10, 600000);
     else fail(path, key, "unknown setting");
   }
   return c;

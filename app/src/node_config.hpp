@@ -9,7 +9,8 @@
 //   "frames": {"camera": "", "pixel_format": "mono16"}   or   {"v4l2": "/dev/video0", "v4l2_format": "Y16"},
 //   "carm": "serial:/dev/ttyUSB0,baud=115200",
 //   "fps": 30,
-//   "device_diameter_mm": 0.89, "min_contrast": 0.25, "min_separation_deg": 20
+//   "device_diameter_mm": 0.89, "min_contrast": 0.25, "min_separation_deg": 20,
+//   "geometry_stale_ms": 250
 // }
 // Everything but format and version is optional for replays (the session has the patient,
 // the registration and the detector).
@@ -34,6 +35,9 @@ struct NodeConfig {
   double device_diameter_mm = 0.89;
   double min_contrast = 0.25;
   double min_separation_deg = 20.0;
+  /// C-arm geometry older than this at a frame is stale (default 250 ms: a link that
+  /// streams; longer for a C-arm that reports only when something changes).
+  std::optional<double> geometry_stale_ms;
 };
 
 /// Throws geometry::InputError "<file>: <field>: <problem>".

@@ -16,7 +16,7 @@
 namespace evar::app {
 
 int run_record(const RecordCommand& cmd) {
-  auto frames = make_frame_source({cmd.camera, cmd.pixel_format, cmd.v4l2, cmd.v4l2_format, cmd.width, cmd.height, cmd.fps});
+  auto frames = make_frame_source(cmd.frames);
   auto carm = make_carm_source(cmd.carm);
   sim::RecorderOptions o;
   o.out = cmd.out;
@@ -27,7 +27,7 @@ int run_record(const RecordCommand& cmd) {
   sim::SessionRecorder recorder(o, *frames, *carm);
   log().info("recording {} and {} into {}", frames->description(), carm->description(), cmd.out.string());
   log().info("stop with Ctrl-C{}{}", cmd.seconds ? fmt::format(", or after {:g} s", *cmd.seconds) : "",
-             cmd.frames ? fmt::format(", or after {} frames", *cmd.frames) : "");
+             cmd.frames_to_write ? fmt::format(", or after {} frames", *cmd.frames_to_write) : "");
 
   const InterruptGuard ctrl_c;
   recorder.start();
@@ -58,7 +58,7 @@ int run_record(const RecordCommand& cmd) {
       last_frames = s.frames_received;
     }
     if (ctrl_c.interrupted() || (cmd.seconds && s.seconds >= *cmd.seconds) ||
-        (cmd.frames && s.frames_written >= static_cast<std::uint64_t>(*cmd.frames)))
+        (cmd.frames_to_write && s.frames_written >= static_cast<std::uint64_t>(*cmd.frames_to_write)))
       break;
   }
   if (terminal) std::fprintf(stderr, "\n");

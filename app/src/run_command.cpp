@@ -100,6 +100,8 @@ int run_node(const RunCommand& cmd) {
     options.candidate.min_contrast = config->min_contrast;
     options.pairs.min_separation_deg = config->min_separation_deg;
     options.adaptation.reconstruction.min_separation_deg = config->min_separation_deg;
+    if (config->geometry_stale_ms)
+      options.timeline.stale_after = std::chrono::milliseconds(static_cast<std::int64_t>(*config->geometry_stale_ms));
   }
   const auto mode = overlay::parse_roadmap_mode(cmd.mode);
   if (!mode) throw std::invalid_argument("--mode " + cmd.mode + ": expected undeformed, adapted or both");
@@ -159,7 +161,13 @@ int run_node(const RunCommand& cmd) {
     frames = &replay->frames();
     carm = &replay->carm();
   } else {
-    live_frames = make_frame_source(*config->frames);
+    FrameSourceSpec spec = *config->frames;
+    if (!spec.width && !spec.height) {
+      // Ask the grabber for the detector's size (a camera's current region may be another).
+      spec.width = options.detector.cols;
+      spec.height = options.detector.rows;
+    }
+    live_frames = make_frame_source(spec);
     live_carm = make_carm_source(*config->carm);
     frames = live_frames.get();
     carm = live_carm.get();
