@@ -42,6 +42,14 @@ class LiveNodeReplay : public ::testing::Test {
     return o;
   }
   static const sim::Session& session() { return generated_->session; }
+  // The whole session through the node as fast as it takes it; false if the replay hangs.
+  static bool replay_through(app::LiveNode& node) {
+    sim::SessionReplay replay(session(), {0.0, 1});
+    node.start(replay.frames(), replay.carm());
+    const bool done = replay.wait(std::chrono::seconds(120));
+    node.stop();
+    return done;
+  }
 
   static inline fs::path dir_;
   static inline sim::GeneratedSession* generated_ = nullptr;
@@ -60,10 +68,7 @@ TEST_F(LiveNodeReplay, TheAdaptedOverlayAppearsAndTheOstiumErrorFalls) {
   sinks.push_back(std::move(video));
   sinks.push_back(std::move(snapshots));
   app::LiveNode node(*scene_, o, std::move(sinks));
-  sim::SessionReplay replay(session(), {0.0, 1});
-  node.start(replay.frames(), replay.carm());
-  ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
-  node.stop();
+  ASSERT_TRUE(replay_through(node));
   const app::NodeStatistics s = node.statistics();
   EXPECT_EQ(s.frames_composited, session().frames.size());
   EXPECT_EQ(s.dropped_input + s.dropped_output, 0u);
@@ -99,10 +104,7 @@ TEST_F(LiveNodeReplay, AFailedReconstructionIsReportedAndTheVideoGoesOn) {
   o.backpressure = true;
   o.adaptation.max_mean_residual_px = 1e-9;  // every reconstruction is refused
   app::LiveNode node(*scene_, o, {});
-  sim::SessionReplay replay(session(), {0.0, 1});
-  node.start(replay.frames(), replay.carm());
-  ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
-  node.stop();
+  ASSERT_TRUE(replay_through(node));
   const app::NodeStatistics s = node.statistics();
   EXPECT_EQ(s.frames_composited, session().frames.size());
   EXPECT_GE(s.adaptation_failures, 1u);
