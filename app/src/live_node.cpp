@@ -126,7 +126,7 @@ void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometry
 void LiveNode::stop() {
   if (!running_) return;
   running_ = false;
-  frames_->stop();
+  frames_.load()->stop();
   carm_->stop();
   input_.close();
   compose_thread_.join();
@@ -136,6 +136,14 @@ void LiveNode::stop() {
   adaptation_thread_.join();
   output_.close();
   output_thread_.join();
+  // The sources may go away once stop() returns: their last counts are kept here.
+  const std::uint64_t lost = frames_.load()->statistics().dropped;
+  {
+    std::lock_guard lock(stats_mutex_);
+    stats_.frames_lost_by_source = lost;
+  }
+  frames_ = nullptr;
+  carm_ = nullptr;
 }
 
 void LiveNode::on_frame(const acquisition::Frame& frame) {
@@ -432,7 +440,8 @@ void LiveNode::output_loop() {
 
 NodeStatistics LiveNode::statistics() const {
   // The source's own counters first, outside the node's locks (its callbacks take them).
-  const std::uint64_t lost = frames_ != nullptr ? frames_->statistics().dropped : 0;
+  const acquisition::FrameSource* source = frames_.load();
+  const std::uint64_t lost = source != nullptr ? source->statistics().dropped : 0;
   std::lock_guard lock(stats_mutex_);
   NodeStatistics s = stats_;
   s.latency_ms = percentiles(latencies_);
@@ -440,7 +449,7 @@ NodeStatistics LiveNode::statistics() const {
   s.analysis_skipped = stats_.analysis_skipped;
   s.dropped_input = input_.dropped();
   s.dropped_output = output_.dropped();
-  s.frames_lost_by_source = lost;
+  if (source != nullptr) s.frames_lost_by_source = lost;
   {
     std::lock_guard tl(timeline_mutex_);
     s.carm_clock_offset_ns = timeline_.carm_clock_offset_ns();

@@ -125,7 +125,8 @@ class LiveNode {
   /// Throws what the sources throw when they cannot be opened (nothing left running).
   void start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm);
   /// Stops the sources, lets the queued frames through, waits for a running adaptation,
-  /// finishes the sinks. Idempotent.
+  /// finishes the sinks, and lets go of the sources (statistics() keeps their last counts).
+  /// Idempotent.
   void stop();
 
   void set_mode(overlay::RoadmapMode mode) { mode_.store(mode); }
@@ -153,7 +154,7 @@ class LiveNode {
   std::shared_ptr<const overlay::RoadmapModel> initial_roadmap_;
   std::atomic<overlay::RoadmapMode> mode_;
 
-  acquisition::FrameSource* frames_ = nullptr;
+  std::atomic<acquisition::FrameSource*> frames_{nullptr};  // null when not running
   acquisition::CArmGeometrySource* carm_ = nullptr;
   BoundedQueue<acquisition::Frame> input_;
   BoundedQueue<ComposedFrame> output_;
