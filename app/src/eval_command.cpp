@@ -43,9 +43,7 @@ int run_eval(const EvalCommand& cmd) {
     CaseEvaluation c = evaluate_session(dir, {}, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
     bar.finish();
     nlohmann::json lm = nlohmann::json::array();
-    for (const auto& l : c.landmarks)
-      lm.push_back({{"label", l.label}, {"frames", l.frames}, {"initial_mm", l.initial_mm}, {"adapted_mm", l.adapted_mm},
-                    {"initial_vertical_mm", l.initial_vertical_mm}, {"adapted_vertical_mm", l.adapted_vertical_mm}});
+    for (const auto& l : c.landmarks) lm.push_back(to_json(l));
     nlohmann::json model = nullptr;
     if (c.model)
       model = {{"frames", {c.model->frame_earlier, c.model->frame_later}},

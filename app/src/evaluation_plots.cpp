@@ -7,11 +7,11 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
-#include "evar/geometry/scene.hpp"
 #include "evar/overlay/frame_compositor.hpp"
 #include "evar/sim/session.hpp"
 #include "evar/sim/session_replay.hpp"
 #include "frame_view.hpp"
+#include "model_adaptation.hpp"
 
 namespace evar::app {
 
@@ -140,36 +140,25 @@ void histogram(const std::filesystem::path& path, const std::vector<CaseEvaluati
 }
 
 void snapshot(const std::filesystem::path& path, const CaseEvaluation& c) {
-  const sim::Session session = sim::read_session(c.session);
-  const geometry::Scene scene = geometry::load_scene(c.session / session.scene);
-  auto model = std::make_shared<overlay::RoadmapModel>();
-  for (std::size_t v = 0; v < scene.vessels.size(); ++v) {
-    model->initial.push_back(scene.vessels[v].mesh.mesh);
-    model->adapted.push_back(c.model->deformation.vessels[v].mesh);
-  }
-  model->initial_landmarks = scene.landmarks;
-  model->adapted_landmarks = c.model->deformation.landmarks;
-  model->device = c.model->reconstruction.points;
+  const sim::Session& session = *c.recording;
+  const auto model = std::make_shared<const overlay::RoadmapModel>(roadmap_model(*c.scene, c.model.get()));
   const sim::FrameRecord& record = session.frames[c.snapshot_frame];
   const sim::CArmSample* sample = sim::carm_at(session, record.timestamp_ns);
   const FrameView view = frame_view(session.detector, session.ct_to_carm, sim::to_carm_state(*sample, 0));
   const cv::Mat image = sim::read_session_frame(session, c.snapshot_frame);
   overlay::FrameCompositor compositor({4, {}});
-  char line[128];
-  std::snprintf(line, sizeof line, "frame %lld  %s %.0f  %s %.0f", static_cast<long long>(record.frame),
-                sample->primary_deg >= 0 ? "LAO" : "RAO", std::abs(sample->primary_deg),
-                sample->secondary_deg >= 0 ? "CRA" : "CAU", std::abs(sample->secondary_deg));
-  const overlay::Image out =
+  const std::string line =
+      "frame " + std::to_string(record.frame) + "  " + angulation_text(sample->primary_deg, sample->secondary_deg);
+  overlay::Image out =
       compositor.compose({image.cols, image.rows, static_cast<int>(image.step), 16, image.data}, &view.P_ct, model,
                          overlay::RoadmapMode::Both,
                          {{line, "blue: preoperative  orange: adapted  white +: true ostia"}, {}});
-  cv::Mat m(out.height, out.width, CV_8UC3, const_cast<std::uint8_t*>(out.bgr.data()));
-  m = m.clone();
+  cv::Mat m(out.height, out.width, CV_8UC3, out.bgr.data());
   for (const auto& o : session.truth->ostia)
     if (o.frame == record.frame)
       cv::drawMarker(m, cv::Point(static_cast<int>(std::lround(o.pixel.x())), static_cast<int>(std::lround(o.pixel.y()))),
                      cv::Scalar(255, 255, 255), cv::MARKER_CROSS, 12, 1, cv::LINE_AA);
-  write_png(path, m);
+  overlay::write_png(path, out);
 }
 
 }  // namespace

@@ -1,6 +1,8 @@
 #include "frame_view.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
 
 namespace evar::app {
 
@@ -19,6 +21,13 @@ FrameView frame_view(const sim::DetectorSpec& detector, const Eigen::Matrix4d& r
   f.ct_to_carm.topRightCorner<3, 1>() += Eigen::Vector3d(state.table_mm[0], state.table_mm[1], state.table_mm[2]);
   f.P_ct = geometry::registered(geometry::projection_matrix(f.view), f.ct_to_carm);
   return f;
+}
+
+std::string angulation_text(double primary_deg, double secondary_deg) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%s %.0f  %s %.0f", primary_deg >= 0 ? "LAO" : "RAO", std::abs(primary_deg),
+                secondary_deg >= 0 ? "CRA" : "CAU", std::abs(secondary_deg));
+  return b;
 }
 
 double mm_at_isocenter_per_px(const geometry::CArmView& view) {

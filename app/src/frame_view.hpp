@@ -3,6 +3,7 @@
 // CT-to-C-arm transform at the table position of the moment, and the projection of CT
 // points (LPS mm) to the frame's pixels.
 #include <Eigen/Core>
+#include <string>
 
 #include "evar/acquisition/carm_geometry_source.hpp"
 #include "evar/geometry/carm_projection.hpp"
@@ -21,6 +22,9 @@ struct FrameView {
 /// std::invalid_argument for impossible geometry (SOD >= SID, ...).
 FrameView frame_view(const sim::DetectorSpec& detector, const Eigen::Matrix4d& registration,
                      const acquisition::CArmState& state);
+
+/// "LAO 35  CAU 15": the angulation as interventionalists say it (whole degrees).
+std::string angulation_text(double primary_deg, double secondary_deg);
 
 /// Pixel distances at the detector as millimetres at the isocenter: px · spacing · SOD/SID
 /// (the finer spacing).

@@ -28,19 +28,7 @@ cv::Mat wrap(const acquisition::Frame& f) {
   return {f.height, f.width, type, const_cast<std::uint8_t*>(f.pixels.data()), static_cast<std::size_t>(f.stride_bytes)};
 }
 
-std::string angulation(double primary_deg, double secondary_deg) {
-  char b[64];
-  std::snprintf(b, sizeof b, "%s %.0f  %s %.0f", primary_deg >= 0 ? "LAO" : "RAO", std::abs(primary_deg),
-                secondary_deg >= 0 ? "CRA" : "CAU", std::abs(secondary_deg));
-  return b;
-}
-
 }  // namespace
-
-struct LiveNode::Analysis {
-  acquisition::Frame frame;
-  FrameView view;
-};
 
 Percentiles percentiles(std::vector<double> v) {
   Percentiles p;
@@ -58,24 +46,19 @@ Percentiles percentiles(std::vector<double> v) {
 }
 
 LiveNode::LiveNode(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks)
-    : scene_(scene),
-      options_(std::move(options)),
+    : options_(std::move(options)),
       sinks_(std::move(sinks)),
       mode_(options_.mode),
       input_(options_.input_queue),
       output_(options_.output_queue),
-      analysis_(std::make_unique<LatestSlot<Analysis>>()),
       timeline_(options_.timeline) {
   if (options_.detector.cols <= 0 || options_.detector.rows <= 0 || !(options_.detector.row_spacing_mm > 0) ||
       !(options_.detector.col_spacing_mm > 0))
     throw std::invalid_argument("node: the detector needs a size and pixel spacings");
-  (void)ViewPairSelector(options_.pairs);  // checks the options now rather than on a thread
-  options_.deform.control.device_thickness_mm = scene.device_thickness_mm;
+  // Checks the options now rather than on a thread.
+  (void)ViewPairSelector(options_.adaptation.reconstruction.min_separation_deg, options_.pairs);
   deformer_ = std::make_unique<deform::SceneDeformer>(scene, options_.deform);
-  auto initial = std::make_shared<overlay::RoadmapModel>();
-  for (const auto& v : scene.vessels) initial->initial.push_back(v.mesh.mesh);
-  initial->initial_landmarks = scene.landmarks;
-  initial_roadmap_ = initial;
+  initial_roadmap_ = std::make_shared<const overlay::RoadmapModel>(roadmap_model(scene, nullptr));
   auto m = std::make_shared<PublishedModel>();
   m->roadmap = initial_roadmap_;
   m->ready = Clock::now();
@@ -87,7 +70,10 @@ LiveNode::~LiveNode() { stop(); }
 
 void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm) {
   if (running_) throw std::logic_error("node: already started");
-  frames_ = &frames;
+  {
+    std::lock_guard lock(source_mutex_);
+    frames_ = &frames;
+  }
   carm_ = &carm;
   compose_thread_ = std::thread([this] { compose_loop(); });
   analysis_thread_ = std::thread([this] { analysis_loop(); });
@@ -126,18 +112,19 @@ void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometry
 void LiveNode::stop() {
   if (!running_) return;
   running_ = false;
-  frames_.load()->stop();
+  frames_->stop();
   carm_->stop();
   input_.close();
   compose_thread_.join();
-  analysis_->close();
+  analysis_.close();
   analysis_thread_.join();
   pairs_.close();
   adaptation_thread_.join();
   output_.close();
   output_thread_.join();
   // The sources may go away once stop() returns: their last counts are kept here.
-  const std::uint64_t lost = frames_.load()->statistics().dropped;
+  std::lock_guard source_lock(source_mutex_);
+  const std::uint64_t lost = frames_->statistics().dropped;
   {
     std::lock_guard lock(stats_mutex_);
     stats_.frames_lost_by_source = lost;
@@ -156,11 +143,7 @@ void LiveNode::on_frame(const acquisition::Frame& frame) {
     return;
   }
   if (input_.push(frame)) {
-    std::uint64_t dropped;
-    {
-      std::lock_guard lock(stats_mutex_);
-      dropped = ++stats_.dropped_input;
-    }
+    const std::size_t dropped = input_.dropped();
     if (dropped == 1 || dropped % 100 == 0)
       log().warn("node: compositing cannot keep up, {} frame(s) dropped so far (the oldest waiting goes)", dropped);
   }
@@ -173,8 +156,7 @@ void LiveNode::set_alert(const std::string& key, const std::string& text, bool h
     std::lock_guard lock(alerts_mutex_);
     auto it = std::find_if(alerts_.begin(), alerts_.end(), [&](const auto& a) { return a.first == key; });
     if (it != alerts_.end()) {
-      // A lasting condition whose figures change (an age) is news once; a new failure is news.
-      changed = hold && it->second.text != text;
+      changed = it->second.text != text;
       it->second = {text, until};
     } else {
       alerts_.push_back({key, {text, until}});
@@ -184,12 +166,15 @@ void LiveNode::set_alert(const std::string& key, const std::string& text, bool h
 }
 
 void LiveNode::clear_alert(const std::string& key) {
-  std::size_t removed;
+  std::string text;
   {
     std::lock_guard lock(alerts_mutex_);
-    removed = std::erase_if(alerts_, [&](const auto& a) { return a.first == key; });
+    auto it = std::find_if(alerts_.begin(), alerts_.end(), [&](const auto& a) { return a.first == key; });
+    if (it == alerts_.end()) return;
+    text = std::move(it->second.text);
+    alerts_.erase(it);
   }
-  if (removed > 0 && key == "geometry") log().info("C-arm geometry fresh again");
+  log().info("resolved: {}", text);
 }
 
 std::vector<std::string> LiveNode::current_alerts() {
@@ -210,8 +195,7 @@ void LiveNode::compose_loop() {
     std::optional<acquisition::Frame> f = input_.pop(std::chrono::milliseconds(100));
     if (!f) {
       if (input_.closed()) break;
-      const auto now = Clock::now();
-      if (any_frame && !stalled && now - last_frame > options_.video_stall) {
+      if (any_frame && !stalled && Clock::now() - last_frame > options_.video_stall) {
         stalled = true;
         {
           std::lock_guard lock(stats_mutex_);
@@ -222,7 +206,6 @@ void LiveNode::compose_loop() {
       continue;
     }
     if (stalled) {
-      log().info("video: frames again after {:.1f} s", ms_between(last_frame, Clock::now()) / 1000.0);
       clear_alert("video-stall");
       stalled = false;
     }
@@ -230,15 +213,12 @@ void LiveNode::compose_loop() {
     last_frame = Clock::now();
 
     const bool size_ok = f->width == options_.detector.cols && f->height == options_.detector.rows;
-    if (!size_ok) {
+    if (!size_ok)
       set_alert("frame-size",
                 "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the detector's " +
                     std::to_string(options_.detector.cols) + " x " + std::to_string(options_.detector.rows) +
                     ": no roadmap",
                 true);
-      std::lock_guard lock(stats_mutex_);
-      ++stats_.frames_wrong_size;
-    }
     std::optional<acquisition::FrameGeometry> g;
     {
       std::lock_guard lock(timeline_mutex_);
@@ -250,39 +230,32 @@ void LiveNode::compose_loop() {
     if (!g) {
       set_alert("geometry", "no C-arm geometry yet: roadmap hidden", false);
     } else {
-      if (g->stale) {
-        std::snprintf(line, sizeof line, "C-arm geometry stale (%.1f s old): roadmap at the last known position",
-                      static_cast<double>(g->age_ns) * 1e-9);
-        set_alert("geometry", line, false);
-      } else {
-        clear_alert("geometry");
-      }
+      // The alert names the condition; its changing age goes into the status line.
+      if (g->stale) set_alert("geometry", "C-arm geometry stale: roadmap at the last known position", false);
+      else clear_alert("geometry");
       if (!g->moving && size_ok) {
         try {
           view = frame_view(options_.detector, options_.registration, g->state);
         } catch (const std::invalid_argument& e) {
-          set_alert("geometry", std::string("C-arm geometry unusable: ") + e.what(), true);
+          set_alert("geometry-unusable", std::string("C-arm geometry unusable: ") + e.what(), true);
         }
       }
-      std::snprintf(line, sizeof line, "%s  SID %.0f mm%s%s", angulation(g->state.primary_deg, g->state.secondary_deg).c_str(),
-                    g->state.sid_mm, g->state.fluoro_on ? "" : "  beam off", g->moving ? "  C-arm moving: roadmap hidden" : "");
-      lines.push_back(line);
-      std::lock_guard lock(stats_mutex_);
-      stats_.stale_geometry_frames += g->stale ? 1 : 0;
-      stats_.moving_frames += g->moving ? 1 : 0;
+      std::string state = fmt::format("{}  SID {:.0f} mm", angulation_text(g->state.primary_deg, g->state.secondary_deg),
+                                      g->state.sid_mm);
+      if (!g->state.fluoro_on) state += "  beam off";
+      if (g->moving) state += "  C-arm moving: roadmap hidden";
+      if (g->stale) state += fmt::format("  geometry {:.1f} s old", static_cast<double>(g->age_ns) * 1e-9);
+      lines.push_back(std::move(state));
     }
-    if (view && !g->stale && g->state.fluoro_on) {
-      if (analysis_->put(Analysis{*f, *view})) {
-        std::lock_guard lock(stats_mutex_);
-        ++stats_.analysis_skipped;
-      }
-    }
+    const bool analyse = view && !g->stale && g->state.fluoro_on;
     const std::shared_ptr<const PublishedModel> model = this->model();
-    const auto now = Clock::now();
     std::string last_failure;
     {
       std::lock_guard lock(stats_mutex_);
       last_failure = stats_.last_failure;
+      stats_.frames_wrong_size += size_ok ? 0 : 1;
+      stats_.stale_geometry_frames += g && g->stale ? 1 : 0;
+      stats_.moving_frames += g && g->moving ? 1 : 0;
     }
     if (!model->adapted) {
       lines.push_back("model: preoperative (undeformed), waiting for two views of the device");
@@ -290,51 +263,48 @@ void LiveNode::compose_loop() {
       std::snprintf(line, sizeof line, "model: %s from frames %llu+%llu, %.0f s ago",
                     last_failure.empty() ? "adapted" : "STALE (last adaptation failed), adapted",
                     static_cast<unsigned long long>(model->adapted->frame_earlier),
-                    static_cast<unsigned long long>(model->adapted->frame_later), ms_between(model->ready, now) / 1000.0);
+                    static_cast<unsigned long long>(model->adapted->frame_later),
+                    ms_between(model->ready, Clock::now()) / 1000.0);
       lines.push_back(line);
     }
     const overlay::RoadmapMode mode = mode_.load();
     std::snprintf(line, sizeof line, "roadmap: %s   latency %.0f ms", overlay::to_string(mode), last_latency_ms);
     lines.push_back(line);
-    const std::optional<geometry::ProjectionMatrix> P =
-        view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
     ComposedFrame out;
+    out.P_ct = view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
     try {
       const int bits = f->format == acquisition::PixelFormat::Mono8 ? 8 : 16;
-      out.image = compositor.compose({f->width, f->height, f->stride_bytes, bits, f->pixels.data()}, P ? &*P : nullptr,
-                                     model->roadmap, mode, {lines, current_alerts()});
+      out.image = std::make_shared<const overlay::Image>(
+          compositor.compose({f->width, f->height, f->stride_bytes, bits, f->pixels.data()},
+                             out.P_ct ? &*out.P_ct : nullptr, model->roadmap, mode, {lines, current_alerts()}));
     } catch (const std::exception& e) {
       set_alert("compose", std::string("frame not shown: ") + e.what(), true);
       continue;
     }
     out.sequence = f->sequence;
     out.device_time_ns = f->device_time_ns;
-    out.arrival = f->host_arrival;
     out.latency_ms = ms_between(f->host_arrival, Clock::now());
-    out.roadmap = P.has_value();
-    out.P_ct = P;
     out.model = model;
     last_latency_ms = out.latency_ms;
     {
       std::lock_guard lock(stats_mutex_);
       ++stats_.frames_composited;
-      stats_.frames_with_roadmap += P ? 1 : 0;
+      stats_.frames_with_roadmap += out.P_ct ? 1 : 0;
       latencies_.push_back(out.latency_ms);
+      if (latencies_.size() > kLatencyWindow) latencies_.pop_front();
       if (options_.keep_frame_log)
-        frame_log_.push_back({out.sequence, P, view ? mm_at_isocenter_per_px(view->view) : 0.0, model});
+        frame_log_.push_back({out.sequence, out.P_ct, view ? mm_at_isocenter_per_px(view->view) : 0.0, model});
     }
-    if (options_.backpressure) {
-      output_.push_wait(std::move(out));
-    } else if (output_.push(std::move(out))) {
-      std::lock_guard lock(stats_mutex_);
-      ++stats_.dropped_output;
-    }
+    if (options_.backpressure) output_.push_wait(std::move(out));
+    else output_.push(std::move(out));
+    // Shown first, then handed on: the frame moves to the analysis, no copy.
+    if (analyse) analysis_.put(Analysis{std::move(*f), *view});
   }
 }
 
 void LiveNode::analysis_loop() {
-  ViewPairSelector selector(options_.pairs);
-  while (std::optional<Analysis> a = analysis_->take()) {
+  ViewPairSelector selector(options_.adaptation.reconstruction.min_separation_deg, options_.pairs);
+  while (std::optional<Analysis> a = analysis_.take()) {
     if (retry_pair_.exchange(false)) selector.retry();
     FrameAnalysis r = analyse_frame(wrap(a->frame), a->view, options_.candidate);
     {
@@ -346,15 +316,13 @@ void LiveNode::analysis_loop() {
       log().debug("frame {}: no candidate: {}", a->frame.sequence, r.reason);
       continue;
     }
-    ViewCandidate c{a->frame.sequence, steady_ns(a->frame.host_arrival), a->view, std::move(r.curve.points),
-                    r.curve.confidence};
+    ViewCandidate c{a->frame.sequence, steady_ns(a->frame.host_arrival), a->view, std::move(r.curve.points)};
     if (std::optional<ViewPair> pair = selector.add(std::move(c))) {
       log().info("view pair: frames {} and {}, {:.0f}° apart: adapting", pair->earlier.frame, pair->later.frame,
                  pair->separation_deg);
-      const bool superseded = pairs_.put(std::move(*pair));
+      pairs_.put(std::move(*pair));
       std::lock_guard lock(stats_mutex_);
       ++stats_.pairs;
-      stats_.pairs_superseded += superseded ? 1 : 0;
     }
   }
 }
@@ -394,9 +362,7 @@ void LiveNode::adaptation_loop() {
 
 void LiveNode::publish(std::shared_ptr<const AdaptedModel> adapted) {
   auto roadmap = std::make_shared<overlay::RoadmapModel>(*initial_roadmap_);
-  for (const auto& v : adapted->deformation.vessels) roadmap->adapted.push_back(v.mesh);
-  roadmap->adapted_landmarks = adapted->deformation.landmarks;
-  roadmap->device = adapted->reconstruction.points;
+  show_adapted(*roadmap, *adapted);
   auto m = std::make_shared<PublishedModel>();
   m->adapted = std::move(adapted);
   m->roadmap = std::move(roadmap);
@@ -439,17 +405,27 @@ void LiveNode::output_loop() {
 }
 
 NodeStatistics LiveNode::statistics() const {
-  // The source's own counters first, outside the node's locks (its callbacks take them).
-  const acquisition::FrameSource* source = frames_.load();
-  const std::uint64_t lost = source != nullptr ? source->statistics().dropped : 0;
-  std::lock_guard lock(stats_mutex_);
-  NodeStatistics s = stats_;
-  s.latency_ms = percentiles(latencies_);
-  s.adaptation_ms = percentiles(adaptation_latencies_);
-  s.analysis_skipped = stats_.analysis_skipped;
+  std::optional<std::uint64_t> lost;  // the source's own count, while the node has one
+  {
+    std::lock_guard lock(source_mutex_);
+    if (frames_ != nullptr) lost = frames_->statistics().dropped;
+  }
+  NodeStatistics s;
+  std::vector<double> latencies, adaptation;
+  {
+    std::lock_guard lock(stats_mutex_);
+    s = stats_;
+    latencies.assign(latencies_.begin(), latencies_.end());
+    adaptation = adaptation_latencies_;
+  }
+  // Sorted outside the lock: the compose thread takes it for every frame.
+  s.latency_ms = percentiles(std::move(latencies));
+  s.adaptation_ms = percentiles(std::move(adaptation));
   s.dropped_input = input_.dropped();
   s.dropped_output = output_.dropped();
-  if (source != nullptr) s.frames_lost_by_source = lost;
+  s.analysis_skipped = analysis_.superseded();
+  s.pairs_superseded = pairs_.superseded();
+  if (lost) s.frames_lost_by_source = *lost;
   {
     std::lock_guard tl(timeline_mutex_);
     s.carm_clock_offset_ns = timeline_.carm_clock_offset_ns();

@@ -17,6 +17,7 @@
 #include <atomic>
 #include <chrono>
 #include <cstdint>
+#include <deque>
 #include <memory>
 #include <mutex>
 #include <optional>
@@ -63,13 +64,11 @@ struct PublishedModel {
 };
 
 struct ComposedFrame {
-  overlay::Image image;
+  std::shared_ptr<const overlay::Image> image;    ///< shared, so a sink may keep it without a copy
   std::uint64_t sequence = 0;
   std::int64_t device_time_ns = 0;
-  std::chrono::steady_clock::time_point arrival;
   double latency_ms = 0.0;                        ///< arrival → composited
-  bool roadmap = false;                           ///< a roadmap was drawn (usable geometry)
-  std::optional<geometry::ProjectionMatrix> P_ct;
+  std::optional<geometry::ProjectionMatrix> P_ct; ///< the roadmap's projection; empty: none drawn
   std::shared_ptr<const PublishedModel> model;
 };
 
@@ -98,7 +97,7 @@ struct NodeStatistics {
   std::uint64_t analysed = 0, analysis_skipped = 0, candidates = 0, pairs = 0, pairs_superseded = 0;
   std::uint64_t adaptations = 0, adaptation_failures = 0;
   std::uint64_t video_stalls = 0, stale_geometry_frames = 0, moving_frames = 0, sink_errors = 0;
-  Percentiles latency_ms;            ///< frame arrival → composited
+  Percentiles latency_ms;            ///< frame arrival → composited, over the last kLatencyWindow frames
   Percentiles adaptation_ms;         ///< second view's frame arrival → model ready
   std::string last_failure;          ///< the last adaptation failure ("" if none)
   std::optional<std::int64_t> carm_clock_offset_ns;
@@ -121,6 +120,9 @@ class LiveNode {
   LiveNode(const LiveNode&) = delete;
   LiveNode& operator=(const LiveNode&) = delete;
 
+  /// Latency percentiles are over this many most recent frames (about 55 min at 30 fps).
+  static constexpr std::size_t kLatencyWindow = 100'000;
+
   /// Starts the threads and the sources (C-arm first). The sources must outlive stop().
   /// Throws what the sources throw when they cannot be opened (nothing left running).
   void start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm);
@@ -136,7 +138,10 @@ class LiveNode {
   std::vector<FrameLogEntry> frame_log() const;
 
  private:
-  struct Analysis;   // a frame offered to the analysis thread
+  struct Analysis {  // a frame offered to the analysis thread
+    acquisition::Frame frame;
+    FrameView view;
+  };
   void on_frame(const acquisition::Frame& frame);
   void compose_loop();
   void analysis_loop();
@@ -147,18 +152,18 @@ class LiveNode {
   void clear_alert(const std::string& key);
   std::vector<std::string> current_alerts();
 
-  const geometry::Scene& scene_;
   NodeOptions options_;
   std::vector<std::unique_ptr<OutputSink>> sinks_;
   std::unique_ptr<deform::SceneDeformer> deformer_;
   std::shared_ptr<const overlay::RoadmapModel> initial_roadmap_;
   std::atomic<overlay::RoadmapMode> mode_;
 
-  std::atomic<acquisition::FrameSource*> frames_{nullptr};  // null when not running
+  mutable std::mutex source_mutex_;  // frames_ against stop() letting go of it
+  acquisition::FrameSource* frames_ = nullptr;  // null when not running
   acquisition::CArmGeometrySource* carm_ = nullptr;
   BoundedQueue<acquisition::Frame> input_;
   BoundedQueue<ComposedFrame> output_;
-  std::unique_ptr<LatestSlot<Analysis>> analysis_;
+  LatestSlot<Analysis> analysis_;
   LatestSlot<ViewPair> pairs_;
   std::atomic<bool> retry_pair_{false};
 
@@ -171,7 +176,8 @@ class LiveNode {
 
   mutable std::mutex stats_mutex_;
   NodeStatistics stats_;
-  std::vector<double> latencies_, adaptation_latencies_;
+  std::deque<double> latencies_;  // the last kLatencyWindow frames
+  std::vector<double> adaptation_latencies_;
   std::vector<FrameLogEntry> frame_log_;
 
   struct Alert {

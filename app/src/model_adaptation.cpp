@@ -13,12 +13,26 @@ double ms_since(std::chrono::steady_clock::time_point t0) {
 }
 }  // namespace
 
+overlay::RoadmapModel roadmap_model(const geometry::Scene& scene, const AdaptedModel* adapted) {
+  overlay::RoadmapModel r;
+  for (const auto& v : scene.vessels) r.initial.push_back(v.mesh.mesh);
+  r.initial_landmarks = scene.landmarks;
+  if (adapted != nullptr) show_adapted(r, *adapted);
+  return r;
+}
+
+void show_adapted(overlay::RoadmapModel& roadmap, const AdaptedModel& adapted) {
+  roadmap.adapted.clear();
+  for (const auto& v : adapted.deformation.vessels) roadmap.adapted.push_back(v.mesh);
+  roadmap.adapted_landmarks = adapted.deformation.landmarks;
+  roadmap.device = adapted.reconstruction.points;
+}
+
 AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& pair, const AdaptationOptions& options,
                          const deform::SceneDeformation* previous) {
   AdaptedModel m;
   m.frame_earlier = pair.earlier.frame;
   m.frame_later = pair.later.frame;
-  m.time_ns = pair.later.time_ns;
   auto t0 = std::chrono::steady_clock::now();
   try {
     m.reconstruction = geometry::reconstruct_two_view(pair.earlier.curve_px, pair.earlier.geometry.P_ct,

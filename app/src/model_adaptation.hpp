@@ -7,6 +7,7 @@
 
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/two_view_reconstruction.hpp"
+#include "evar/overlay/frame_compositor.hpp"
 #include "view_pair_selector.hpp"
 
 namespace evar::app {
@@ -21,7 +22,6 @@ struct AdaptationOptions {
 
 struct AdaptedModel {
   std::uint64_t frame_earlier = 0, frame_later = 0;
-  std::int64_t time_ns = 0;                 ///< of the later view's frame
   geometry::Reconstruction reconstruction;  ///< CT LPS mm
   deform::SceneDeformation deformation;
   double reconstruct_ms = 0.0, deform_ms = 0.0;
@@ -32,6 +32,12 @@ class AdaptationError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
+
+/// What the roadmap draws: the scene's vessels and landmarks, and, given a model, its
+/// deformed vessels (same order), moved landmarks and reconstructed device.
+overlay::RoadmapModel roadmap_model(const geometry::Scene& scene, const AdaptedModel* adapted);
+/// Puts a model's deformed vessels, moved landmarks and device into a roadmap.
+void show_adapted(overlay::RoadmapModel& roadmap, const AdaptedModel& adapted);
 
 /// `previous`: the last model's deformation, to warm-start the solve (SceneDeformer::deform).
 AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& pair, const AdaptationOptions& options,

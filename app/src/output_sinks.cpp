@@ -1,13 +1,10 @@
 #include "output_sinks.hpp"
 
-#include <opencv2/core.hpp>
-#include <opencv2/imgcodecs.hpp>
-
 namespace evar::app {
 
 void VideoSink::write(const ComposedFrame& frame) {
-  if (!writer_) writer_ = std::make_unique<overlay::VideoFileWriter>(path_, fps_, frame.image.width, frame.image.height);
-  writer_->write(frame.image);
+  if (!writer_) writer_ = std::make_unique<overlay::VideoFileWriter>(path_, fps_, frame.image->width, frame.image->height);
+  writer_->write(*frame.image);
 }
 
 void VideoSink::finish() {
@@ -19,19 +16,17 @@ SnapshotSink::SnapshotSink(std::filesystem::path directory) : directory_(std::mo
 }
 
 void SnapshotSink::save(const overlay::Image& image, const std::string& file) {
-  const std::filesystem::path path = directory_ / file;
-  const cv::Mat m(image.height, image.width, CV_8UC3, const_cast<std::uint8_t*>(image.bgr.data()));
-  if (!cv::imwrite(path.string(), m)) throw std::runtime_error(path.string() + ": cannot write");
-  written_.push_back(path);
+  overlay::write_png(directory_ / file, image);
+  written_.push_back(directory_ / file);
 }
 
 void SnapshotSink::write(const ComposedFrame& frame) {
   const std::uint64_t version = frame.model ? frame.model->version : 0;
   if (previous_ && version != previous_version_) {
     save(*previous_, "model-" + std::to_string(version) + "-before.png");
-    save(frame.image, "model-" + std::to_string(version) + "-after.png");
+    save(*frame.image, "model-" + std::to_string(version) + "-after.png");
   }
-  if (requested_.exchange(false)) save(frame.image, "snapshot-" + std::to_string(frame.sequence) + ".png");
+  if (requested_.exchange(false)) save(*frame.image, "snapshot-" + std::to_string(frame.sequence) + ".png");
   previous_ = frame.image;
   previous_version_ = version;
 }
@@ -45,7 +40,7 @@ void IgtlSink::write(const ComposedFrame& frame) {
   const auto now = std::chrono::steady_clock::now();
   if (last_sent_ && std::chrono::duration<double, std::milli>(now - *last_sent_).count() < min_interval_ms_) return;
   last_sent_ = now;
-  server_.send_image("evarnode", frame.image, mm_per_px_, frame.device_time_ns);
+  server_.send_image("evarnode", *frame.image, mm_per_px_, frame.device_time_ns);
 }
 
 void IgtlSink::model_changed(const PublishedModel& model) {
@@ -58,7 +53,7 @@ void IgtlSink::model_changed(const PublishedModel& model) {
 
 void WindowSink::write(const ComposedFrame& frame) {
   if (!window_) window_ = std::make_unique<overlay::DisplayWindow>("evarnode", fullscreen_);
-  switch (window_->show(frame.image)) {
+  switch (window_->show(*frame.image)) {
     case overlay::WindowKey::CycleMode:
       if (actions_.cycle_mode) actions_.cycle_mode();
       break;

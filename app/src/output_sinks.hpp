@@ -45,7 +45,7 @@ class SnapshotSink final : public OutputSink {
  private:
   void save(const overlay::Image& image, const std::string& file);
   std::filesystem::path directory_;
-  std::optional<overlay::Image> previous_;
+  std::shared_ptr<const overlay::Image> previous_;  // held, not copied
   std::uint64_t previous_version_ = 0;
   std::atomic<bool> requested_{false};
   std::vector<std::filesystem::path> written_;

@@ -40,25 +40,6 @@ double session_fps(const sim::Session& s) {
   return std::clamp(1.0 / dt[dt.size() / 2], 1.0, 120.0);
 }
 
-// The ostium distances in the frames the node composited with an adapted model.
-std::optional<std::vector<LandmarkError>> evaluate_run(const sim::Session& session, const geometry::Scene& scene,
-                                                       const std::vector<FrameLogEntry>& log_entries, std::size_t* frames) {
-  if (!session.truth || session.frames.empty()) return std::nullopt;
-  std::multimap<std::int64_t, sim::OstiumTruth> truth;
-  for (const auto& o : session.truth->ostia) truth.emplace(o.frame, o);
-  OstiumErrors errors(scene.landmarks);
-  *frames = 0;
-  for (const auto& e : log_entries) {
-    if (!e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) continue;
-    const auto& record = session.frames[(e.sequence - 1) % session.frames.size()];
-    std::vector<sim::OstiumTruth> here;
-    const auto [lo, hi] = truth.equal_range(record.frame);
-    for (auto it = lo; it != hi; ++it) here.push_back(it->second);
-    if (errors.add(*e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks, here)) ++*frames;
-  }
-  return errors.result();
-}
-
 }  // namespace
 
 int run_node(const RunCommand& cmd) {
@@ -98,7 +79,6 @@ int run_node(const RunCommand& cmd) {
   if (config) {
     options.candidate.device_diameter_mm = config->device_diameter_mm;
     options.candidate.min_contrast = config->min_contrast;
-    options.pairs.min_separation_deg = config->min_separation_deg;
     options.adaptation.reconstruction.min_separation_deg = config->min_separation_deg;
     if (config->geometry_stale_ms)
       options.timeline.stale_after = std::chrono::milliseconds(static_cast<std::int64_t>(*config->geometry_stale_ms));
@@ -116,7 +96,7 @@ int run_node(const RunCommand& cmd) {
   SnapshotSink* snapshots = nullptr;
   IgtlSink* igtl = nullptr;
   if (!cmd.no_video) {
-    auto s = std::make_unique<VideoSink>(cmd.out / cmd.video, fps * (cmd.fast ? 1.0 : 1.0));
+    auto s = std::make_unique<VideoSink>(cmd.out / cmd.video, fps);
     video = s.get();
     sinks.push_back(std::move(s));
   }
@@ -234,35 +214,33 @@ int run_node(const RunCommand& cmd) {
                    {"igtl_messages", igtl ? igtl->statistics().messages_sent : 0}}}};
   if (s.carm_clock_offset_ns) report["carm_clock_offset_ns"] = *s.carm_clock_offset_ns;
   std::size_t evaluated = 0;
-  if (session) {
-    if (const auto errors = evaluate_run(*session, scene, node.frame_log(), &evaluated)) {
-      nlohmann::json lm = nlohmann::json::array();
-      std::ostringstream md;
-      md << "| landmark | frames | initial (mm) | adapted (mm) | initial vertical (mm) | adapted vertical (mm) |\n"
-            "|---|---|---|---|---|---|\n";
-      std::vector<double> before, after;
-      char row[200];
-      for (const auto& l : *errors) {
-        lm.push_back({{"label", l.label}, {"frames", l.frames}, {"initial_mm", l.initial_mm}, {"adapted_mm", l.adapted_mm},
-                      {"initial_vertical_mm", l.initial_vertical_mm}, {"adapted_vertical_mm", l.adapted_vertical_mm}});
-        std::snprintf(row, sizeof row, "| %s | %d | %.2f | %.2f | %.2f | %.2f |\n", l.label.c_str(), l.frames,
-                      l.initial_mm, l.adapted_mm, l.initial_vertical_mm, l.adapted_vertical_mm);
-        md << row;
-        before.push_back(l.initial_mm);
-        after.push_back(l.adapted_mm);
-      }
-      const Statistic b = statistic(before), a = statistic(after);
-      std::snprintf(row, sizeof row, "| **mean ± sd** | | **%.2f ± %.2f** | **%.2f ± %.2f** | | |\n", b.mean, b.sd, a.mean, a.sd);
+  if (session && session->truth) {
+    const std::vector<LandmarkError> errors = evaluate_frame_log(*session, scene, node.frame_log(), &evaluated);
+    nlohmann::json lm = nlohmann::json::array();
+    std::ostringstream md;
+    md << "| landmark | frames | initial (mm) | adapted (mm) | initial vertical (mm) | adapted vertical (mm) |\n"
+          "|---|---|---|---|---|---|\n";
+    std::vector<double> before, after;
+    char row[200];
+    for (const auto& l : errors) {
+      lm.push_back(to_json(l));
+      std::snprintf(row, sizeof row, "| %s | %d | %.2f | %.2f | %.2f | %.2f |\n", l.label.c_str(), l.frames, l.initial_mm,
+                    l.adapted_mm, l.initial_vertical_mm, l.adapted_vertical_mm);
       md << row;
-      report["evaluation"] = {{"frames", evaluated}, {"landmarks", lm}};
-      std::ofstream f(cmd.out / "eval.md");
-      f << "# Ostium distances in the frames shown with the adapted model\n\n"
-        << "2D distance between each true ostium and its landmark projected from the preoperative (initial) and the\n"
-           "adapted model, in mm at the isocenter, averaged over the "
-        << evaluated << " frames shown with an adapted model and a settled C-arm.\n\n"
-        << md.str();
-      std::fputs(md.str().c_str(), stdout);
+      before.push_back(l.initial_mm);
+      after.push_back(l.adapted_mm);
     }
+    const Statistic b = statistic(before), a = statistic(after);
+    std::snprintf(row, sizeof row, "| **mean ± sd** | | **%.2f ± %.2f** | **%.2f ± %.2f** | | |\n", b.mean, b.sd, a.mean, a.sd);
+    md << row;
+    report["evaluation"] = {{"frames", evaluated}, {"landmarks", lm}};
+    std::ofstream f(cmd.out / "eval.md");
+    f << "# Ostium distances in the frames shown with the adapted model\n\n"
+      << "2D distance between each true ostium and its landmark projected from the preoperative (initial) and the\n"
+         "adapted model, in mm at the isocenter, averaged over the "
+      << evaluated << " frames shown with an adapted model and a settled C-arm.\n\n"
+      << md.str();
+    std::fputs(md.str().c_str(), stdout);
   }
   write_json(cmd.out / "run_report.json", report);
   log().info("{} frames in {:.1f} s: {} shown ({} with the roadmap), {} dropped; latency p50 {:.1f} ms, p99 {:.1f} ms; "

@@ -13,18 +13,23 @@
 
 namespace evar::app {
 
-bool OstiumErrors::add(const geometry::ProjectionMatrix& P_ct, double mm_per_px,
-                       const std::vector<geometry::ControlPoint>& adapted, const std::vector<sim::OstiumTruth>& truth) {
+OstiumErrors::OstiumErrors(std::vector<geometry::ControlPoint> initial, const std::vector<sim::OstiumTruth>& truth)
+    : initial_(std::move(initial)) {
+  for (const auto& t : truth) truth_.emplace(t.frame, t);
+}
+
+bool OstiumErrors::add(std::int64_t frame, const geometry::ProjectionMatrix& P_ct, double mm_per_px,
+                       const std::vector<geometry::ControlPoint>& adapted) {
   bool any = false;
-  for (const sim::OstiumTruth& t : truth)
+  const auto [lo, hi] = truth_.equal_range(frame);
+  for (auto it = lo; it != hi; ++it) {
+    const sim::OstiumTruth& t = it->second;
     for (std::size_t k = 0; k < initial_.size() && k < adapted.size(); ++k) {
       if (initial_[k].label != t.label) continue;
       const auto before = geometry::project(P_ct, initial_[k].position_lps);
       const auto after = geometry::project(P_ct, adapted[k].position_lps);
       if (!before || !after) continue;
-      auto it = std::find_if(sums_.begin(), sums_.end(), [&](const auto& s) { return s.first == t.label; });
-      if (it == sums_.end()) it = sums_.insert(sums_.end(), {t.label, Sums{}});
-      Sums& s = it->second;
+      Sums& s = sums_[t.label];
       ++s.frames;
       s.initial += (*before - t.pixel).norm() * mm_per_px;
       s.adapted += (*after - t.pixel).norm() * mm_per_px;
@@ -32,6 +37,7 @@ bool OstiumErrors::add(const geometry::ProjectionMatrix& P_ct, double mm_per_px,
       s.adapted_v += std::abs(after->y() - t.pixel.y()) * mm_per_px;
       any = true;
     }
+  }
   return any;
 }
 
@@ -40,32 +46,29 @@ std::vector<LandmarkError> OstiumErrors::result() const {
   for (const auto& [label, s] : sums_)
     out.push_back({label, s.frames, s.initial / s.frames, s.adapted / s.frames, s.initial_v / s.frames,
                    s.adapted_v / s.frames});
-  std::sort(out.begin(), out.end(), [](const auto& a, const auto& b) { return a.label < b.label; });
   return out;
 }
 
 CaseEvaluation evaluate_session(const std::filesystem::path& directory, const EvaluationOptions& options,
                                 const std::function<void(std::size_t, std::size_t)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
-  const sim::Session session = sim::read_session(directory);
+  auto recording = std::make_shared<const sim::Session>(sim::read_session(directory));
+  const sim::Session& session = *recording;
   if (!session.truth)
     throw geometry::InputError((directory / "session.json").string() +
                                ": ground_truth: missing (evaluation needs the true ostia)");
-  const geometry::Scene scene = geometry::load_scene(directory / session.scene);
+  auto loaded = std::make_shared<const geometry::Scene>(geometry::load_scene(directory / session.scene));
+  const geometry::Scene& scene = *loaded;
   if (scene.landmarks.empty())
     throw geometry::InputError(scene.file.string() + ": landmarks: none (nothing to evaluate)");
-  deform::DeformOptions deform_options = options.deform;
-  const deform::SceneDeformer deformer(scene, deform_options);
-
-  std::multimap<std::int64_t, const sim::OstiumTruth*> truth_by_frame;
-  for (const auto& o : session.truth->ostia) truth_by_frame.emplace(o.frame, &o);
+  const deform::SceneDeformer deformer(scene, options.deform);
 
   CaseEvaluation result;
   result.session = directory;
   result.frames = session.frames.size();
-  ViewPairSelector selector(options.pairs);
+  ViewPairSelector selector(options.adaptation.reconstruction.min_separation_deg, options.pairs);
   std::shared_ptr<const AdaptedModel> model;
-  OstiumErrors errors(scene.landmarks);
+  OstiumErrors errors(scene.landmarks, session.truth->ostia);
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const sim::FrameRecord& record = session.frames[i];
     const sim::CArmSample* sample = sim::carm_at(session, record.timestamp_ns);
@@ -80,7 +83,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     if (analysis.candidate) {
       ++result.candidates;
       ViewCandidate c{static_cast<std::uint64_t>(record.frame), record.timestamp_ns, view,
-                      std::move(analysis.curve.points), analysis.curve.confidence};
+                      std::move(analysis.curve.points)};
       if (auto pair = selector.add(std::move(c))) {
         ++result.pairs;
         try {
@@ -95,10 +98,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
       }
     }
     if (model) {
-      std::vector<sim::OstiumTruth> truth;
-      const auto [lo, hi] = truth_by_frame.equal_range(record.frame);
-      for (auto it = lo; it != hi; ++it) truth.push_back(*it->second);
-      if (errors.add(view.P_ct, mm_at_isocenter_per_px(view.view), model->deformation.landmarks, truth)) {
+      if (errors.add(record.frame, view.P_ct, mm_at_isocenter_per_px(view.view), model->deformation.landmarks)) {
         ++result.frames_evaluated;
         result.snapshot_frame = i;
       }
@@ -107,8 +107,32 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   }
   result.landmarks = errors.result();
   result.model = model;
+  result.recording = std::move(recording);
+  result.scene = std::move(loaded);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return result;
+}
+
+std::vector<LandmarkError> evaluate_frame_log(const sim::Session& session, const geometry::Scene& scene,
+                                              const std::vector<FrameLogEntry>& log, std::size_t* frames) {
+  *frames = 0;
+  if (!session.truth || session.frames.empty()) return {};
+  OstiumErrors errors(scene.landmarks, session.truth->ostia);
+  for (const auto& e : log) {
+    if (!e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) continue;
+    const sim::FrameRecord& record = session.frames[(e.sequence - 1) % session.frames.size()];
+    if (errors.add(record.frame, *e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks)) ++*frames;
+  }
+  return errors.result();
+}
+
+nlohmann::json to_json(const LandmarkError& l) {
+  return {{"label", l.label},
+          {"frames", l.frames},
+          {"initial_mm", l.initial_mm},
+          {"adapted_mm", l.adapted_mm},
+          {"initial_vertical_mm", l.initial_vertical_mm},
+          {"adapted_vertical_mm", l.adapted_vertical_mm}};
 }
 
 Statistic statistic(std::vector<double> values) {

@@ -12,7 +12,12 @@
 #include <string>
 #include <vector>
 
+#include <map>
+
+#include <nlohmann/json.hpp>
+
 #include "device_candidate.hpp"
+#include "live_node.hpp"
 #include "evar/sim/session.hpp"
 #include "model_adaptation.hpp"
 #include "view_pair_selector.hpp"
@@ -37,14 +42,15 @@ struct LandmarkError {
 /// with `evarnode run` on sessions with ground truth).
 class OstiumErrors {
  public:
-  /// The preoperative landmarks (CT LPS mm, labelled as in the truth).
-  explicit OstiumErrors(std::vector<geometry::ControlPoint> initial) : initial_(std::move(initial)) {}
-  /// One frame: its projection, mm at the isocenter per pixel, the adapted landmarks (same
-  /// order as the initial ones) and where the true ostia project in it. True when at least
-  /// one landmark was measured.
-  bool add(const geometry::ProjectionMatrix& P_ct, double mm_per_px, const std::vector<geometry::ControlPoint>& adapted,
-           const std::vector<sim::OstiumTruth>& truth);
-  /// The means per landmark (only those measured).
+  /// The preoperative landmarks (CT LPS mm, labelled as in the truth) and where the true
+  /// ostia project, frame by frame.
+  OstiumErrors(std::vector<geometry::ControlPoint> initial, const std::vector<sim::OstiumTruth>& truth);
+  /// One frame (its number in the session): its projection, mm at the isocenter per pixel
+  /// and the adapted landmarks (same order as the initial ones). True when at least one
+  /// landmark was measured.
+  bool add(std::int64_t frame, const geometry::ProjectionMatrix& P_ct, double mm_per_px,
+           const std::vector<geometry::ControlPoint>& adapted);
+  /// The means per landmark (only those measured), by label.
   std::vector<LandmarkError> result() const;
 
  private:
@@ -53,7 +59,8 @@ class OstiumErrors {
     double initial = 0, adapted = 0, initial_v = 0, adapted_v = 0;
   };
   std::vector<geometry::ControlPoint> initial_;
-  std::vector<std::pair<std::string, Sums>> sums_;
+  std::multimap<std::int64_t, sim::OstiumTruth> truth_;
+  std::map<std::string, Sums> sums_;
 };
 
 struct CaseEvaluation {
@@ -63,6 +70,8 @@ struct CaseEvaluation {
   std::size_t frames_evaluated = 0;
   std::vector<LandmarkError> landmarks;  ///< only those measured
   std::shared_ptr<const AdaptedModel> model;  ///< the last adapted model (null when none)
+  std::shared_ptr<const sim::Session> recording;  ///< as read (for pictures)
+  std::shared_ptr<const geometry::Scene> scene;   ///< as loaded (for pictures)
   std::size_t snapshot_frame = 0;       ///< index of the last evaluated frame (for pictures)
   double seconds = 0.0;
 };
@@ -71,6 +80,15 @@ struct CaseEvaluation {
 /// files. `progress(done, total)` after each frame.
 CaseEvaluation evaluate_session(const std::filesystem::path& session, const EvaluationOptions& options = {},
                                 const std::function<void(std::size_t, std::size_t)>& progress = {});
+
+/// The distances in the frames a node composited with an adapted model (its frame log, on a
+/// replay of `session`: sequence n is the session's frame (n − 1) modulo its length).
+/// `frames` gets how many frames were measured. Empty for a session without ground truth.
+std::vector<LandmarkError> evaluate_frame_log(const sim::Session& session, const geometry::Scene& scene,
+                                              const std::vector<FrameLogEntry>& log, std::size_t* frames);
+
+/// {"label", "frames", "initial_mm", "adapted_mm", "initial_vertical_mm", "adapted_vertical_mm"}.
+nlohmann::json to_json(const LandmarkError& l);
 
 struct Statistic {
   double mean = 0, sd = 0, median = 0;

@@ -6,9 +6,10 @@
 
 namespace evar::app {
 
-ViewPairSelector::ViewPairSelector(ViewPairOptions options) : options_(options) {
-  if (!(options_.same_view_deg > 0 && options_.same_view_deg < options_.min_separation_deg &&
-        options_.min_separation_deg < 90) || options_.max_views < 2)
+ViewPairSelector::ViewPairSelector(double min_separation_deg, ViewPairOptions options)
+    : min_separation_deg_(min_separation_deg), options_(options) {
+  if (!(options_.same_view_deg > 0 && options_.same_view_deg < min_separation_deg_ && min_separation_deg_ < 90) ||
+      options_.max_views < 2)
     throw std::invalid_argument("view pairs: need 0 < same_view_deg < min_separation_deg < 90 and max_views >= 2");
 }
 
@@ -17,7 +18,6 @@ std::optional<ViewPair> ViewPairSelector::add(ViewCandidate candidate) {
     return geometry::view_separation_deg(other.geometry.P_ct, candidate.geometry.P_ct);
   };
   const bool same_as_current = !views_.empty() && separation(views_.back()) < options_.same_view_deg;
-  const bool new_view = !same_as_current;
   if (same_as_current) {
     views_.back() = candidate;
   } else {
@@ -26,11 +26,11 @@ std::optional<ViewPair> ViewPairSelector::add(ViewCandidate candidate) {
     views_.push_back(candidate);
     if (views_.size() > options_.max_views) views_.erase(views_.begin());
   }
-  if (!new_view && !retry_) return std::nullopt;
+  if (same_as_current && !retry_) return std::nullopt;
   // The partner: the newest earlier view far enough away.
   for (auto it = views_.rbegin() + 1; it != views_.rend(); ++it) {
     const double sep = separation(*it);
-    if (sep >= options_.min_separation_deg && sep <= 180.0 - options_.min_separation_deg) {
+    if (sep >= min_separation_deg_ && sep <= 180.0 - min_separation_deg_) {
       retry_ = false;
       return ViewPair{*it, candidate, sep};
     }

@@ -3,7 +3,8 @@
 // on and the C-arm still in which a device was segmented. Candidates are grouped by view
 // (angulations within `same_view_deg`); the newest candidate of each view is kept. The first
 // candidate after the C-arm went to another view makes a pair with the newest candidate of
-// the most recent view at least `min_separation_deg` away: a view pair, reconstructed and
+// the most recent view at least the reconstruction's minimum separation away
+// (geometry::ReconstructionOptions::min_separation_deg): a view pair, reconstructed and
 // adapted to in the background. Newer pairs supersede older ones.
 #include <Eigen/Core>
 #include <cstdint>
@@ -19,7 +20,6 @@ struct ViewCandidate {
   std::int64_t time_ns = 0;             ///< the frame's time (any one clock for all candidates)
   FrameView geometry;
   std::vector<Eigen::Vector2d> curve_px;  ///< the segmented device, tip first
-  double confidence = 0.0;
 };
 
 struct ViewPair {
@@ -28,24 +28,25 @@ struct ViewPair {
 };
 
 struct ViewPairOptions {
-  double min_separation_deg = 20.0;  ///< views closer than this cannot triangulate well
   double same_view_deg = 2.0;        ///< candidates closer than this are one view
   std::size_t max_views = 8;         ///< views remembered (the oldest is forgotten)
 };
 
 class ViewPairSelector {
  public:
-  /// std::invalid_argument unless 0 < same_view_deg < min_separation_deg < 90 and max_views >= 2.
-  explicit ViewPairSelector(ViewPairOptions options = {});
+  /// `min_separation_deg`: views closer than this cannot be reconstructed from (the
+  /// reconstruction's own limit). std::invalid_argument unless
+  /// 0 < same_view_deg < min_separation_deg < 90 and max_views >= 2.
+  explicit ViewPairSelector(double min_separation_deg, ViewPairOptions options = {});
 
   /// Takes a candidate; returns the pair it completes, if any.
   std::optional<ViewPair> add(ViewCandidate candidate);
   /// The last pair could not be used (reconstruction failed): the next candidate of the
   /// current view tries again with its newer frame.
   void retry() { retry_ = true; }
-  std::size_t views() const { return views_.size(); }
 
  private:
+  double min_separation_deg_;
   ViewPairOptions options_;
   std::vector<ViewCandidate> views_;  // newest candidate per view, most recent view last
   bool retry_ = false;

@@ -444,16 +444,20 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     }
   };
   run_dijkstra();
+  // The search again from one pixel only.
+  const auto reroot = [&](int root) {
+    std::fill(dist.begin(), dist.end(), kInf);
+    std::fill(parent.begin(), parent.end(), -1);
+    dist[static_cast<std::size_t>(root)] = 0.0f;
+    heap.emplace(0.0f, root);
+    run_dijkstra();
+  };
   if (!border_reachable) {
     // Re-root at the far end of the device so the path runs end to end.
     int far = order.front();
     for (const int q : order)
       if (confident.at<std::uint8_t>(q / W, q % W) && dist[static_cast<std::size_t>(q)] > dist[static_cast<std::size_t>(far)]) far = q;
-    std::fill(dist.begin(), dist.end(), kInf);
-    std::fill(parent.begin(), parent.end(), -1);
-    dist[static_cast<std::size_t>(far)] = 0.0f;
-    heap.emplace(0.0f, far);
-    run_dijkstra();
+    reroot(far);
   }
 
   // Evidence collected on the way to the root: +1 per pixel on (or next to) a confident
@@ -534,11 +538,7 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     // choice sees the device's whole visible length.
     int root = tip;
     while (parent[static_cast<std::size_t>(root)] >= 0) root = parent[static_cast<std::size_t>(root)];
-    std::fill(dist.begin(), dist.end(), kInf);
-    std::fill(parent.begin(), parent.end(), -1);
-    dist[static_cast<std::size_t>(root)] = 0.0f;
-    heap.emplace(0.0f, root);
-    run_dijkstra();
+    reroot(root);
     std::fill(score.begin(), score.end(), -kInf);
     tip = choose_tip();
   }

@@ -5,6 +5,7 @@
 #include <cstring>
 #include <stdexcept>
 
+#include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
 #include "evar/overlay/perspective_projection.hpp"
@@ -100,6 +101,13 @@ void FrameCompositor::update_lut(const GreyFrame& f) {
     const double lo = at(0.01), hi = at(0.99);
     wl.window = std::max(hi - lo, 1.0);
     wl.level = 0.5 * (lo + hi);
+    // Noise moves the percentiles a little every frame; while neither end of the window
+    // moves by a grey level the display is the same, so the table is kept (no flicker, no
+    // rebuilding 65536 entries per frame).
+    const double grey_level = lut_window_.window / 255.0;
+    const double old_low = lut_window_.level - 0.5 * lut_window_.window, old_high = old_low + lut_window_.window;
+    if (lut_bits_ == f.bits && std::abs(lo - old_low) < grey_level && std::abs(std::max(hi, lo + 1.0) - old_high) < grey_level)
+      wl = lut_window_;
   }
   last_window_ = wl;
   if (lut_bits_ == f.bits && lut_window_.window == wl.window && lut_window_.level == wl.level) return;
@@ -112,7 +120,26 @@ void FrameCompositor::update_lut(const GreyFrame& f) {
   lut_window_ = wl;
 }
 
+bool FrameCompositor::same_layer(const LayerKey& a, const LayerKey& b) const {
+  if (a.model != b.model || a.mode != b.mode || a.width != b.width || a.height != b.height) return false;
+  if (a.P == b.P) return true;
+  // Angle and table readings jitter while the C-arm stands still: a projection that moves
+  // no corner of the model's bounding box by a quarter pixel draws the same roadmap.
+  for (const Eigen::Vector3d& c : layer_corners_) {
+    const Eigen::Vector3d pa = a.P * c.homogeneous(), pb = b.P * c.homogeneous();
+    if (pa.z() <= 0 || pb.z() <= 0 || (pa.hnormalized() - pb.hnormalized()).norm() >= 0.25) return false;
+  }
+  return true;
+}
+
 void FrameCompositor::render_layer(const LayerKey& key, const RoadmapModel& model) {
+  Eigen::AlignedBox3d box;
+  for (const auto* meshes : {&model.initial, &model.adapted})
+    for (const auto& m : *meshes)
+      for (Eigen::Index i = 0; i < m.V.rows(); ++i) box.extend(m.V.row(i).transpose());
+  layer_corners_.clear();
+  if (!box.isEmpty())
+    for (int k = 0; k < 8; ++k) layer_corners_.push_back(box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
   const PerspectiveProjection view(key.P, key.width, key.height);
   const Overlay overlay = roadmap_overlay(model, key.mode);
   DrawOptions draw;
@@ -136,8 +163,8 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
   update_lut(frame);
   const bool roadmap = P_ct != nullptr && model != nullptr;
   if (roadmap) {
-    LayerKey key{*P_ct, model.get(), mode, frame.width, frame.height};
-    if (!key_ || !(*key_ == key)) {
+    const LayerKey key{*P_ct, model.get(), mode, frame.width, frame.height};
+    if (!key_ || !same_layer(*key_, key)) {
       key_.reset();  // a throw below leaves no half-made layer behind
       render_layer(key, *model);
       key_ = key;

@@ -615,21 +615,22 @@ Image render_comparison(const ComparisonPicture& picture, const PreviewOptions& 
   return image;
 }
 
-void write_comparison_png(const std::filesystem::path& path, const ComparisonPicture& picture,
-                          const PreviewOptions& options) {
-  const cv::Mat canvas = render(picture, options);
+void write_png(const std::filesystem::path& path, const Image& image) {
   // Encode in memory and write ourselves: the format does not depend on the extension and
   // a failure can name its reason (imwrite only returns false).
   std::vector<std::uint8_t> png;
-  if (!cv::imencode(".png", canvas, png))
-    throw std::runtime_error("write_comparison_png: PNG encoding failed for " + path.string());
+  if (!cv::imencode(".png", wrap(const_cast<Image&>(image)), png))
+    throw std::runtime_error("write_png: PNG encoding failed for " + path.string());
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out)
-    throw std::runtime_error("write_comparison_png: cannot open " + path.string() + " for writing: " +
-                             std::strerror(errno));
+  if (!out) throw std::runtime_error("write_png: cannot open " + path.string() + " for writing: " + std::strerror(errno));
   out.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
   out.close();
-  if (!out) throw std::runtime_error("write_comparison_png: writing " + path.string() + " failed");
+  if (!out) throw std::runtime_error("write_png: writing " + path.string() + " failed");
+}
+
+void write_comparison_png(const std::filesystem::path& path, const ComparisonPicture& picture,
+                          const PreviewOptions& options) {
+  write_png(path, render_comparison(picture, options));
 }
 
 ComparisonPicture deformation_comparison(std::string title, std::vector<geometry::TriangleMesh> before,

@@ -82,19 +82,11 @@ TEST_F(LiveNodeReplay, TheAdaptedOverlayAppearsAndTheOstiumErrorFalls) {
   EXPECT_GE(snapshots_ptr->written().size(), 2u);
   // The frames shown with the adapted model: the ostia projected from it lie closer to the
   // true ostia than those of the preoperative model.
-  app::OstiumErrors errors(scene_->landmarks);
   std::size_t frames = 0;
-  for (const auto& e : node.frame_log()) {
-    if (!e.P_ct || !e.model->adapted) continue;
-    const auto& record = session().frames[(e.sequence - 1) % session().frames.size()];
-    std::vector<sim::OstiumTruth> truth;
-    for (const auto& t : session().truth->ostia)
-      if (t.frame == record.frame) truth.push_back(t);
-    frames += errors.add(*e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks, truth) ? 1 : 0;
-  }
+  const auto errors = app::evaluate_frame_log(session(), *scene_, node.frame_log(), &frames);
   ASSERT_GT(frames, 20u);
   double before = 0, after = 0;
-  for (const auto& l : errors.result()) before += l.initial_mm, after += l.adapted_mm;
+  for (const auto& l : errors) before += l.initial_mm, after += l.adapted_mm;
   EXPECT_LT(after, before) << "initial " << before << " mm, adapted " << after << " mm (sums over landmarks)";
   EXPECT_GT(s.latency_ms.n, 0u);
 }
@@ -159,7 +151,7 @@ TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView
     c.geometry = app::frame_view(d, Eigen::Matrix4d::Identity(), s);
     return c;
   };
-  app::ViewPairSelector selector;
+  app::ViewPairSelector selector(20.0);
   EXPECT_FALSE(selector.add(candidate(1, 0, 0)));
   EXPECT_FALSE(selector.add(candidate(2, 0.5, 0)));   // the same view
   EXPECT_FALSE(selector.add(candidate(3, 10, 0)));    // another view, too close to AP
@@ -173,7 +165,7 @@ TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView
   const auto again = selector.add(candidate(6, 40, 0));
   ASSERT_TRUE(again);
   EXPECT_EQ(again->later.frame, 6u);
-  EXPECT_THROW(app::ViewPairSelector({10.0, 20.0, 8}), std::invalid_argument);
+  EXPECT_THROW(app::ViewPairSelector(10.0, {20.0, 8}), std::invalid_argument);
 }
 
 }  // namespace

@@ -104,6 +104,13 @@ TEST(FrameCompositor, RendersTheLayerOncePerProjectionAndModel) {
   overlay::FrameCompositor c;
   for (int i = 0; i < 5; ++i) c.compose(s.frame, &s.P, s.model, overlay::RoadmapMode::Both, {{"line"}, {}});
   EXPECT_EQ(c.layer_renders(), 1u);
+  // A still C-arm's readings jitter (here 0.005°, a hundredth of a pixel at the model):
+  // the same roadmap, not drawn again.
+  geometry::CArmView jitter = s.view;
+  jitter.primary_angle_deg = 0.005;
+  const auto Pj = geometry::projection_matrix(jitter);
+  c.compose(s.frame, &Pj, s.model, overlay::RoadmapMode::Both, {});
+  EXPECT_EQ(c.layer_renders(), 1u);
   geometry::CArmView moved = s.view;
   moved.primary_angle_deg = 30;
   const auto P2 = geometry::projection_matrix(moved);

@@ -7,7 +7,8 @@
 // every frame: it is drawn over black and over white, which gives per pixel and channel its
 // premultiplied colour B and its transmittance K = W − B, so out = B + g·K/255 for the
 // frame's grey g. Every drawing operation is a blend linear in the background, so this is
-// exact up to rounding (a few grey levels). While the C-arm is still a frame costs only the look-up table and
+// exact up to rounding (a few grey levels). While the C-arm is still (its readings moving
+// the model by under a quarter pixel) a frame costs only the look-up table and
 // the blend.
 #include <cstdint>
 #include <memory>
@@ -74,7 +75,8 @@ class FrameCompositor {
   Image compose(const GreyFrame& frame, const geometry::ProjectionMatrix* P_ct,
                 const std::shared_ptr<const RoadmapModel>& model, RoadmapMode mode, const StatusBlock& status);
 
-  /// How often the roadmap layer was rendered (a cache miss), for tests and reports.
+  /// How often the roadmap layer was rendered (a cache miss: another model, mode or size,
+  /// or a projection that moves the model by a quarter pixel or more), for tests and reports.
   std::size_t layer_renders() const { return layer_renders_; }
   /// The display window of the last frame (after automatic choice).
   WindowLevel last_window() const { return last_window_; }
@@ -85,8 +87,10 @@ class FrameCompositor {
     const RoadmapModel* model = nullptr;
     RoadmapMode mode = RoadmapMode::Both;
     int width = 0, height = 0;
-    bool operator==(const LayerKey&) const = default;
   };
+  /// The layer drawn for `a` serves `b`: same model, mode and size, and a projection that
+  /// moves nothing by a quarter pixel.
+  bool same_layer(const LayerKey& a, const LayerKey& b) const;
   void render_layer(const LayerKey& key, const RoadmapModel& model);
   void update_lut(const GreyFrame& frame);
 
@@ -94,6 +98,7 @@ class FrameCompositor {
   std::optional<LayerKey> key_;
   std::shared_ptr<const RoadmapModel> layer_model_;  // keeps the key's model address valid
   std::vector<std::uint8_t> layer_b_, layer_k_;       // premultiplied colour, transmittance
+  std::vector<Eigen::Vector3d> layer_corners_;        // the drawn model's bounding box
   std::vector<std::uint8_t> lut_;
   int lut_bits_ = 0;
   WindowLevel lut_window_{-1.0, 0.0};

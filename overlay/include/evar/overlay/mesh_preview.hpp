@@ -138,6 +138,10 @@ ComparisonLayout comparison_layout(const ComparisonPicture& picture, const Previ
 /// Renders the picture (exceptions as comparison_layout and composite).
 Image render_comparison(const ComparisonPicture& picture, const PreviewOptions& options = {});
 
+/// Writes an image as a PNG file at `path` (whatever its extension). Throws
+/// std::runtime_error naming the path (and the system's reason) when it cannot be written.
+void write_png(const std::filesystem::path& path, const Image& image);
+
 /// Renders the picture and writes it as a PNG file at `path` (whatever its extension).
 /// Throws std::runtime_error naming the path (and the system's reason) when the file
 /// cannot be written.

@@ -21,8 +21,6 @@ class PerspectiveProjection final : public ViewProjection {
   /// Points within 1 mm of the source plane (or behind it) are not drawn.
   double near_depth() const override { return 1.0; }
 
-  const geometry::ProjectionMatrix& matrix() const { return P_; }
-
  private:
   geometry::ProjectionMatrix P_;
 };
