@@ -47,7 +47,8 @@ std::vector<Eigen::Vector3d> device_points_in_vessel(const geometry::Polyline& c
 
 std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, const geometry::RayCaster& caster,
                                           const geometry::Polyline& centerline, const RadiusProfile& radius,
-                                          const geometry::Polyline& device, const ControlPointOptions& options) {
+                                          const geometry::Polyline& device, const ControlPointOptions& options,
+                                          const LumenTest& in_other_lumen) {
   if (!(options.sample_step_mm > 0.0) || !(options.device_thickness_mm >= 0.0))
     throw std::invalid_argument("control points: sample step must be > 0 and device thickness >= 0");
   const double spacing = options.spacing_mm > 0.0 ? options.spacing_mm : 1.5 * geometry::median_edge_length(mesh);
@@ -57,7 +58,9 @@ std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, co
   int segment = -1;
   if (ours.size() >= 1) {
     // Device samples -> their foot on the centerline.
+    const auto elsewhere = [&](const Eigen::Vector3d& d) { return in_other_lumen && in_other_lumen(d); };
     for (const auto& d : ours) {
+      if (elsewhere(d)) continue;
       const auto foot = onto_centerline.project(d, segment, &segment);
       try_ray(caster, foot.point, d, foot.arc_length_mm, options.device_thickness_mm, candidates);
     }
@@ -75,6 +78,7 @@ std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, co
         // Only rays across the lumen: a device point far along the axis is reached
         // through an end cap, which says nothing about the wall.
         if (std::abs(onto_centerline.project(near.point, segment, &segment).arc_length_mm - s) > r) continue;
+        if (elsewhere(near.point)) continue;
         try_ray(caster, c, near.point, s, options.device_thickness_mm, candidates);
       }
     }

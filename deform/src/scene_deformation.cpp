@@ -31,6 +31,11 @@ struct SceneDeformer::VesselModel {
   RadiusProfile radius;
   std::shared_ptr<const ArapSystem> system;  ///< surface (+ skeleton) terms, tether, ordering
   std::vector<int> isolated;                 ///< vertices no face uses
+  bool closed = false;                       ///< the mesh has an inside (ray parity works)
+  /// Iliacs: the top vertices (foot on the centerline within bind_length of its start),
+  /// each with the closest point of the undeformed aortic surface (face, barycentric).
+  std::vector<std::pair<int, geometry::SurfacePoint>> junction;
+  Eigen::Vector3d top_centroid = Eigen::Vector3d::Zero();  ///< of the junction vertices
   double skeleton_ms = 0.0, weights_ms = 0.0;
 };
 
@@ -48,6 +53,7 @@ std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformO
   const auto& mesh = v.mesh.mesh;
   auto t0 = Clock::now();
   m->caster.emplace(mesh);
+  m->closed = geometry::is_closed(mesh);
   m->skeleton = build_skeleton(*m->caster, v.centerline, options.skeleton);
   m->skeleton_ms = ms_since(t0);
   if (m->skeleton.centres.empty())
@@ -74,6 +80,29 @@ std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformO
   return m;
 }
 
+// The iliac's top vertices and where each sits on the aortic surface. They are bound to
+// the deformed aorta at that closest point (barycentric in its face), so neighbouring
+// top vertices move alike and the junction follows the aorta without tearing the ring
+// (a nearest-vertex binding jumps between aortic vertices that moved differently).
+void bind_junction(VesselModel& m, const geometry::TriangleMesh& aorta, double bind_length_mm) {
+  const auto& v = *m.vessel;
+  const auto& V = v.mesh.mesh.V;
+  // Only vertices near the proximal end can be within bind_length of it along the
+  // centerline (a vertex is at most a few radii from its foot): skip the rest cheaply.
+  const double reach = bind_length_mm + 3.0 * m.radius.at(0.0);
+  const geometry::PolylineProjector onto_centerline(v.centerline);
+  int segment = -1;
+  for (Eigen::Index k = 0; k < V.rows(); ++k) {
+    const Eigen::Vector3d p = V.row(k).transpose();
+    if ((p - v.centerline.front()).squaredNorm() > reach * reach) continue;
+    const auto foot = onto_centerline.project(p, segment, &segment);
+    if (foot.arc_length_mm > bind_length_mm) continue;
+    m.junction.emplace_back(static_cast<int>(k), geometry::closest_point_on_mesh(aorta, p));
+    m.top_centroid += p;
+  }
+  if (!m.junction.empty()) m.top_centroid /= static_cast<double>(m.junction.size());
+}
+
 // The deformed centerline: the mean of each skeleton plane's wall hits, evaluated on the
 // deformed surface (the centres themselves are unknowns only when the skeleton is on).
 geometry::Polyline deformed_centerline(const VesselModel& m, const geometry::Vertices& V) {
@@ -98,14 +127,17 @@ geometry::Polyline deformed_centerline(const VesselModel& m, const geometry::Ver
 // until no new handle appears or `containment_rounds` is reached.
 geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline& device,
                                  const std::map<int, Eigen::Vector3d>& fixed, const DeformOptions& options,
-                                 const geometry::Vertices* previous, VesselReport& report) {
+                                 const LumenTest& in_other_lumen, const geometry::Vertices* previous,
+                                 VesselReport& report) {
   const auto& mesh = m.vessel->mesh.mesh;
   const int n = static_cast<int>(mesh.V.rows());
   auto t0 = Clock::now();
-  auto handles = select_control_points(mesh, *m.caster, m.vessel->centerline, m.radius, device, options.control);
+  auto handles = device.empty() ? std::vector<Handle>{}
+                                : select_control_points(mesh, *m.caster, m.vessel->centerline, m.radius, device,
+                                                        options.control, in_other_lumen);
   report.control_points = static_cast<int>(handles.size());
   report.timings.control_points_ms += ms_since(t0);
-  if (handles.empty()) return mesh.V;
+  if (handles.empty() && fixed.empty()) return mesh.V;
 
   const int centres = m.system->num_unknowns() - n;
   report.skeleton_points = centres > 0 ? centres + static_cast<int>(m.skeleton.spokes.size()) : 0;
@@ -145,13 +177,13 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
     if (!r.X.allFinite())
       throw std::runtime_error("vessel '" + m.vessel->name + "': the ARAP solve produced non-finite positions");
     X = r.X;
-    if (round + 1 >= options.containment_rounds) break;
+    if (device.empty() || round + 1 >= options.containment_rounds) break;
 
     t0 = Clock::now();
     const geometry::TriangleMesh deformed{X.topRows(n), mesh.F};
     const geometry::RayCaster caster(deformed, geometry::RayCaster::BuildQuality::Low);
     const auto more = select_control_points(deformed, caster, deformed_centerline(m, deformed.V), m.radius, device,
-                                            options.control);
+                                            options.control, in_other_lumen);
     std::set<int> fresh;  // vertices constrained for the first time this round
     for (const auto& [v, p] : handle_vertex_targets(deformed, more))
       if (targets.emplace(v, p).second) fresh.insert(v);
@@ -165,9 +197,9 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
   return X.topRows(n);
 }
 
-// The previous frame's vertices of vessel i, when that frame deformed it.
+// The previous frame's vertices of vessel i, when that frame solved for it.
 const geometry::Vertices* warm_start(const SceneDeformation* previous, std::size_t i) {
-  if (!previous || previous->reports[i].control_points == 0) return nullptr;
+  if (!previous || previous->reports[i].iterations == 0) return nullptr;
   return &previous->vessels[i].mesh.V;
 }
 
@@ -204,6 +236,7 @@ SceneDeformer::SceneDeformer(const geometry::Scene& scene, DeformOptions options
       throw geometry::InputError(v.centerline_path.string() + ": the centerline of iliac '" + v.name +
                                  "' runs toward the aorta; it must run from the bifurcation to the distal end");
     models_.push_back(make_model(v, options_));
+    if (v.kind == geometry::VesselKind::Iliac) bind_junction(*models_.back(), aorta.mesh.mesh, options_.bind_length_mm);
   }
   // Each landmark follows the vessel surface it sits on, bound once here; one far from
   // every wall is in the wrong frame.
@@ -286,13 +319,25 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
                                "'); check the device file and the CT to C-arm registration");
   }
 
+  // Device points inside another vessel's preoperative lumen (closed meshes only) are that
+  // vessel's: where the aorta's lumen runs on into an iliac, the device leaves one wall
+  // without pushing it.
+  const auto in_other_lumen = [&models](std::size_t i) -> LumenTest {
+    return [&models, i](const Eigen::Vector3d& p) {
+      for (std::size_t j = 0; j < models.size(); ++j)
+        if (j != i && models[j]->closed && models[j]->caster->contains(p)) return true;
+      return false;
+    };
+  };
+
   // 1. Aorta.
   const auto& aorta_mesh = scene.vessels[static_cast<std::size_t>(aorta)].mesh.mesh;
   auto& aorta_report = out.reports[static_cast<std::size_t>(aorta)];
   {
     const auto& m = *models[static_cast<std::size_t>(aorta)];
     out.vessels[static_cast<std::size_t>(aorta)].mesh.V =
-        deform_vessel(m, device, {}, options, warm_start(previous, static_cast<std::size_t>(aorta)), aorta_report);
+        deform_vessel(m, device, {}, options, in_other_lumen(static_cast<std::size_t>(aorta)),
+                      warm_start(previous, static_cast<std::size_t>(aorta)), aorta_report);
     if (aorta_report.control_points > 0) aorta_report.role = "deformed";
   }
   const auto& aorta_deformed = out.vessels[static_cast<std::size_t>(aorta)].mesh.V;
@@ -305,31 +350,20 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
     const auto& m = *models[i];
     const auto& mesh = v.mesh.mesh;
     const auto t0 = Clock::now();
-    // Top vertices: those whose foot on the centerline is within bind_length of its start.
+    // The top vertices move as the aortic surface where they are bound.
     std::map<int, Eigen::Vector3d> bound;
-    Eigen::Vector3d top_centroid = Eigen::Vector3d::Zero();
-    Eigen::Vector3d mean_shift = Eigen::Vector3d::Zero();
-    // Only vertices near the proximal end can be within bind_length of it along the
-    // centerline (a vertex is at most a few radii from its foot): skip the rest cheaply.
-    const double reach = options.bind_length_mm + 3.0 * m.radius.at(0.0);
-    const geometry::PolylineProjector onto_centerline(v.centerline);
-    int segment = -1;
-    for (Eigen::Index k = 0; k < mesh.V.rows(); ++k) {
-      const Eigen::Vector3d p = mesh.V.row(k).transpose();
-      if ((p - v.centerline.front()).squaredNorm() > reach * reach) continue;
-      const auto foot = onto_centerline.project(p, segment, &segment);
-      if (foot.arc_length_mm > options.bind_length_mm) continue;
-      const int a = geometry::nearest_vertex(aorta_mesh.V, p);
-      const Eigen::Vector3d shift = (aorta_deformed.row(a) - aorta_mesh.V.row(a)).transpose();
-      bound[static_cast<int>(k)] = p + shift;
-      top_centroid += p;
-      mean_shift += shift;
+    double junction_shift_mm = 0.0;  // the largest move of a bound vertex
+    for (const auto& [k, at] : m.junction) {
+      Eigen::Vector3d shift = Eigen::Vector3d::Zero();
+      for (int j = 0; j < 3; ++j) {
+        const int a = aorta_mesh.F(at.face, j);
+        shift += at.barycentric[j] * (aorta_deformed.row(a) - aorta_mesh.V.row(a)).transpose();
+      }
+      bound[k] = mesh.V.row(k).transpose() + shift;
+      junction_shift_mm = std::max(junction_shift_mm, shift.norm());
     }
     r.bound_vertices = static_cast<int>(bound.size());
-    if (!bound.empty()) {
-      top_centroid /= static_cast<double>(bound.size());
-      mean_shift /= static_cast<double>(bound.size());
-    }
+    const Eigen::Vector3d& top_centroid = m.top_centroid;
     r.timings.control_points_ms = ms_since(t0);
     const bool carries = static_cast<int>(i) == device_iliac;
     if (carries && bound.empty())
@@ -337,7 +371,7 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
                                  std::to_string(options.bind_length_mm) +
                                  " mm of its centerline's proximal end, so it cannot be bound to the aorta");
     auto& V_out = out.vessels[i].mesh.V;
-    if (carries) V_out = deform_vessel(m, device, bound, options, warm_start(previous, i), r);
+    if (carries) V_out = deform_vessel(m, device, bound, options, in_other_lumen(i), warm_start(previous, i), r);
     if (carries && r.control_points > 0) {
       r.role = "carries the device";
       // 3. Erase the aortic vertices below the bound iliac points: distal of the plane
@@ -361,8 +395,12 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
                                    : (q - along * axis).norm() < cut_radius;
         if (within) erased[static_cast<std::size_t>(k)] = 1;
       }
-    } else if (!bound.empty() && mean_shift.norm() > 0.0) {
-      V_out = mesh.V.rowwise() + mean_shift.transpose();
+    } else if (!bound.empty() && junction_shift_mm > 0.0) {
+      // 4. No device: the junction moves with the aorta and the rest of the iliac bends
+      // after it by ARAP, held toward its registered pose by the tether as the distal
+      // iliac is by the inguinal ligament and the femoral access (no device handles: the
+      // paper deforms this iliac by nothing; a rigid follow would swing its distal part).
+      V_out = deform_vessel(m, {}, bound, options, {}, warm_start(previous, i), r);
       r.role = "follows the aorta";
     }
   }

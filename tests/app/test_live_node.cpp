@@ -80,14 +80,24 @@ TEST_F(LiveNodeReplay, TheAdaptedOverlayAppearsAndTheOstiumErrorFalls) {
   EXPECT_TRUE(fs::exists(dir_ / "out" / "snapshots" / "model-1-before.png"));
   EXPECT_TRUE(fs::exists(dir_ / "out" / "snapshots" / "model-1-after.png"));
   EXPECT_GE(snapshots_ptr->written().size(), 2u);
-  // The frames shown with the adapted model: the ostia projected from it lie closer to the
-  // true ostia than those of the preoperative model.
+  // The frames shown with the adapted model: the internal iliac ostium of the iliac that
+  // carries the wire, which the method moves, projects closer to the true ostium than from
+  // the preoperative model (by more than half a pixel: 0.25 mm); no landmark ends up
+  // farther by more than 1 mm (about 2 px).
+  // Which view pairs are adapted depends on timing, so nothing here depends on which.
   std::size_t frames = 0;
   const auto errors = app::evaluate_frame_log(session(), *scene_, node.frame_log(), &frames);
   ASSERT_GT(frames, 20u);
-  double before = 0, after = 0;
-  for (const auto& l : errors) before += l.initial_mm, after += l.adapted_mm;
-  EXPECT_LT(after, before) << "initial " << before << " mm, adapted " << after << " mm (sums over landmarks)";
+  const std::string carrier_ostium = "internal_" + generated_->carrier;  // internal_iliac_right
+  bool seen = false;
+  for (const auto& l : errors) {
+    if (l.label == carrier_ostium) {
+      seen = true;
+      EXPECT_LT(l.adapted_mm, l.initial_mm - 0.25) << l.label << ": initial " << l.initial_mm << " mm, adapted " << l.adapted_mm;
+    }
+    EXPECT_LT(l.adapted_mm, l.initial_mm + 1.0) << l.label << ": initial " << l.initial_mm << " mm, adapted " << l.adapted_mm;
+  }
+  EXPECT_TRUE(seen) << "no landmark " << carrier_ostium;
   EXPECT_GT(s.latency_ms.n, 0u);
 }
 

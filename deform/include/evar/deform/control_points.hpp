@@ -6,6 +6,7 @@
 // (d the device point, Δd the device thickness), so the wall ends up Δd beyond the device.
 // No anchors: where the device is inside, the wall gets no constraint.
 #include <Eigen/Core>
+#include <functional>
 #include <map>
 #include <vector>
 
@@ -40,12 +41,18 @@ struct Handle {
 std::vector<Eigen::Vector3d> device_points_in_vessel(const geometry::Polyline& centerline, const RadiusProfile& radius,
                                                      const geometry::Polyline& device, const ControlPointOptions& options);
 
+/// True for a point inside the lumen of another vessel of the scene.
+using LumenTest = std::function<bool(const Eigen::Vector3d&)>;
+
 /// Selects the handles: rays from centerline samples to their nearest device point and from
 /// each device sample's foot on the centerline to it, then thinned to `spacing_mm` keeping
-/// the deepest penetrations first.
+/// the deepest penetrations first. A device point for which `in_other_lumen` holds gives no
+/// handle: lumens connect (the aorta's runs on into the iliacs), and a device passing from
+/// one into the other is outside the first's wall there without pushing on it.
 std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, const geometry::RayCaster& caster,
                                           const geometry::Polyline& centerline, const RadiusProfile& radius,
-                                          const geometry::Polyline& device, const ControlPointOptions& options);
+                                          const geometry::Polyline& device, const ControlPointOptions& options,
+                                          const LumenTest& in_other_lumen = {});
 
 /// Turns handles into vertex targets: each handle moves the three vertices of its triangle
 /// by s; a vertex touched by several handles gets their barycentric-weighted mean shift.

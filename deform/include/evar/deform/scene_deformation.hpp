@@ -1,13 +1,15 @@
 #pragma once
 // The whole deformation stage of the paper (2.3) on a patient scene:
-//   1. the aorta is deformed by its device handles (skeleton-based ARAP);
+//   1. the aorta is deformed by its device handles (skeleton-based ARAP); device points
+//      inside an iliac's lumen give it none (the device passes on into the iliac there);
 //   2. the iliac carrying the device (found from the geometry) is deformed by its device
-//      handles, its top vertices bound to the nearest deformed aortic vertices (they move
-//      by the displacement of that aortic vertex);
+//      handles, its top vertices bound to the deformed aorta: each moves as the aortic
+//      surface at its closest point (barycentric in the nearest aortic triangle);
 //   3. aortic vertices below the bound iliac points are erased (faces removed; the vertex
 //      array keeps its order);
-//   4. an iliac without the device keeps its shape and follows the aorta by the mean
-//      displacement of its top, so the junction stays closed;
+//   4. an iliac without the device has its top bound to the aorta in the same way and
+//      is deformed by ARAP with no other handle: the tether holds its distal part near
+//      the registered pose, so it bends after the junction instead of swinging;
 //   5. landmarks move with the surface they sit on.
 #include <Eigen/Core>
 #include <memory>
