@@ -92,14 +92,19 @@ void bind_junction(VesselModel& m, const geometry::TriangleMesh& aorta, double b
   const double reach = bind_length_mm + 3.0 * m.radius.at(0.0);
   const geometry::PolylineProjector onto_centerline(v.centerline);
   int segment = -1;
+  std::vector<int> top;
+  std::vector<Eigen::Vector3d> points;
   for (Eigen::Index k = 0; k < V.rows(); ++k) {
     const Eigen::Vector3d p = V.row(k).transpose();
     if ((p - v.centerline.front()).squaredNorm() > reach * reach) continue;
     const auto foot = onto_centerline.project(p, segment, &segment);
     if (foot.arc_length_mm > bind_length_mm) continue;
-    m.junction.emplace_back(static_cast<int>(k), geometry::closest_point_on_mesh(aorta, p));
+    top.push_back(static_cast<int>(k));
+    points.push_back(p);
     m.top_centroid += p;
   }
+  const auto on_aorta = geometry::closest_points_on_mesh(aorta, points);
+  for (std::size_t i = 0; i < top.size(); ++i) m.junction.emplace_back(top[i], on_aorta[i]);
   if (!m.junction.empty()) m.top_centroid /= static_cast<double>(m.junction.size());
 }
 

@@ -1,5 +1,7 @@
 #include "evar/geometry/closest_point.hpp"
 
+#include <algorithm>
+#include <cmath>
 #include <limits>
 
 namespace evar::geometry {
@@ -40,16 +42,69 @@ Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen:
 SurfacePoint closest_point_on_mesh(const TriangleMesh& mesh, const Eigen::Vector3d& p) {
   SurfacePoint best;
   best.distance_mm = std::numeric_limits<double>::infinity();
+  // The closest point is no farther than the nearest vertex, and every point of a face lies
+  // within its longest edge from its first corner: faces whose first corner is farther than
+  // the best distance so far plus that edge cannot hold it and are skipped.
+  double bound = std::numeric_limits<double>::infinity();
+  if (mesh.V.rows() > 0) bound = (mesh.V.row(nearest_vertex(mesh.V, p)).transpose() - p).norm();
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
     const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
     const Eigen::Vector3d b = mesh.V.row(mesh.F(f, 1)).transpose();
     const Eigen::Vector3d c = mesh.V.row(mesh.F(f, 2)).transpose();
+    const double reach = std::min(bound, best.distance_mm) + std::sqrt(std::max((b - a).squaredNorm(), (c - a).squaredNorm()));
+    if ((p - a).squaredNorm() > reach * reach) continue;
     const Eigen::Vector3d w = closest_point_on_triangle(p, a, b, c);
     const Eigen::Vector3d q = w[0] * a + w[1] * b + w[2] * c;
     const double d = (p - q).norm();
     if (d < best.distance_mm) best = {static_cast<int>(f), w, q, d};
   }
   return best;
+}
+
+std::vector<SurfacePoint> closest_points_on_mesh(const TriangleMesh& mesh, const std::vector<Eigen::Vector3d>& points) {
+  std::vector<SurfacePoint> out(points.size());
+  if (points.empty() || mesh.F.rows() == 0) {
+    for (std::size_t i = 0; i < points.size(); ++i) out[i] = closest_point_on_mesh(mesh, points[i]);
+    return out;
+  }
+  // A sphere (centre c, radius rho) around the queries, and for each query the distance to
+  // its nearest vertex, which bounds its closest point's. A face can hold an answer only if
+  // its first corner lies within rho + the largest such bound + its longest edge of c.
+  Eigen::Vector3d c = Eigen::Vector3d::Zero();
+  for (const auto& p : points) c += p;
+  c /= static_cast<double>(points.size());
+  double rho = 0.0, farthest = 0.0;
+  std::vector<double> bound(points.size());
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    rho = std::max(rho, (points[i] - c).norm());
+    bound[i] = (mesh.V.row(nearest_vertex(mesh.V, points[i])).transpose() - points[i]).norm();
+    farthest = std::max(farthest, bound[i]);
+  }
+  std::vector<Eigen::Index> candidates;
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
+    const double edge = std::sqrt(std::max((mesh.V.row(mesh.F(f, 1)).transpose() - a).squaredNorm(),
+                                           (mesh.V.row(mesh.F(f, 2)).transpose() - a).squaredNorm()));
+    const double reach = rho + farthest + edge;
+    if ((a - c).squaredNorm() <= reach * reach) candidates.push_back(f);
+  }
+  for (std::size_t i = 0; i < points.size(); ++i) {
+    const Eigen::Vector3d& p = points[i];
+    SurfacePoint& best = out[i];
+    best.distance_mm = std::numeric_limits<double>::infinity();
+    for (const Eigen::Index f : candidates) {
+      const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
+      const Eigen::Vector3d b = mesh.V.row(mesh.F(f, 1)).transpose();
+      const Eigen::Vector3d cc = mesh.V.row(mesh.F(f, 2)).transpose();
+      const double reach = std::min(bound[i], best.distance_mm) + std::sqrt(std::max((b - a).squaredNorm(), (cc - a).squaredNorm()));
+      if ((p - a).squaredNorm() > reach * reach) continue;
+      const Eigen::Vector3d w = closest_point_on_triangle(p, a, b, cc);
+      const Eigen::Vector3d q = w[0] * a + w[1] * b + w[2] * cc;
+      const double d = (p - q).norm();
+      if (d < best.distance_mm) best = {static_cast<int>(f), w, q, d};
+    }
+  }
+  return out;
 }
 
 int nearest_vertex(const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& V,

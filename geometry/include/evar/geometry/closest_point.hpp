@@ -1,6 +1,7 @@
 #pragma once
 // Closest point on a triangle mesh (exact, per triangle; Ericson's region test).
 #include <Eigen/Core>
+#include <vector>
 
 #include "evar/geometry/triangle_mesh.hpp"
 
@@ -19,6 +20,11 @@ Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen:
 
 /// Closest point of the whole mesh to p (linear scan over faces; for a handful of queries).
 SurfacePoint closest_point_on_mesh(const TriangleMesh& mesh, const Eigen::Vector3d& p);
+
+/// Closest points of the mesh to a cluster of points (e.g. one vessel's end): the same
+/// answers as closest_point_on_mesh, with the faces that can hold any of them found in one
+/// pass, so a few hundred queries cost about one scan of the mesh.
+std::vector<SurfacePoint> closest_points_on_mesh(const TriangleMesh& mesh, const std::vector<Eigen::Vector3d>& points);
 
 /// Index of the vertex nearest to p (linear scan).
 int nearest_vertex(const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& V,
