@@ -40,33 +40,13 @@ Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen:
 }
 
 SurfacePoint closest_point_on_mesh(const TriangleMesh& mesh, const Eigen::Vector3d& p) {
-  SurfacePoint best;
-  best.distance_mm = std::numeric_limits<double>::infinity();
-  // The closest point is no farther than the nearest vertex, and every point of a face lies
-  // within its longest edge from its first corner: faces whose first corner is farther than
-  // the best distance so far plus that edge cannot hold it and are skipped.
-  double bound = std::numeric_limits<double>::infinity();
-  if (mesh.V.rows() > 0) bound = (mesh.V.row(nearest_vertex(mesh.V, p)).transpose() - p).norm();
-  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
-    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
-    const Eigen::Vector3d b = mesh.V.row(mesh.F(f, 1)).transpose();
-    const Eigen::Vector3d c = mesh.V.row(mesh.F(f, 2)).transpose();
-    const double reach = std::min(bound, best.distance_mm) + std::sqrt(std::max((b - a).squaredNorm(), (c - a).squaredNorm()));
-    if ((p - a).squaredNorm() > reach * reach) continue;
-    const Eigen::Vector3d w = closest_point_on_triangle(p, a, b, c);
-    const Eigen::Vector3d q = w[0] * a + w[1] * b + w[2] * c;
-    const double d = (p - q).norm();
-    if (d < best.distance_mm) best = {static_cast<int>(f), w, q, d};
-  }
-  return best;
+  return closest_points_on_mesh(mesh, {p}).front();
 }
 
 std::vector<SurfacePoint> closest_points_on_mesh(const TriangleMesh& mesh, const std::vector<Eigen::Vector3d>& points) {
   std::vector<SurfacePoint> out(points.size());
-  if (points.empty() || mesh.F.rows() == 0) {
-    for (std::size_t i = 0; i < points.size(); ++i) out[i] = closest_point_on_mesh(mesh, points[i]);
-    return out;
-  }
+  for (auto& sp : out) sp.distance_mm = std::numeric_limits<double>::infinity();  // no face: none
+  if (points.empty() || mesh.F.rows() == 0) return out;
   // A sphere (centre c, radius rho) around the queries, and for each query the distance to
   // its nearest vertex, which bounds its closest point's. A face can hold an answer only if
   // its first corner lies within rho + the largest such bound + its longest edge of c.
@@ -91,7 +71,6 @@ std::vector<SurfacePoint> closest_points_on_mesh(const TriangleMesh& mesh, const
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3d& p = points[i];
     SurfacePoint& best = out[i];
-    best.distance_mm = std::numeric_limits<double>::infinity();
     for (const Eigen::Index f : candidates) {
       const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
       const Eigen::Vector3d b = mesh.V.row(mesh.F(f, 1)).transpose();

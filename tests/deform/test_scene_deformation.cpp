@@ -14,6 +14,17 @@ const sim::ExampleScene& example() {
   static const sim::ExampleScene ex = sim::make_example_scene({});
   return ex;
 }
+// Largest relative change of an edge's length between two poses of the same faces.
+double worst_edge_strain(const geometry::Faces& F, const geometry::Vertices& V0, const geometry::Vertices& V) {
+  double worst = 0.0;
+  for (Eigen::Index f = 0; f < F.rows(); ++f)
+    for (int j = 0; j < 3; ++j) {
+      const double l0 = (V0.row(F(f, j)) - V0.row(F(f, (j + 1) % 3))).norm();
+      const double l1 = (V.row(F(f, j)) - V.row(F(f, (j + 1) % 3))).norm();
+      worst = std::max(worst, std::abs(l1 / l0 - 1.0));
+    }
+  return worst;
+}
 }  // namespace
 
 TEST(SceneDeformation, AfterDeformEveryDevicePointIsInsideItsVesselOrWithinDeltaDOfTheWall) {
@@ -229,15 +240,7 @@ TEST(SceneDeformation, ContralateralIliacBendsAfterTheJunctionAndKeepsItsDistalE
   // junction's move (a rigid follow would move it as far).
   EXPECT_LT(distal_mm, 0.25 * junction_mm);
   // And the iliac bends rather than stretches: edges keep their length within 5 %.
-  const auto& F = iliac.mesh.mesh.F;
-  double worst = 0.0;
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    for (int j = 0; j < 3; ++j) {
-      const double l0 = (V0.row(F(f, j)) - V0.row(F(f, (j + 1) % 3))).norm();
-      const double l1 = (V.row(F(f, j)) - V.row(F(f, (j + 1) % 3))).norm();
-      worst = std::max(worst, std::abs(l1 / l0 - 1.0));
-    }
-  EXPECT_LT(worst, 0.05);
+  EXPECT_LT(worst_edge_strain(iliac.mesh.mesh.F, V0, V), 0.05);
 }
 
 // Where the device passes from the aorta into the iliac it is outside the aortic wall but
@@ -246,17 +249,7 @@ TEST(SceneDeformation, ContralateralIliacBendsAfterTheJunctionAndKeepsItsDistalE
 TEST(SceneDeformation, TheDevicePassingIntoTheIliacDoesNotPullTheAorticWall) {
   const auto scene = sim::to_scene(example());
   const auto out = deform::deform_scene(scene, example().device);
-  const auto& F = scene.vessels[0].mesh.mesh.F;
-  const auto& V0 = scene.vessels[0].mesh.mesh.V;
-  const auto& V = out.vessels[0].mesh.V;
-  double worst = 0.0;
-  for (Eigen::Index f = 0; f < F.rows(); ++f)
-    for (int j = 0; j < 3; ++j) {
-      const double l0 = (V0.row(F(f, j)) - V0.row(F(f, (j + 1) % 3))).norm();
-      const double l1 = (V.row(F(f, j)) - V.row(F(f, (j + 1) % 3))).norm();
-      worst = std::max(worst, std::abs(l1 / l0 - 1.0));
-    }
-  EXPECT_LT(worst, 0.10);
+  EXPECT_LT(worst_edge_strain(scene.vessels[0].mesh.mesh.F, scene.vessels[0].mesh.mesh.V, out.vessels[0].mesh.V), 0.10);
   // And no aortic handle sits where the device is inside an iliac.
   std::vector<geometry::RayCaster> iliacs;
   for (std::size_t i = 1; i < scene.vessels.size(); ++i) iliacs.emplace_back(scene.vessels[i].mesh.mesh);

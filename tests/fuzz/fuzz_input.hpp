@@ -13,6 +13,7 @@
 #include <span>
 #include <string>
 #include <string_view>
+#include <typeinfo>
 #include <vector>
 
 #include "evar/geometry/input_error.hpp"
@@ -61,21 +62,39 @@ inline std::vector<std::span<const std::uint8_t>> split_parts(const std::uint8_t
   return out;
 }
 
-/// Runs `parse`; an InputError that names `file` is a correct rejection. Any other
-/// exception, or an InputError that does not name the file, is a finding: reported and
-/// aborted, so libFuzzer keeps the input.
+/// Runs `parse`; an InputError is a correct rejection. Any other exception is a finding:
+/// reported and aborted, so libFuzzer keeps the input.
+template <typename Parse>
+void expect_input_error_only(Parse&& parse) {
+  try {
+    parse();
+  } catch (const geometry::InputError&) {
+    throw;
+  } catch (const std::exception& e) {
+    std::fprintf(stderr, "not an InputError (%s): %s\n", typeid(e).name(), e.what());
+    std::abort();
+  }
+}
+
+/// As expect_input_error_only, and the InputError must name `file`.
 template <typename Parse>
 void expect_clean_rejection(const std::filesystem::path& file, Parse&& parse) {
   try {
-    parse();
+    expect_input_error_only(parse);
   } catch (const geometry::InputError& e) {
     if (std::string_view(e.what()).find(file.filename().string()) == std::string_view::npos) {
       std::fprintf(stderr, "InputError without the file name %s: %s\n", file.filename().c_str(), e.what());
       std::abort();
     }
-  } catch (const std::exception& e) {
-    std::fprintf(stderr, "not an InputError (%s): %s\n", typeid(e).name(), e.what());
-    std::abort();
+  }
+}
+
+/// As expect_input_error_only, for inputs of several files (the error names whichever is wrong).
+template <typename Parse>
+void expect_rejection_as_input_error(Parse&& parse) {
+  try {
+    expect_input_error_only(parse);
+  } catch (const geometry::InputError&) {
   }
 }
 

@@ -18,7 +18,8 @@ struct SurfacePoint {
 Eigen::Vector3d closest_point_on_triangle(const Eigen::Vector3d& p, const Eigen::Vector3d& a,
                                           const Eigen::Vector3d& b, const Eigen::Vector3d& c);
 
-/// Closest point of the whole mesh to p (linear scan over faces; for a handful of queries).
+/// Closest point of the whole mesh to p (a scan of the faces that can hold it; face -1 and
+/// an infinite distance for a mesh without faces).
 SurfacePoint closest_point_on_mesh(const TriangleMesh& mesh, const Eigen::Vector3d& p);
 
 /// Closest points of the mesh to a cluster of points (e.g. one vessel's end): the same
