@@ -33,6 +33,8 @@ Constraints read_constraints(const std::filesystem::path& path, const geometry::
     j = nlohmann::json::parse(in);
   } catch (const nlohmann::json::parse_error& e) {
     throw InputError(file + ": not valid JSON (byte " + std::to_string(e.byte) + ")");
+  } catch (const nlohmann::json::exception& e) {  // a number beyond double (out_of_range)
+    throw InputError(file + ": not valid JSON (" + e.what() + ")");
   }
   if (!j.is_object()) throw InputError(file + ": the top level must be an object with \"fixed\" and/or \"handles\"");
   for (const auto& [key, value] : j.items())

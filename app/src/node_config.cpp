@@ -34,11 +34,11 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
   nlohmann::json j;
   try {
     j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
+  } catch (const nlohmann::json::exception& e) {  // syntax, and numbers beyond double (out_of_range)
     fail(path, "(file)", std::string("not JSON: ") + e.what());
   }
   if (!j.is_object()) fail(path, "(file)", "expected a JSON object");
-  if (j.value("format", "") != "evarnode-node") fail(path, "format", "expected \"evarnode-node\"");
+  if (!j.contains("format") || j["format"] != "evarnode-node") fail(path, "format", "expected \"evarnode-node\"");
   if (!j.contains("version") || j["version"] != 1) fail(path, "version", "expected 1");
   NodeConfig c;
   c.file = path;
