@@ -249,10 +249,10 @@ void LiveNode::compose_loop() {
     }
     const bool analyse = view && !g->stale && g->state.fluoro_on;
     const std::shared_ptr<const PublishedModel> model = this->model();
-    std::string last_failure;
+    bool failed = false;  // the last adaptation
     {
       std::lock_guard lock(stats_mutex_);
-      last_failure = stats_.last_failure;
+      failed = !stats_.last_failure.empty();
       stats_.frames_wrong_size += size_ok ? 0 : 1;
       stats_.stale_geometry_frames += g && g->stale ? 1 : 0;
       stats_.moving_frames += g && g->moving ? 1 : 0;
@@ -261,7 +261,7 @@ void LiveNode::compose_loop() {
       lines.push_back("model: preoperative (undeformed), waiting for two views of the device");
     } else {
       std::snprintf(line, sizeof line, "model: %s from frames %llu+%llu, %.0f s ago",
-                    last_failure.empty() ? "adapted" : "STALE (last adaptation failed), adapted",
+                    failed ? "STALE (last adaptation failed), adapted" : "adapted",
                     static_cast<unsigned long long>(model->adapted->frame_earlier),
                     static_cast<unsigned long long>(model->adapted->frame_later),
                     ms_between(model->ready, Clock::now()) / 1000.0);
@@ -330,9 +330,10 @@ void LiveNode::analysis_loop() {
 void LiveNode::adaptation_loop() {
   while (std::optional<ViewPair> pair = pairs_.take()) {
     try {
-      auto m = std::make_shared<const AdaptedModel>(
-          adapt_model(*deformer_, *pair, options_.adaptation, last_adapted_ ? &last_adapted_->deformation : nullptr));
-      last_adapted_ = m;
+      // Warm-started from the model on screen (only this thread publishes).
+      const auto shown = model();
+      auto m = std::make_shared<const AdaptedModel>(adapt_model(*deformer_, *pair, options_.adaptation,
+                                                                shown->adapted ? &shown->adapted->deformation : nullptr));
       publish(m);
       const double ready_ms = static_cast<double>(steady_ns(Clock::now()) - pair->later.time_ns) * 1e-6;
       {

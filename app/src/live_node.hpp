@@ -148,7 +148,9 @@ class LiveNode {
   void adaptation_loop();
   void output_loop();
   void publish(std::shared_ptr<const AdaptedModel> adapted);
-  void set_alert(const std::string& key, const std::string& text, bool warn);
+  /// hold: the alert clears itself after options_.alert_hold (a passing event); otherwise
+  /// it stays until clear_alert (a condition).
+  void set_alert(const std::string& key, const std::string& text, bool hold);
   void clear_alert(const std::string& key);
   std::vector<std::string> current_alerts();
 
@@ -172,7 +174,6 @@ class LiveNode {
 
   mutable std::mutex model_mutex_;
   std::shared_ptr<const PublishedModel> model_;
-  std::shared_ptr<const AdaptedModel> last_adapted_;  // adaptation thread only
 
   mutable std::mutex stats_mutex_;
   NodeStatistics stats_;

@@ -357,7 +357,7 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
     const auto t0 = Clock::now();
     // The top vertices move as the aortic surface where they are bound.
     std::map<int, Eigen::Vector3d> bound;
-    double junction_shift_mm = 0.0;  // the largest move of a bound vertex
+    bool junction_moved = false;
     for (const auto& [k, at] : m.junction) {
       Eigen::Vector3d shift = Eigen::Vector3d::Zero();
       for (int j = 0; j < 3; ++j) {
@@ -365,10 +365,9 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
         shift += at.barycentric[j] * (aorta_deformed.row(a) - aorta_mesh.V.row(a)).transpose();
       }
       bound[k] = mesh.V.row(k).transpose() + shift;
-      junction_shift_mm = std::max(junction_shift_mm, shift.norm());
+      junction_moved = junction_moved || shift.norm() > 0.0;
     }
     r.bound_vertices = static_cast<int>(bound.size());
-    const Eigen::Vector3d& top_centroid = m.top_centroid;
     r.timings.control_points_ms = ms_since(t0);
     const bool carries = static_cast<int>(i) == device_iliac;
     if (carries && bound.empty())
@@ -387,20 +386,19 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
       const Eigen::Vector3d axis = geometry::tangent_at(v.centerline, arc, 0.0);
       const double cut_radius = m.radius.at(0.0);
       const geometry::TriangleMesh deformed_iliac{V_out, mesh.F};
-      const bool closed = geometry::is_closed(mesh);
       const std::optional<geometry::RayCaster> inside =
-          closed ? std::optional<geometry::RayCaster>(std::in_place, deformed_iliac, geometry::RayCaster::BuildQuality::Low)
+          m.closed ? std::optional<geometry::RayCaster>(std::in_place, deformed_iliac, geometry::RayCaster::BuildQuality::Low)
                  : std::nullopt;
       auto& erased = out.vessels[static_cast<std::size_t>(aorta)].erased;
       for (Eigen::Index k = 0; k < aorta_mesh.V.rows(); ++k) {
-        const Eigen::Vector3d q = aorta_mesh.V.row(k).transpose() - top_centroid;
+        const Eigen::Vector3d q = aorta_mesh.V.row(k).transpose() - m.top_centroid;
         const double along = q.dot(axis);
         if (along <= 0.0) continue;
         const bool within = inside ? inside->contains(aorta_deformed.row(k).transpose())
                                    : (q - along * axis).norm() < cut_radius;
         if (within) erased[static_cast<std::size_t>(k)] = 1;
       }
-    } else if (!bound.empty() && junction_shift_mm > 0.0) {
+    } else if (junction_moved) {
       // 4. No device: the junction moves with the aorta and the rest of the iliac bends
       // after it by ARAP, held toward its registered pose by the tether as the distal
       // iliac is by the inguinal ligament and the femoral access (no device handles: the

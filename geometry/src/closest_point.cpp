@@ -60,23 +60,27 @@ std::vector<SurfacePoint> closest_points_on_mesh(const TriangleMesh& mesh, const
     bound[i] = (mesh.V.row(nearest_vertex(mesh.V, points[i])).transpose() - points[i]).norm();
     farthest = std::max(farthest, bound[i]);
   }
-  std::vector<Eigen::Index> candidates;
+  struct Candidate {
+    Eigen::Index face;
+    double edge;  // its longest edge from the first corner
+  };
+  std::vector<Candidate> candidates;
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
     const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
     const double edge = std::sqrt(std::max((mesh.V.row(mesh.F(f, 1)).transpose() - a).squaredNorm(),
                                            (mesh.V.row(mesh.F(f, 2)).transpose() - a).squaredNorm()));
     const double reach = rho + farthest + edge;
-    if ((a - c).squaredNorm() <= reach * reach) candidates.push_back(f);
+    if ((a - c).squaredNorm() <= reach * reach) candidates.push_back({f, edge});
   }
   for (std::size_t i = 0; i < points.size(); ++i) {
     const Eigen::Vector3d& p = points[i];
     SurfacePoint& best = out[i];
-    for (const Eigen::Index f : candidates) {
+    for (const auto& [f, edge] : candidates) {
       const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
+      const double reach = std::min(bound[i], best.distance_mm) + edge;
+      if ((p - a).squaredNorm() > reach * reach) continue;
       const Eigen::Vector3d b = mesh.V.row(mesh.F(f, 1)).transpose();
       const Eigen::Vector3d cc = mesh.V.row(mesh.F(f, 2)).transpose();
-      const double reach = std::min(bound[i], best.distance_mm) + std::sqrt(std::max((b - a).squaredNorm(), (cc - a).squaredNorm()));
-      if ((p - a).squaredNorm() > reach * reach) continue;
       const Eigen::Vector3d w = closest_point_on_triangle(p, a, b, cc);
       const Eigen::Vector3d q = w[0] * a + w[1] * b + w[2] * cc;
       const double d = (p - q).norm();

@@ -539,8 +539,7 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     int root = tip;
     while (parent[static_cast<std::size_t>(root)] >= 0) root = parent[static_cast<std::size_t>(root)];
     reroot(root);
-    std::fill(score.begin(), score.end(), -kInf);
-    tip = choose_tip();
+    tip = choose_tip();  // rewrites every score it reads: parents come first in `order`
   }
   if (tip < 0) {
     result.reason = o.seed_px ? "nothing device-like within " + std::to_string(static_cast<int>(k * o.seed_radius_px)) + " px of the seed"

@@ -222,6 +222,12 @@ int IgtlServer::port() const { return impl_->port; }
 void IgtlServer::send_image(const std::string& name, const Image& bgr, double mm_per_pixel, std::int64_t timestamp_ns) {
   if (bgr.width <= 0 || bgr.height <= 0 || bgr.bgr.size() != static_cast<std::size_t>(bgr.width) * bgr.height * 3)
     throw std::invalid_argument("OpenIGTLink image: size and pixel count disagree");
+  {
+    // Images are not kept for later clients: with none connected, skip the colour swap,
+    // the packing and its CRC over the whole frame.
+    std::lock_guard lock(impl_->m);
+    if (impl_->clients.empty()) return;
+  }
   igtl::ImageMessage::Pointer msg = igtl::ImageMessage::New();
   msg->SetDeviceName(device(name).c_str());
   msg->SetDimensions(bgr.width, bgr.height, 1);
