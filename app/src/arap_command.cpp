@@ -1,6 +1,5 @@
 // `evarnode arap`: plain surface ARAP for explicit constraints.
 #include <cmath>
-#include <fstream>
 #include <limits>
 #include <nlohmann/json.hpp>
 
@@ -8,6 +7,7 @@
 #include "evar/deform/arap_solver.hpp"
 #include "evar/deform/cotangent_weights.hpp"
 #include "evar/geometry/input_error.hpp"
+#include "evar/geometry/json_fields.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "json_file.hpp"
 #include "logging.hpp"
@@ -25,17 +25,7 @@ struct Constraints {
 Constraints read_constraints(const std::filesystem::path& path, const geometry::Vertices& V) {
   using geometry::InputError;
   const std::string file = path.string();
-  if (!std::filesystem::is_regular_file(path)) throw InputError(file + ": not a readable file");
-  std::ifstream in(path);
-  if (!in) throw InputError(file + ": cannot open the constraints file");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(in);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw InputError(file + ": not valid JSON (byte " + std::to_string(e.byte) + ")");
-  } catch (const nlohmann::json::exception& e) {  // a number beyond double (out_of_range)
-    throw InputError(file + ": not valid JSON (" + e.what() + ")");
-  }
+  const nlohmann::json j = geometry::detail::parse_json_file(path);
   if (!j.is_object()) throw InputError(file + ": the top level must be an object with \"fixed\" and/or \"handles\"");
   for (const auto& [key, value] : j.items())
     if (key != "fixed" && key != "handles")

@@ -10,7 +10,7 @@
 #include <string>
 
 #include "evar/geometry/input_error.hpp"
-#include "json_fields.hpp"
+#include "evar/geometry/json_fields.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry {

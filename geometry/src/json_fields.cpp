@@ -1,4 +1,4 @@
-#include "json_fields.hpp"
+#include "evar/geometry/json_fields.hpp"
 
 #include <cmath>
 #include <sstream>

@@ -9,7 +9,7 @@
 #include <nlohmann/json.hpp>
 
 #include "evar/geometry/input_error.hpp"
-#include "json_fields.hpp"
+#include "evar/geometry/json_fields.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry {

@@ -1,6 +1,7 @@
 #pragma once
 // Reading JSON files field by field with errors of the form "<file>: <field>: <what>",
-// shared by the scene, markups and view geometry readers (internal to evar_geometry).
+// shared by every reader of a JSON input (scene, markups, view geometry, node.json, the
+// ARAP constraints), so each rejects bad input with an InputError naming the file.
 #include <Eigen/Core>
 #include <filesystem>
 #include <string>
