@@ -20,8 +20,9 @@ constexpr int kPollMs = 50;  // also the resolution of stall detection
 SerialCArmSource::SerialCArmSource(SerialLinkOptions options)
     : options_(std::move(options)), receiver_("serial " + options_.path, options_.stale_after) {
   if (options_.path.empty()) throw std::invalid_argument("serial C-arm link: no device path");
-  if (!is_supported_baud(options_.settings.baud))
-    throw std::invalid_argument("serial C-arm link: unsupported baud rate " + std::to_string(options_.settings.baud));
+  // Checked here, not only when the link thread opens the port: there a bad setting
+  // would read as "device not there" and be retried forever.
+  check_settings(options_.settings);
   wake_ = std::make_unique<WakeEvent>("serial C-arm link");
 }
 

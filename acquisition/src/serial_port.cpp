@@ -61,10 +61,15 @@ bool is_supported_baud(int baud) {
   return false;
 }
 
-SerialPort::SerialPort(const std::string& path, const SerialSettings& settings) : path_(path) {
-  const speed_t speed = baud_constant(settings.baud);
+void check_settings(const SerialSettings& settings) {
+  (void)baud_constant(settings.baud);
   if (settings.stop_bits != 1 && settings.stop_bits != 2)
     throw std::invalid_argument("serial: stop bits must be 1 or 2 (got " + std::to_string(settings.stop_bits) + ")");
+}
+
+SerialPort::SerialPort(const std::string& path, const SerialSettings& settings) : path_(path) {
+  check_settings(settings);
+  const speed_t speed = baud_constant(settings.baud);
   // O_NOCTTY: a C-arm link must never become the node's controlling terminal.
   fd_ = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
   if (fd_ < 0) fail(path, "open");

@@ -9,6 +9,12 @@
 
 namespace evar::acquisition {
 
+std::string fourcc_list(const std::vector<std::uint32_t>& fourccs) {
+  std::string s;
+  for (auto c : fourccs) s += (s.empty() ? "" : ", ") + fourcc_to_string(c);
+  return s.empty() ? "none" : s;
+}
+
 std::string fourcc_to_string(std::uint32_t fourcc) {
   std::string s(4, ' ');
   for (int i = 0; i < 4; ++i) {

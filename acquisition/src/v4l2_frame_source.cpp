@@ -46,12 +46,6 @@ std::string device_gone_reason(int e) {
 
 std::string size_text(int w, int h) { return std::to_string(w) + "x" + std::to_string(h); }
 
-std::string fourcc_list(const std::vector<std::uint32_t>& f) {
-  std::string s;
-  for (auto c : f) s += (s.empty() ? "" : ", ") + fourcc_to_string(c);
-  return s.empty() ? "none" : s;
-}
-
 // One open V4L2 device and what was set up on it. The destructor undoes all of it in
 // reverse (stream off, unmap, close), whichever step the setup reached.
 class OpenDevice {

@@ -28,12 +28,6 @@ std::string endpoints_text(const std::vector<acquisition::UsbInterface>& interfa
   return s.empty() ? "no bulk or interrupt IN endpoint" : "IN " + s;
 }
 
-std::string formats_text(const std::vector<std::uint32_t>& formats) {
-  std::string s;
-  for (auto f : formats) s += (s.empty() ? "" : ", ") + acquisition::fourcc_to_string(f);
-  return s.empty() ? "none" : s;
-}
-
 ordered_json to_json(const std::vector<acquisition::GigECameraInfo>& gige,
                      const std::vector<acquisition::V4l2DeviceInfo>& v4l2,
                      const std::vector<acquisition::SerialPortInfo>& serial,
@@ -93,7 +87,7 @@ int run_devices(const DevicesCommand& cmd) {
       std::cout << d.error << "\n";
     else
       std::cout << d.card << " (" << d.driver << ", " << d.bus_info << ")  "
-                << (d.can_capture ? "capture, formats " + formats_text(d.formats) : std::string("not a capture node"))
+                << (d.can_capture ? "capture, formats " + acquisition::fourcc_list(d.formats) : std::string("not a capture node"))
                 << "\n";
   }
   std::cout << "Serial ports:\n";

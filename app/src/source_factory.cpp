@@ -38,8 +38,6 @@ std::unique_ptr<acquisition::CArmGeometrySource> make_carm_source(const std::str
       }
       comma = next;
     }
-    if (o.settings.stop_bits != 1 && o.settings.stop_bits != 2)
-      throw std::invalid_argument("--carm " + spec + ": stop bits must be 1 or 2");
     return std::make_unique<acquisition::SerialCArmSource>(o);
   }
   throw std::invalid_argument("--carm '" + spec + "': expected serial:/dev/ttyUSB0[,baud=115200] or usb:VID:PID[:SERIAL]");

@@ -4,6 +4,7 @@
 #include <stdexcept>
 
 #include <opencv2/highgui.hpp>
+#include "image_mat.hpp"
 
 namespace evar::overlay {
 
@@ -27,8 +28,7 @@ DisplayWindow::~DisplayWindow() {
 }
 
 WindowKey DisplayWindow::show(const Image& frame) {
-  const cv::Mat m(frame.height, frame.width, CV_8UC3, const_cast<std::uint8_t*>(frame.bgr.data()));
-  cv::imshow(title_, m);
+  cv::imshow(title_, detail::wrap(frame));
   const int key = cv::waitKey(1);
   switch (key & 0xff) {
     case 'm': return WindowKey::CycleMode;

@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include "evar/overlay/perspective_projection.hpp"
+#include "image_mat.hpp"
 
 namespace evar::overlay {
 
@@ -197,7 +198,7 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
     }
   }
   if (!status.lines.empty() || !status.alerts.empty()) {
-    cv::Mat canvas(out.height, out.width, CV_8UC3, out.bgr.data());
+    cv::Mat canvas = detail::wrap(out);
     const double scale = std::max(0.4, 0.6 * out.height / 1024.0);
     const int thickness = out.height >= 768 ? 2 : 1;
     int baseline = 0;

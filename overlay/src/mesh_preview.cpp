@@ -14,6 +14,7 @@
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include "image_mat.hpp"
 
 namespace evar::overlay {
 namespace {
@@ -325,14 +326,6 @@ void draw_overlay(cv::Mat& image, const ViewProjection& view, const Overlay& ove
     if (!v.marker->label.empty()) labels.place(image, v.marker->label, v.uv, v.marker->radius_px, v.marker->colour);
 }
 
-cv::Mat wrap(Image& image) {
-  if (image.width < 0 || image.height < 0 ||
-      image.bgr.size() != static_cast<std::size_t>(image.width) * static_cast<std::size_t>(image.height) * 3)
-    throw std::invalid_argument("composite: image holds " + std::to_string(image.bgr.size()) + " bytes, expected " +
-                                std::to_string(image.width) + " x " + std::to_string(image.height) + " x 3");
-  return {image.height, image.width, CV_8UC3, image.bgr.data()};
-}
-
 // ---------------------------------------------------------------------------------------
 // The comparison picture
 
@@ -557,7 +550,7 @@ Bgr Image::at(int x, int y) const {
 void composite(Image& image, const ViewProjection& view, const Overlay& overlay, const DrawOptions& options) {
   check_options(options);
   check_overlay(overlay);
-  cv::Mat mat = wrap(image);  // shares image.bgr, so drawing lands in the caller's buffer
+  cv::Mat mat = detail::wrap(image);  // shares image.bgr, so drawing lands in the caller's buffer
   if (mat.empty()) return;
   draw_overlay(mat, view, overlay, options);
 }
@@ -619,7 +612,7 @@ void write_png(const std::filesystem::path& path, const Image& image) {
   // Encode in memory and write ourselves: the format does not depend on the extension and
   // a failure can name its reason (imwrite only returns false).
   std::vector<std::uint8_t> png;
-  if (!cv::imencode(".png", wrap(const_cast<Image&>(image)), png))
+  if (!cv::imencode(".png", detail::wrap(image), png))
     throw std::runtime_error("write_png: PNG encoding failed for " + path.string());
   std::ofstream out(path, std::ios::binary | std::ios::trunc);
   if (!out) throw std::runtime_error("write_png: cannot open " + path.string() + " for writing: " + std::strerror(errno));

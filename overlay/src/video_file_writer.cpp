@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include <opencv2/videoio.hpp>
+#include "image_mat.hpp"
 
 namespace evar::overlay {
 
@@ -41,8 +42,7 @@ void VideoFileWriter::write(const Image& frame) {
                                 std::to_string(frame.height) + " in a " + std::to_string(width_) + " x " +
                                 std::to_string(height_) + " video");
   if (!impl_->writer.isOpened()) throw std::runtime_error(path_.string() + ": the video is closed");
-  const cv::Mat m(frame.height, frame.width, CV_8UC3, const_cast<std::uint8_t*>(frame.bgr.data()));
-  impl_->writer.write(m);
+  impl_->writer.write(detail::wrap(frame));
   ++frames_;
 }
 

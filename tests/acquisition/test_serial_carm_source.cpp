@@ -196,6 +196,10 @@ TEST_F(SerialCArmLink, AMissingOrWrongDeviceIsReportedNotThrown) {
   acq::SerialLinkOptions bad = options();
   bad.settings.baud = 12345;
   EXPECT_THROW(acq::SerialCArmSource{bad}, std::invalid_argument);
+  // Refused at once, not by the link thread (which would retry it as a missing device).
+  acq::SerialLinkOptions three_stop_bits = options();
+  three_stop_bits.settings.stop_bits = 3;
+  EXPECT_THROW(acq::SerialCArmSource{three_stop_bits}, std::invalid_argument);
 }
 
 TEST(CArmSerialSettings, ParityNamesParse) {

@@ -16,6 +16,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <Eigen/Geometry>
 #include "evar/sim/example_scene.hpp"
+#include "geometry/synthetic_fluoro.hpp"
 
 namespace fs = std::filesystem;
 using evar::app::run_cli;
@@ -287,15 +288,7 @@ struct TwoFrames {
   evar::geometry::Polyline wire;
 };
 // The views the CLI tests render: 768² at 0.4 mm, SID 1200 mm, SOD 800 mm.
-evar::geometry::CArmView test_view(double primary_deg) {
-  evar::geometry::CArmView v;
-  v.primary_angle_deg = primary_deg;
-  v.source_to_detector_mm = 1200;
-  v.source_to_isocenter_mm = 800;
-  v.detector_cols = v.detector_rows = 768;
-  v.row_spacing_mm = v.col_spacing_mm = 0.4;
-  return v;
-}
+evar::geometry::CArmView test_view(double primary_deg) { return evar::test::detector_view(primary_deg, 0.0, 768, 0.4); }
 
 TwoFrames write_two_frames(const fs::path& dir, double separation_deg = 60.0) {
   TwoFrames t{dir, evar::sim::iliac_guidewire()};

@@ -18,6 +18,9 @@ Parity parse_parity(const std::string& text);
 const char* to_string(Parity parity);
 /// True for the rates termios has a constant for (50 … 4000000).
 bool is_supported_baud(int baud);
+/// std::invalid_argument naming the setting when the port could never be opened with
+/// them (unsupported baud rate, stop bits other than 1 or 2).
+void check_settings(const SerialSettings& settings);
 
 class SerialPort {
  public:

@@ -15,6 +15,8 @@ namespace evar::acquisition {
 
 /// "GREY", "Y16 ", "YUYV", "MJPG" (the four characters of a V4L2 fourcc).
 std::string fourcc_to_string(std::uint32_t fourcc);
+/// "GREY, YUYV" ("none" when empty), for messages and listings.
+std::string fourcc_list(const std::vector<std::uint32_t>& fourccs);
 /// Accepts GREY, Y16, YUYV, MJPG or MJPEG (any case); nullopt for anything else.
 std::optional<std::uint32_t> fourcc_from_string(std::string_view name);
 /// The formats the grabber reads, most preferred first (deepest grey first).
