@@ -14,14 +14,14 @@ harnesses=("$@")
 [ ${#harnesses[@]} -gt 0 ] || harnesses=(carm_link markups mesh scene view_geometry xa_dicom session node_config)
 build=${EVAR_FUZZ_BUILD_DIR:-$root/build-fuzz}
 
-"$root/scripts/install-deps.sh"
 if ! command -v clang++ >/dev/null || ! ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a >/dev/null 2>&1; then
   echo "installing clang and libFuzzer (needs root)"
-  ${SUDO:-$( [ "$(id -u)" = 0 ] || echo sudo )} apt-get install -y -qq clang libclang-rt-14-dev >/dev/null
+  sudo=$( [ "$(id -u)" = 0 ] || echo sudo )
+  $sudo apt-get update -qq && $sudo apt-get install -y -qq clang libclang-rt-14-dev >/dev/null
 fi
-cmake -S "$root" -B "$build" -G Ninja -DCMAKE_BUILD_TYPE=RelWithDebInfo -DCMAKE_C_COMPILER=clang \
-  -DCMAKE_CXX_COMPILER=clang++ -DEVAR_FUZZ=ON -DEVAR_BUILD_BENCH=OFF >/dev/null
-ninja -C "$build" -j"${EVAR_JOBS:-$(nproc)}" $(printf 'fuzz_%s ' "${harnesses[@]}")
+# The project's own build script (it installs the other dependencies), with clang.
+EVAR_BUILD_DIR=$build EVAR_BUILD_TYPE=RelWithDebInfo EVAR_TARGETS="$(printf 'fuzz_%s ' "${harnesses[@]}")" \
+  "$root/scripts/build.sh" -DCMAKE_C_COMPILER=clang -DCMAKE_CXX_COMPILER=clang++ -DEVAR_FUZZ=ON -DEVAR_BUILD_BENCH=OFF
 
 report="$build/fuzz-report.json"
 echo "[" >"$report"

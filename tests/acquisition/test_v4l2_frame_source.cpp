@@ -445,7 +445,11 @@ TEST(V4l2FrameSource, AGrabberWithoutSignalWaitsForOneAndBacksOffItsReopening) {
   EXPECT_FALSE(log.wait([&] { return log.saw(StreamState::Stalled); }, 10ms)) << "a stream never started is not stalled";
   device.produce(payload_for(device.format(), 0));  // the signal comes (once streaming again)
   ASSERT_TRUE(device.wait_streaming(5s));
-  while (!log.wait([&] { return !log.frames.empty(); }, 50ms)) device.produce(payload_for(device.format(), 0));
+  const auto deadline = std::chrono::steady_clock::now() + 5s;
+  while (!log.wait([&] { return !log.frames.empty(); }, 50ms)) {
+    ASSERT_LT(std::chrono::steady_clock::now(), deadline) << "no frame after the signal came";
+    device.produce(payload_for(device.format(), 0));
+  }
   source.stop();
 }
 

@@ -196,7 +196,8 @@ TEST(SceneDeformation, FindsTheIliacCarryingTheDeviceFromTheGeometry) {
   EXPECT_EQ(out.device_iliac, "iliac_left");
   EXPECT_GT(out.reports[1].control_points, 0);
   EXPECT_EQ(out.reports[2].control_points, 0);
-  EXPECT_NE(out.reports[2].role, "carries the device");
+  // And it is not solved: in this nominal anatomy the aorta does not move at its junction.
+  EXPECT_EQ(out.reports[2].role, "unchanged");
 }
 
 TEST(SceneDeformation, ContralateralIliacBendsAfterTheJunctionAndKeepsItsDistalEnd) {

@@ -17,6 +17,7 @@
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/serial_carm_server.hpp"
 #include "evar/sim/session_replay.hpp"
+#include "support/ramp_frames.hpp"
 
 namespace sim = evar::sim;
 namespace fs = std::filesystem;
@@ -42,16 +43,7 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
   sim::Session s;
   s.scene = "scene.json";
   s.detector = {128, 96, 0.3, 0.3};  // Aravis 0.8.26's fake camera loses packets of frames under ~6 KB
-  std::vector<cv::Mat> images;
-  for (int k = 0; k < 8; ++k) {
-    std::string name = "f";
-    name += std::to_string(k) + ".png";
-    s.frames.push_back({k, 1'000'000'000LL + k * 200'000'000LL, "fluoro", name});
-    cv::Mat img(96, 128, CV_16UC1);
-    for (int y = 0; y < 96; ++y)
-      for (int x = 0; x < 128; ++x) img.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(6000 * k + 67 * y + 5 * x + 1);
-    images.push_back(img);
-  }
+  const std::vector<cv::Mat> images = evar::test::add_ramp_frames(s, 8, 200'000'000LL, {6000, 67, 5, 1});
   for (int j = -1; j < 7; ++j) {
     sim::CArmSample c;
     c.timestamp_ns = 1'100'000'000LL + j * 200'000'000LL;

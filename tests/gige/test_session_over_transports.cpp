@@ -14,6 +14,7 @@
 #include "evar/sim/serial_carm_server.hpp"
 #include "evar/sim/session_replay.hpp"
 #include "support/stream_log.hpp"
+#include "support/ramp_frames.hpp"
 
 namespace acq = evar::acquisition;
 namespace sim = evar::sim;
@@ -26,16 +27,7 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
   sim::Session s;
   s.scene = "scene.json";
   s.detector = {128, 96, 0.3, 0.3};  // Aravis 0.8.26's fake camera loses packets of frames under ~6 KB
-  std::vector<cv::Mat> images;
-  for (int k = 0; k < 8; ++k) {
-    std::string name = "f";  // in steps: g++ 12 warns falsely (-Wrestrict) on "f" + std::string
-    name += std::to_string(k) + ".png";
-    s.frames.push_back({k, 1'000'000'000LL + k * 150'000'000LL, "fluoro", name});
-    cv::Mat img(96, 128, CV_16UC1);
-    for (int y = 0; y < 96; ++y)
-      for (int x = 0; x < 128; ++x) img.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(4000 * k + 61 * y + 7 * x + 1);
-    images.push_back(img);
-  }
+  const std::vector<cv::Mat> images = evar::test::add_ramp_frames(s, 8, 150'000'000LL, {4000, 61, 7, 1});
   for (int k = 0; k < 6; ++k) {
     sim::CArmSample c;
     c.timestamp_ns = 1'000'000'000LL + k * 200'000'000LL;

@@ -12,6 +12,7 @@
 #include "evar/sim/example_scene.hpp"
 #include "evar/sim/session_recorder.hpp"
 #include "evar/sim/session_replay.hpp"
+#include "support/ramp_frames.hpp"
 
 namespace evar::sim {
 namespace {
@@ -32,15 +33,7 @@ class Recording : public ::testing::Test {
     Session s;
     s.scene = "scene.json";
     s.detector = {40, 30, 0.3, 0.3};
-    for (int k = 0; k < 12; ++k) {
-      std::string name = "f";
-      name += std::to_string(k) + ".png";
-      s.frames.push_back({k, 1'000'000'000LL + k * 60'000'000LL, "fluoro", name});
-      cv::Mat img(30, 40, CV_16UC1);
-      for (int y = 0; y < 30; ++y)
-        for (int x = 0; x < 40; ++x) img.at<std::uint16_t>(y, x) = static_cast<std::uint16_t>(5000 * k + 97 * y + 13 * x);
-      images_.push_back(img);
-    }
+    images_ = evar::test::add_ramp_frames(s, 12, 60'000'000LL, {5000, 97, 13, 0});
     // The C-arm changes between frames (never within 15 ms of one), so the state in force
     // at each frame is unambiguous.
     for (int k = 0; k < 5; ++k) {
