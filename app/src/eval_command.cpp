@@ -70,13 +70,7 @@ int run_eval(const EvalCommand& cmd) {
   std::size_t without_model = 0;
   for (const auto& c : cases) without_model += c.model ? 0 : 1;
   for (const Metric& m : kMetrics) {
-    std::vector<double> initial, adapted;
-    for (const auto& c : cases)
-      for (const auto& l : c.landmarks) {
-        initial.push_back(l.*m.initial);
-        adapted.push_back(l.*m.adapted);
-      }
-    const Statistic si = statistic(initial), sa = statistic(adapted);
+    const Statistic si = statistic(landmark_values(cases, m.initial)), sa = statistic(landmark_values(cases, m.adapted));
     summary[m.name] = {{"initial", to_json(si)}, {"adapted", to_json(sa)}};
     md << "| " << m.name << " | " << fmt(si) << " | " << fmt(sa) << " |\n";
   }
@@ -85,11 +79,7 @@ int run_eval(const EvalCommand& cmd) {
   summary["sessions"] = cases.size();
   summary["sessions_without_model"] = without_model;
   write_json(cmd.out / "eval.json", {{"summary", summary}, {"cases", jcases}});
-  {
-    std::ofstream f(cmd.out / "eval.md");
-    f << "# Ostium distances, initial versus adapted\n\n" << md.str();
-    if (!f) throw std::runtime_error((cmd.out / "eval.md").string() + ": cannot write");
-  }
+  write_text(cmd.out / "eval.md", "# Ostium distances, initial versus adapted\n\n" + md.str());
   write_evaluation_plots(cmd.out, cases);
   std::fputs(md.str().c_str(), stdout);
   log().info("wrote {} (eval.json, eval.md, per_case.png, histogram.png, snapshots/)", cmd.out.string());

@@ -103,12 +103,8 @@ void per_case(const std::filesystem::path& path, const std::vector<CaseEvaluatio
 }
 
 void histogram(const std::filesystem::path& path, const std::vector<CaseEvaluation>& cases) {
-  std::vector<double> initial, adapted;
-  for (const auto& c : cases)
-    for (const auto& l : c.landmarks) {
-      initial.push_back(l.initial_mm);
-      adapted.push_back(l.adapted_mm);
-    }
+  const std::vector<double> initial = landmark_values(cases, &LandmarkError::initial_mm),
+                            adapted = landmark_values(cases, &LandmarkError::adapted_mm);
   double hi = 1.0;
   for (double v : initial) hi = std::max(hi, v);
   for (double v : adapted) hi = std::max(hi, v);

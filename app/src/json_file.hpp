@@ -4,13 +4,16 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
+#include <string>
 
 namespace evar::app {
 
-inline void write_json(const std::filesystem::path& path, const nlohmann::json& j) {
+inline void write_text(const std::filesystem::path& path, const std::string& text) {
   std::ofstream out(path);
-  out << j.dump(2) << '\n';
+  out << text;
   if (!out) throw std::runtime_error(path.string() + ": cannot write");
 }
+
+inline void write_json(const std::filesystem::path& path, const nlohmann::json& j) { write_text(path, j.dump(2) + '\n'); }
 
 }  // namespace evar::app

@@ -54,4 +54,25 @@ void ProgressBar::finish() {
   drawn_ = false;
 }
 
+StatusLine::StatusLine() : terminal_(::isatty(STDERR_FILENO) == 1), last_print_(std::chrono::steady_clock::now()) {}
+
+StatusLine::~StatusLine() { finish(); }
+
+std::optional<double> StatusLine::due() const {
+  const double since = std::chrono::duration<double>(std::chrono::steady_clock::now() - last_print_).count();
+  if (since < (terminal_ ? 1.0 : 10.0)) return std::nullopt;
+  return since;
+}
+
+void StatusLine::print(const std::string& text) {
+  std::fprintf(stderr, terminal_ ? "\r%s   " : "%s\n", text.c_str());
+  drawn_ = terminal_;
+  last_print_ = std::chrono::steady_clock::now();
+}
+
+void StatusLine::finish() {
+  if (drawn_) std::fprintf(stderr, "\n");
+  drawn_ = false;
+}
+
 }  // namespace evar::app

@@ -4,6 +4,7 @@
 // line every tenth of the way instead, so logs stay readable.
 #include <chrono>
 #include <cstddef>
+#include <optional>
 #include <string>
 
 namespace evar::app {
@@ -25,6 +26,26 @@ class ProgressBar {
   bool enabled_, terminal_, drawn_ = false;
   int last_tenth_ = -1;
   std::chrono::steady_clock::time_point start_, last_draw_;
+};
+
+/// A live status line for jobs without an end (live runs, recordings): redrawn in place
+/// every second on a terminal, a plain line every ten seconds otherwise; the line is ended
+/// before anything else is logged after it (finish, destructor).
+class StatusLine {
+ public:
+  StatusLine();
+  ~StatusLine();
+  StatusLine(const StatusLine&) = delete;
+  StatusLine& operator=(const StatusLine&) = delete;
+
+  /// Seconds since the last print when one is due, else nothing.
+  std::optional<double> due() const;
+  void print(const std::string& text);
+  void finish();
+
+ private:
+  bool terminal_, drawn_ = false;
+  std::chrono::steady_clock::time_point last_print_;
 };
 
 /// The bar's text for `done` of `total` after `seconds`: "[#####.....]  45/190 frames  12.3/s  ETA 12 s".

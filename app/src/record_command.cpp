@@ -1,6 +1,5 @@
 // `evarnode record`: a live session from the frame grabber and the C-arm link, written in
 // the session format (docs/SESSION_FORMAT.md) with live statistics on the terminal.
-#include <unistd.h>
 
 #include <cstdio>
 #include <memory>
@@ -11,6 +10,7 @@
 #include "evar/sim/session_recorder.hpp"
 #include "interrupt.hpp"
 #include "logging.hpp"
+#include "progress_bar.hpp"
 #include "source_factory.hpp"
 
 namespace evar::app {
@@ -31,8 +31,7 @@ int run_record(const RecordCommand& cmd) {
 
   const InterruptGuard ctrl_c;
   recorder.start();
-  const bool terminal = ::isatty(STDERR_FILENO) == 1;
-  auto last_print = std::chrono::steady_clock::now();
+  StatusLine status;
   std::uint64_t last_frames = 0;
   sim::RecorderStatistics s, shown;
   for (;;) {
@@ -44,24 +43,19 @@ int run_record(const RecordCommand& cmd) {
     if (s.carm != shown.carm || s.carm_reason != shown.carm_reason)
       (acquisition::is_live(s.carm) ? log().info("C-arm: {}", s.carm_reason) : log().warn("C-arm: {}", s.carm_reason));
     shown = s;
-    const auto now = std::chrono::steady_clock::now();
-    const double since = std::chrono::duration<double>(now - last_print).count();
-    if (since >= (terminal ? 1.0 : 10.0)) {
+    if (const auto since = status.due()) {
       const auto fs = frames->statistics();
-      std::fprintf(stderr, "%s%7.1f s  frames %llu written %llu (dropped %llu, not recorded %llu)  %5.1f fps  |  C-arm %llu samples%s",
-                   terminal ? "\r" : "", s.seconds, static_cast<unsigned long long>(s.frames_received),
-                   static_cast<unsigned long long>(s.frames_written), static_cast<unsigned long long>(fs.dropped),
-                   static_cast<unsigned long long>(s.frames_not_recorded + s.frames_refused),
-                   static_cast<double>(s.frames_received - last_frames) / since,
-                   static_cast<unsigned long long>(s.carm_samples), terminal ? "   " : "\n");
-      last_print = now;
+      status.print(fmt::format("{:7.1f} s  frames {} written {} (dropped {}, not recorded {})  {:5.1f} fps  |  C-arm {} samples",
+                               s.seconds, s.frames_received, s.frames_written, fs.dropped,
+                               s.frames_not_recorded + s.frames_refused,
+                               static_cast<double>(s.frames_received - last_frames) / *since, s.carm_samples));
       last_frames = s.frames_received;
     }
     if (ctrl_c.interrupted() || (cmd.seconds && s.seconds >= *cmd.seconds) ||
         (cmd.frames_to_write && s.frames_written >= static_cast<std::uint64_t>(*cmd.frames_to_write)))
       break;
   }
-  if (terminal) std::fprintf(stderr, "\n");
+  status.finish();
   const sim::Session session = recorder.finish();
   s = recorder.statistics();
   log().info("{}: {} frames and {} C-arm states in {:.1f} s; {} frames dropped by the source, {} not recorded",

@@ -1,11 +1,9 @@
 // `evarnode run`: the live node on hardware sources (node.json) or on a replayed session,
 // with its outputs (video, snapshots, OpenIGTLink, window), a JSON report and, on sessions
 // with ground truth, the ostium distances of what it showed.
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdio>
-#include <fstream>
 #include <map>
 #include <sstream>
 #include <thread>
@@ -159,8 +157,7 @@ int run_node(const RunCommand& cmd) {
   node.start(*frames, *carm);
   {
     ProgressBar bar("frames", cmd.progress && session.has_value());
-    const bool terminal = ::isatty(STDERR_FILENO) == 1;
-    auto last_print = t0;
+    StatusLine status;
     for (;;) {
       if (replay) {
         const bool done = replay->wait(std::chrono::milliseconds(100));
@@ -169,15 +166,11 @@ int run_node(const RunCommand& cmd) {
         if (done) break;
       } else {
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
-        const auto now = std::chrono::steady_clock::now();
-        if (now - last_print >= std::chrono::seconds(terminal ? 1 : 10)) {
+        if (status.due()) {
           const NodeStatistics s = node.statistics();
-          std::fprintf(stderr, "%sframes %llu shown %llu (dropped %llu)  latency p50 %.1f ms  models %llu%s",
-                       terminal ? "\r" : "", static_cast<unsigned long long>(s.frames_in),
-                       static_cast<unsigned long long>(s.frames_composited),
-                       static_cast<unsigned long long>(s.dropped_input + s.dropped_output), s.latency_ms.p50,
-                       static_cast<unsigned long long>(s.adaptations), terminal ? "   " : "\n");
-          last_print = now;
+          status.print(fmt::format("frames {} shown {} (dropped {})  latency p50 {:.1f} ms  models {}", s.frames_in,
+                                   s.frames_composited, s.dropped_input + s.dropped_output, s.latency_ms.p50,
+                                   s.adaptations));
         }
       }
       const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -234,12 +227,11 @@ int run_node(const RunCommand& cmd) {
     std::snprintf(row, sizeof row, "| **mean ± sd** | | **%.2f ± %.2f** | **%.2f ± %.2f** | | |\n", b.mean, b.sd, a.mean, a.sd);
     md << row;
     report["evaluation"] = {{"frames", evaluated}, {"landmarks", lm}};
-    std::ofstream f(cmd.out / "eval.md");
-    f << "# Ostium distances in the frames shown with the adapted model\n\n"
-      << "2D distance between each true ostium and its landmark projected from the preoperative (initial) and the\n"
-         "adapted model, in mm at the isocenter, averaged over the "
-      << evaluated << " frames shown with an adapted model and a settled C-arm.\n\n"
-      << md.str();
+    write_text(cmd.out / "eval.md",
+               "# Ostium distances in the frames shown with the adapted model\n\n"
+               "2D distance between each true ostium and its landmark projected from the preoperative (initial) and the\n"
+               "adapted model, in mm at the isocenter, averaged over the " +
+                   std::to_string(evaluated) + " frames shown with an adapted model and a settled C-arm.\n\n" + md.str());
     std::fputs(md.str().c_str(), stdout);
   }
   write_json(cmd.out / "run_report.json", report);

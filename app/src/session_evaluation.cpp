@@ -148,4 +148,11 @@ Statistic statistic(std::vector<double> values) {
   return s;
 }
 
+std::vector<double> landmark_values(const std::vector<CaseEvaluation>& cases, double LandmarkError::*measure) {
+  std::vector<double> values;
+  for (const auto& c : cases)
+    for (const auto& l : c.landmarks) values.push_back(l.*measure);
+  return values;
+}
+
 }  // namespace evar::app

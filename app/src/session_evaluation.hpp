@@ -97,4 +97,7 @@ struct Statistic {
 /// Sample mean, standard deviation (n − 1) and median; zeros for no values.
 Statistic statistic(std::vector<double> values);
 
+/// One measure (e.g. &LandmarkError::adapted_mm) of every landmark of every case.
+std::vector<double> landmark_values(const std::vector<CaseEvaluation>& cases, double LandmarkError::*measure);
+
 }  // namespace evar::app
