@@ -7,7 +7,6 @@
 #include <cerrno>
 #include <cstring>
 #include <stdexcept>
-#include <utility>
 
 namespace evar::acquisition {
 
@@ -67,7 +66,7 @@ void check_settings(const SerialSettings& settings) {
     throw std::invalid_argument("serial: stop bits must be 1 or 2 (got " + std::to_string(settings.stop_bits) + ")");
 }
 
-SerialPort::SerialPort(const std::string& path, const SerialSettings& settings) : path_(path) {
+SerialPort::SerialPort(const std::string& path, const SerialSettings& settings) {
   check_settings(settings);
   const speed_t speed = baud_constant(settings.baud);
   // O_NOCTTY: a C-arm link must never become the node's controlling terminal.
@@ -111,18 +110,6 @@ SerialPort::SerialPort(const std::string& path, const SerialSettings& settings) 
 
 SerialPort::~SerialPort() {
   if (fd_ >= 0) ::close(fd_);
-}
-
-SerialPort::SerialPort(SerialPort&& other) noexcept
-    : fd_(std::exchange(other.fd_, -1)), path_(std::move(other.path_)) {}
-
-SerialPort& SerialPort::operator=(SerialPort&& other) noexcept {
-  if (this != &other) {
-    if (fd_ >= 0) ::close(fd_);
-    fd_ = std::exchange(other.fd_, -1);
-    path_ = std::move(other.path_);
-  }
-  return *this;
 }
 
 }  // namespace evar::acquisition

@@ -345,7 +345,6 @@ std::string UsbCArmSource::description() const {
 
 CArmLinkStatistics UsbCArmSource::statistics() const { return impl_->receiver.statistics(); }
 
-bool UsbCArmSource::hotplug() const { return impl_->has_hotplug; }
 
 std::vector<UsbDeviceInfo> list_usb_devices(const std::optional<UsbDeviceId>& filter) {
   Context context;

@@ -142,7 +142,6 @@ class OpenDevice {
 struct Capabilities {
   std::string driver, card, bus_info;
   bool can_capture = false;
-  bool can_set_rate = false;
   std::vector<std::uint32_t> formats;
 };
 

@@ -66,10 +66,7 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
     std::lock_guard lock(mutex_);
     if (!streaming_ || unplugged_) return false;
     const std::uint32_t sequence = next_sequence_++;
-    if (queued_.empty()) {
-      ++lost_in_driver_;
-      return false;
-    }
+    if (queued_.empty()) return false;  // lost inside the driver: the sequence skips it
     const std::uint32_t index = queued_.front();
     queued_.pop_front();
     auto& memory = (*buffers_)[index];
@@ -135,21 +132,9 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
     std::lock_guard lock(mutex_);
     return opens_;
   }
-  int stream_ons() const {
-    std::lock_guard lock(mutex_);
-    return stream_ons_;
-  }
   int open_fds() const {
     std::lock_guard lock(mutex_);
     return static_cast<int>(fds_.size());
-  }
-  int mapped() const {
-    std::lock_guard lock(mutex_);
-    return mapped_;
-  }
-  std::uint32_t lost_in_driver() const {
-    std::lock_guard lock(mutex_);
-    return lost_in_driver_;
   }
   double frame_rate_set() const {
     std::lock_guard lock(mutex_);
@@ -415,7 +400,7 @@ class FakeV4l2Device final : public acquisition::V4l2Io {
   std::deque<std::uint32_t> queued_;
   std::deque<Filled> done_;
   bool streaming_ = false, unplugged_ = false, queue_error_ = false;
-  std::uint32_t next_sequence_ = 0, lost_in_driver_ = 0;
+  std::uint32_t next_sequence_ = 0;
   int dqbuf_error_ = 0;
   int opens_ = 0, stream_ons_ = 0, mapped_ = 0;
 };

@@ -19,7 +19,6 @@ class ClockOffsetEstimator {
   /// Median delay above the minimum over the window (how late samples arrive, typically).
   std::optional<std::int64_t> typical_delay_ns() const;
   std::int64_t to_host_ns(std::int64_t device_ns) const;  ///< throws std::logic_error before the first pair
-  std::size_t samples() const { return diffs_.size(); }
   void reset() { diffs_.clear(); }
 
  private:

@@ -18,9 +18,7 @@ class PseudoTerminal {
   PseudoTerminal(const PseudoTerminal&) = delete;
   PseudoTerminal& operator=(const PseudoTerminal&) = delete;
 
-  int master_fd() const { return master_; }
   const std::string& slave_path() const { return slave_path_; }
-  const std::string& link() const { return link_; }
   /// Writes all of `bytes` to the master end (blocking until written); throws on error.
   void write(std::span<const std::uint8_t> bytes);
   /// Writes what fits now without waiting; false when the pty's buffer was full and the

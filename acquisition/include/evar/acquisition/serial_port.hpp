@@ -29,15 +29,11 @@ class SerialPort {
   ~SerialPort();
   SerialPort(const SerialPort&) = delete;
   SerialPort& operator=(const SerialPort&) = delete;
-  SerialPort(SerialPort&& other) noexcept;
-  SerialPort& operator=(SerialPort&& other) noexcept;
 
   int fd() const { return fd_; }
-  const std::string& path() const { return path_; }
 
  private:
   int fd_ = -1;
-  std::string path_;
 };
 
 }  // namespace evar::acquisition

@@ -72,8 +72,6 @@ class UsbCArmSource final : public CArmGeometrySource {
   StreamState state() const override;
   std::string description() const override;
   CArmLinkStatistics statistics() const;
-  /// Whether this platform's libusb reports hotplug events (else the source polls).
-  bool hotplug() const;
 
  private:
   struct Impl;
