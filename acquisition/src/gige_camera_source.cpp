@@ -9,7 +9,7 @@
 
 #include "evar/acquisition/clock_offset.hpp"
 #include "evar/acquisition/sequence_tracker.hpp"
-#include "stream_state_reporter.hpp"
+#include "evar/acquisition/stream_state_reporter.hpp"
 
 namespace evar::acquisition {
 

@@ -16,7 +16,7 @@
 #include <utility>
 
 #include "evar/acquisition/sequence_tracker.hpp"
-#include "stream_state_reporter.hpp"
+#include "evar/acquisition/stream_state_reporter.hpp"
 #include "wake_event.hpp"
 
 namespace evar::acquisition {

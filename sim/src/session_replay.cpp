@@ -5,6 +5,7 @@
 #include <stdexcept>
 
 #include "evar/acquisition/sequence_tracker.hpp"
+#include "evar/acquisition/stream_state_reporter.hpp"
 
 namespace evar::sim {
 
@@ -68,39 +69,6 @@ acquisition::CArmState to_carm_state(const CArmSample& c, std::int64_t offset_ns
 // delivery mutex, so no callback runs after it returns; calling start() or stop() from a
 // callback (the replay thread) is refused with std::logic_error instead of deadlocking.
 
-namespace {
-
-// A source's stream state and the callback told of its changes, as both facades keep them.
-// Changes are made under the facade's delivery mutex, so callbacks arrive in order.
-class StreamStatus {
- public:
-  using Callback = std::function<void(acquisition::StreamState, const std::string&)>;
-  acquisition::StreamState get() const {
-    std::lock_guard lock(mutex_);
-    return state_;
-  }
-  void set(acquisition::StreamState s, const std::string& reason) {
-    {
-      std::lock_guard lock(mutex_);
-      state_ = s;
-    }
-    if (callback) callback(s, reason);
-  }
-  /// Stopped, silently, with no callback left (stop()).
-  void clear() {
-    callback = nullptr;
-    std::lock_guard lock(mutex_);
-    state_ = acquisition::StreamState::Stopped;
-  }
-  Callback callback;
-
- private:
-  mutable std::mutex mutex_;
-  acquisition::StreamState state_ = acquisition::StreamState::Stopped;
-};
-
-}  // namespace
-
 class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
  public:
   explicit CArm(SessionReplay& owner) : owner_(owner) {}
@@ -108,7 +76,7 @@ class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
     owner_.refuse_from_replay_thread("start");
     std::lock_guard delivery(delivery_);
     on_state_ = std::move(on_state);
-    status_.callback = std::move(on_stream);
+    status_.listen(std::move(on_stream));
     status_.set(acquisition::StreamState::Streaming, "replaying the C-arm stream of " + owner_.session_.directory.string());
   }
   void stop() override {
@@ -117,22 +85,22 @@ class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
     on_state_ = nullptr;
     status_.clear();
   }
-  acquisition::StreamState state() const override { return status_.get(); }
+  acquisition::StreamState state() const override { return status_.state(); }
   std::string description() const override { return "replay C-arm " + owner_.session_.directory.string(); }
 
   void deliver(const acquisition::CArmState& s) {
     std::lock_guard delivery(delivery_);
-    if (on_state_ && status_.get() == acquisition::StreamState::Streaming) on_state_(s);
+    if (on_state_ && status_.state() == acquisition::StreamState::Streaming) on_state_(s);
   }
   /// The replay ended: a started stream says so (and delivers nothing more).
   void end(const std::string& reason) {
     std::lock_guard delivery(delivery_);
-    if (status_.get() == acquisition::StreamState::Streaming) status_.set(acquisition::StreamState::Stopped, reason);
+    if (status_.state() == acquisition::StreamState::Streaming) status_.set(acquisition::StreamState::Stopped, reason);
   }
   /// The frame source started a new replay: a started stream is live again.
   void restart() {
     std::lock_guard delivery(delivery_);
-    if (on_state_ && status_.get() != acquisition::StreamState::Streaming)
+    if (on_state_ && status_.state() != acquisition::StreamState::Streaming)
       status_.set(acquisition::StreamState::Streaming, "replaying again");
   }
 
@@ -140,7 +108,7 @@ class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
   SessionReplay& owner_;
   std::mutex delivery_;
   StateCallback on_state_;
-  StreamStatus status_;
+  acquisition::StreamStateReporter status_;  // changed under the facade's delivery mutex: callbacks in order
 };
 
 class SessionReplay::Frames final : public acquisition::FrameSource {
@@ -152,7 +120,7 @@ class SessionReplay::Frames final : public acquisition::FrameSource {
     {
       std::lock_guard delivery(delivery_);
       on_frame_ = std::move(on_frame);
-      status_.callback = std::move(on_state);
+      status_.listen(std::move(on_state));
       std::lock_guard lock(stats_mutex_);
       tracker_.reset();
     }
@@ -168,7 +136,7 @@ class SessionReplay::Frames final : public acquisition::FrameSource {
     on_frame_ = nullptr;
     status_.clear();
   }
-  acquisition::StreamState state() const override { return status_.get(); }
+  acquisition::StreamState state() const override { return status_.state(); }
   acquisition::SequenceStats statistics() const override {
     std::lock_guard lock(stats_mutex_);
     return tracker_.stats();
@@ -192,7 +160,7 @@ class SessionReplay::Frames final : public acquisition::FrameSource {
   SessionReplay& owner_;
   std::mutex delivery_;
   FrameCallback on_frame_;
-  StreamStatus status_;
+  acquisition::StreamStateReporter status_;  // changed under the facade's delivery mutex: callbacks in order
   mutable std::mutex stats_mutex_;
   acquisition::SequenceTracker tracker_;
 };

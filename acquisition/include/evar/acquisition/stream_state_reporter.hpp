@@ -1,6 +1,8 @@
 #pragma once
-// A frame source's current state and reason, told to its listener once per change. The
-// source's own thread sets it; any thread may read it.
+// A source's current stream state and reason, told to its listener once per change (frame
+// sources and the replay's C-arm alike). The source's own thread sets it; any thread may
+// read it.
+#include <functional>
 #include <mutex>
 #include <string>
 
@@ -10,7 +12,8 @@ namespace evar::acquisition {
 
 class StreamStateReporter {
  public:
-  void listen(FrameSource::StateCallback callback) { callback_ = std::move(callback); }
+  using Callback = std::function<void(StreamState, const std::string& reason)>;
+  void listen(Callback callback) { callback_ = std::move(callback); }
   /// Records the state and tells the listener (outside the lock) when it changed.
   void set(StreamState s, const std::string& why) {
     {
@@ -25,9 +28,16 @@ class StreamStateReporter {
     std::lock_guard lock(mutex_);
     return state_;
   }
+  /// Stopped, silently, with no listener left (a source's stop()).
+  void clear() {
+    callback_ = nullptr;
+    std::lock_guard lock(mutex_);
+    state_ = StreamState::Stopped;
+    reason_.clear();
+  }
 
  private:
-  FrameSource::StateCallback callback_;
+  Callback callback_;
   mutable std::mutex mutex_;
   StreamState state_ = StreamState::Stopped;
   std::string reason_;
