@@ -1,13 +1,18 @@
 #!/usr/bin/env bash
 # Installs what is missing, builds everything (Release) and runs the whole test suite.
-# EVAR_SANITIZE=1 builds with AddressSanitizer + UndefinedBehaviorSanitizer instead.
+# EVAR_SANITIZE=1 builds with AddressSanitizer + UndefinedBehaviorSanitizer instead (into
+# build-asan, without the benchmarks) and fails on the first report.
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 args=()
 if [ "${EVAR_SANITIZE:-0}" = 1 ]; then
   export EVAR_BUILD_DIR=${EVAR_BUILD_DIR:-$root/build-asan}
   export EVAR_BUILD_TYPE=RelWithDebInfo
-  args+=(-DEVAR_SANITIZE=ON)
+  args+=(-DEVAR_SANITIZE=ON -DEVAR_BUILD_BENCH=OFF)
+  # Any report fails its test: UBSan aborts (no recovery is compiled in), ASan and LSan
+  # exit non-zero; stack traces for the log.
+  export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1}
+  export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 fi
 # Tests on explicitly: run-example.sh configures the same build directory without them.
 "$root/scripts/build.sh" -DEVAR_BUILD_TESTS=ON "${args[@]}"
