@@ -7,6 +7,7 @@
 #include <vector>
 
 #include "evar/geometry/input_error.hpp"
+#include "evar/geometry/input_file.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "view_input.hpp"
 
@@ -14,12 +15,13 @@ namespace evar::app {
 
 FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesystem::path& geometry) {
   FluoroInput in;
-  if (!std::filesystem::is_regular_file(image)) throw geometry::InputError(image.string() + ": no such file");
+  geometry::check_input_file(image, geometry::kDicomLimit);  // exists, regular; the tighter limit below
   if (is_dicom_file(image)) {
     auto frame = geometry::read_xa_dicom(image);
     in.image = frame.pixels;
     in.view = frame.view;
   } else {
+    geometry::check_input_file(image, geometry::kImageLimit);
     cv::Mat raw;
     try {
       raw = cv::imread(image.string(), cv::IMREAD_UNCHANGED);

@@ -48,10 +48,6 @@ NumberParse parse_number(std::string_view token, T& value) {
 /// Throws InputError "<path>: <what>".
 [[noreturn]] void fail(const std::filesystem::path& path, const std::string& what);
 
-/// The whole file as bytes. InputError if it is missing, not a regular file (a FIFO or
-/// /dev/zero would never end) or cannot be read.
-std::string read_file(const std::filesystem::path& path);
-
 /// Writes `bytes` to `path`; std::runtime_error naming the path if that fails.
 void write_file(const std::filesystem::path& path, std::string_view bytes);
 

@@ -9,6 +9,7 @@
 #include <stdexcept>
 #include <system_error>
 
+#include "evar/geometry/input_file.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry {
@@ -27,26 +28,6 @@ std::string quoted(std::string_view token) {
 
 void fail(const std::filesystem::path& path, const std::string& what) {
   throw InputError(path.string() + ": " + what);
-}
-
-std::string read_file(const std::filesystem::path& path) {
-  std::error_code ec;
-  const auto status = std::filesystem::status(path, ec);
-  if (status.type() == std::filesystem::file_type::not_found) fail(path, "file does not exist");
-  if (ec) fail(path, "cannot access: " + ec.message());
-  if (std::filesystem::is_directory(status)) fail(path, "is a directory, not a file");
-  if (!std::filesystem::is_regular_file(status)) fail(path, "is not a regular file");
-
-  std::ifstream in(path, std::ios::binary);
-  if (!in) fail(path, std::string("cannot open: ") + std::strerror(errno));
-  // Read in chunks rather than trusting file_size(): the file may change under us.
-  std::string bytes;
-  char chunk[1 << 16];
-  while (in.read(chunk, sizeof chunk) || in.gcount() > 0) {
-    bytes.append(chunk, static_cast<std::size_t>(in.gcount()));
-  }
-  if (in.bad()) fail(path, "read error");
-  return bytes;
 }
 
 void write_file(const std::filesystem::path& path, std::string_view bytes) {
@@ -92,7 +73,7 @@ LoadedMesh read_mesh(const std::filesystem::path& path) {
     detail::fail(path, "unknown mesh extension '" + path.extension().string() +
                            "' (expected .stl, .ply or .obj)");
   }
-  const std::string bytes = detail::read_file(path);
+  const std::string bytes = read_input_file(path, kMeshLimit);
   if (ext == ".stl") return detail::read_stl(path, bytes);
   if (ext == ".ply") return detail::read_ply(path, bytes);
   return LoadedMesh{detail::read_obj(path, bytes), MeshFormat::Obj};

@@ -17,6 +17,7 @@
 #include <vector>
 
 #include "evar/geometry/input_error.hpp"
+#include "evar/geometry/input_file.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry {
@@ -130,7 +131,7 @@ void ok(const OFCondition& c, const std::string& what) {
 
 XaFrame read_xa_dicom(const std::filesystem::path& path, int frame) {
   register_decoders();
-  if (!std::filesystem::is_regular_file(path)) detail::fail(path, "no such file");
+  check_input_file(path, kDicomLimit);
   DcmFileFormat file;
   if (const OFCondition c = file.loadFile(OFFilename(path.c_str())); c.bad())
     detail::fail(path, std::string("not a readable DICOM file: ") + c.text());

@@ -13,6 +13,8 @@
 
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/input_error.hpp"
+#include "evar/geometry/input_file.hpp"
+#include "evar/geometry/json_fields.hpp"
 
 namespace evar::sim {
 
@@ -32,20 +34,11 @@ constexpr const char* kCArmHeader =
   throw InputError(file.string() + (line ? ":" + std::to_string(line) : std::string()) + ": " + what);
 }
 
-std::string read_text(const fs::path& file) {
-  if (!fs::is_regular_file(file)) fail(file, 0, "missing (or not a regular file)");
-  std::ifstream in(file, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  if (!in && !in.eof()) fail(file, 0, "cannot be read");
-  return s.str();
-}
-
 // Calls row(line number, fields) for every non-empty line after the header, checking the
 // header and the field count; lines end in LF or CRLF.
 template <class Row>
 void for_each_row(const fs::path& file, const char* header, std::size_t fields, Row row) {
-  const std::string text = read_text(file);
+  const std::string text = geometry::read_input_file(file, geometry::kTableLimit);
   std::size_t start = 0, line = 0;
   while (start < text.size() || line == 0) {
     std::size_t end = text.find('\n', start);
@@ -120,12 +113,7 @@ Session read_session(const std::filesystem::path& directory) {
   Session s;
   s.directory = directory;
   const fs::path json_path = directory / "session.json";
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(read_text(json_path));
-  } catch (const nlohmann::json::exception& e) {
-    fail(json_path, 0, std::string("invalid JSON: ") + e.what());
-  }
+  const nlohmann::json j = geometry::detail::parse_json_file(json_path);
   const auto field = [&](const char* key) -> const nlohmann::json& {
     if (!j.is_object() || !j.contains(key)) fail(json_path, 0, std::string(key) + ": missing");
     return j[key];
@@ -243,6 +231,7 @@ Session read_session(const std::filesystem::path& directory) {
 cv::Mat read_session_frame(const Session& session, std::size_t index) {
   if (index >= session.frames.size()) throw std::out_of_range("read_session_frame: no frame " + std::to_string(index));
   const fs::path file = (session.directory / session.frames_index).parent_path() / session.frames[index].file;
+  geometry::check_input_file(file, geometry::kImageLimit);
   cv::Mat image;
   try {
     image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);

@@ -174,7 +174,7 @@ TEST(XaDicom, GarbageIsAClearErrorNotACrash) {
   const fs::path p = dir.path / "garbage.dcm";
   std::ofstream(p) << std::string(300, 'x');
   EXPECT_NE(error_of(p).find("not a readable DICOM file"), std::string::npos) << error_of(p);
-  EXPECT_NE(error_of(dir.path / "absent.dcm").find("no such file"), std::string::npos);
+  EXPECT_NE(error_of(dir.path / "absent.dcm").find("does not exist"), std::string::npos);
   // A valid file cut short at every 97th byte: always a clear InputError.
   write_xa_dicom(p, view(), {ramp16(0)}, true);
   std::ifstream in(p, std::ios::binary);

@@ -7,6 +7,7 @@
 #include <unistd.h>
 
 #include "evar/geometry/input_error.hpp"
+#include "evar/geometry/input_file.hpp"
 #include "evar/sim/session.hpp"
 
 using namespace evar;
@@ -236,4 +237,26 @@ TEST(Session, TheCArmSampleInForceIsTheLastOneBefore) {
   EXPECT_EQ(sim::carm_at(s, 1'050'000'000LL), &s.carm[1]);
   EXPECT_EQ(sim::carm_at(s, 9'000'000'000LL), &s.carm[3]);     // after all: the last
   EXPECT_EQ(sim::carm_at(sim::Session{}, 5), nullptr);
+}
+
+TEST(Session, AnOversizedTableOrFrameIsRefusedByNameBeforeItIsRead) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  sim::write_session(dir.path, s, images);
+  fs::resize_file(dir.path / "carm.csv", geometry::kTableLimit.bytes + 1);  // sparse: no disk used
+  EXPECT_NE(error_reading(dir.path).find("carm.csv: is 256 MiB, more than the 256 MiB accepted for a CSV table"),
+            std::string::npos)
+      << error_reading(dir.path);
+  sim::write_session(dir.path, s, images);
+  const auto r = sim::read_session(dir.path);
+  fs::resize_file(dir.path / "frames" / "f0.png", geometry::kImageLimit.bytes + 1);
+  try {
+    sim::read_session_frame(r, 0);
+    FAIL() << "no error";
+  } catch (const geometry::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("f0.png: is 256 MiB, more than the 256 MiB accepted for an image file"),
+              std::string::npos)
+        << e.what();
+  }
 }
