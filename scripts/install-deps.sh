@@ -14,6 +14,7 @@ packages=(
   libaravis-dev aravis-tools
   libusb-1.0-0-dev umockdev libumockdev-dev
   libgtest-dev libgmock-dev libbenchmark-dev
+  systemd
 )
 
 missing=()

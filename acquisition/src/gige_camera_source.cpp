@@ -1,4 +1,5 @@
 #include "evar/acquisition/gige_camera_source.hpp"
+#include "evar/acquisition/process_capabilities.hpp"
 
 #include <arv.h>
 
@@ -138,8 +139,8 @@ struct GigECameraSource::Impl {
     if (GSocketAddress* a = arv_gv_device_get_device_address(device)) {
       loopback = g_inet_address_get_is_loopback(g_inet_socket_address_get_address(G_INET_SOCKET_ADDRESS(a)));
     }
-    if (loopback || options.disable_packet_socket)
-      arv_gv_device_set_stream_options(device, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
+    const bool packet_socket = options.packet_socket && !loopback && has_effective_capability(kCapNetRaw);
+    if (!packet_socket) arv_gv_device_set_stream_options(device, ARV_GV_STREAM_OPTION_PACKET_SOCKET_DISABLED);
     control_lost = false;
     control_lost_handler = g_signal_connect(device, "control-lost", G_CALLBACK(on_control_lost), this);
 
@@ -193,6 +194,7 @@ struct GigECameraSource::Impl {
     std::lock_guard lock(mutex);
     stats.camera_id = id;
     stats.packet_size = packet;
+    stats.packet_socket = packet_socket;
     ++stats.connections;
     earlier_epochs = totals_locked();
     tracker.reset();

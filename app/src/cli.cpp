@@ -233,6 +233,10 @@ int run_cli(const std::vector<std::string>& args) {
   rd->add_option("--pixel-format", record.frames.pixel_format, "GigE pixel format")
       ->check(CLI::IsMember({"mono8", "mono12", "mono16"}))
       ->capture_default_str();
+  rd->add_flag("--gige-packet-socket", record.frames.packet_socket,
+              "let Aravis use its packet socket (less CPU per packet); only if the process holds\n"
+              "CAP_NET_RAW (see docs/SECURITY.md), otherwise plain UDP")
+      ->excludes(v4l);
   rd->add_option("--v4l2-format", record.frames.v4l2_format, "V4L2 format: Y16, GREY, YUYV or MJPG (default: the deepest grey offered)")
       ->needs(v4l);
   rd->add_option("--width", record.frames.width, "image width (pixels); default: the device's")->check(CLI::Range(16, 16384));

@@ -17,6 +17,7 @@ struct FrameSourceSpec {
   std::string v4l2_format;            ///< Y16, GREY, YUYV or MJPG ("" = the deepest offered)
   std::optional<int> width, height;
   std::optional<double> fps;
+  bool packet_socket = false;         ///< GigE: Aravis's packet socket, if CAP_NET_RAW is granted
 };
 
 /// std::invalid_argument naming the option for a spec that cannot be right.

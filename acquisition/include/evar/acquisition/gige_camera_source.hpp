@@ -38,9 +38,10 @@ struct GigECameraOptions {
   std::optional<double> frame_rate_hz;      ///< default: the camera's current rate
   std::optional<int> packet_size;           ///< bytes; default: negotiated with the camera
   int buffers = 16;                         ///< the pool handed to the stream
-  /// Aravis's packet socket (used as root) receives nothing on loopback; it is turned off
-  /// for loopback cameras, and here for any camera if asked.
-  bool disable_packet_socket = false;
+  /// Aravis's packet socket (less CPU per packet than a UDP socket) only when asked and the
+  /// process holds CAP_NET_RAW explicitly (docs/SECURITY.md); never on loopback, where it
+  /// receives nothing. Otherwise a plain UDP socket, whoever runs the node.
+  bool packet_socket = false;
   std::chrono::milliseconds stall_after{500};          ///< no frame for this long → Stalled
   std::chrono::milliseconds probe_after{1500};         ///< stalled this long → ask the camera if it is there
   std::chrono::milliseconds reconnect_interval{500};
@@ -55,6 +56,7 @@ struct GigEStatistics {
   std::optional<std::int64_t> typical_delay_ns;
   std::string camera_id;                ///< the camera actually opened
   int packet_size = 0;
+  bool packet_socket = false;           ///< Aravis's packet socket in use (see GigECameraOptions)
 };
 
 class GigECameraSource final : public FrameSource {

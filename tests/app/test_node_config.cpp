@@ -1,0 +1,62 @@
+// node.json: the settings a clinical engineer writes for the bedside box are read exactly
+// or refused with the file and field named (docs/FORMATS.md).
+#include <gmock/gmock.h>
+#include <gtest/gtest.h>
+
+#include <unistd.h>
+
+#include <filesystem>
+#include <fstream>
+#include <string>
+
+#include "evar/geometry/input_error.hpp"
+#include "node_config.hpp"
+
+namespace fs = std::filesystem;
+using testing::HasSubstr;
+
+namespace {
+
+fs::path write_config(const std::string& frames) {
+  const fs::path file = fs::temp_directory_path() / ("evar_node_" + std::to_string(::getpid()) + ".json");
+  std::ofstream(file) << R"({"format": "evarnode-node", "version": 1, "frames": )" << frames << "}";
+  return file;
+}
+
+std::string error_of(const std::string& frames) {
+  try {
+    evar::app::read_node_config(write_config(frames));
+  } catch (const evar::geometry::InputError& e) {
+    return e.what();
+  }
+  return "no error";
+}
+
+}  // namespace
+
+TEST(NodeConfig, ThePacketSocketIsOptIn) {
+  const auto plain = evar::app::read_node_config(write_config(R"({"camera": "EVAR001"})"));
+  ASSERT_TRUE(plain.frames);
+  EXPECT_EQ(plain.frames->camera, "EVAR001");
+  EXPECT_FALSE(plain.frames->packet_socket);
+  const auto asked = evar::app::read_node_config(write_config(R"({"camera": "", "packet_socket": true})"));
+  EXPECT_TRUE(asked.frames->packet_socket);
+  fs::remove(write_config("{}"));
+}
+
+TEST(NodeConfig, BadFrameSettingsAreNamed) {
+  EXPECT_THAT(error_of(R"({"packet_socket": "yes"})"), HasSubstr(".json: frames.packet_socket: expected true or false"));
+  EXPECT_THAT(error_of(R"({"packet_sockets": true})"), HasSubstr("frames.packet_sockets: unknown setting"));
+  EXPECT_THAT(error_of(R"({"pixel_format": "mono10"})"), HasSubstr("frames.pixel_format: expected mono8, mono12 or mono16"));
+  EXPECT_THAT(error_of(R"({"width": 8})"), HasSubstr("frames.width"));
+  fs::remove(write_config("{}"));
+}
+
+TEST(NodeConfig, TheBedsideStartingConfigIsValid) {
+  // scripts/install-bedside.sh installs it as /etc/evarnode/node.json.
+  const auto c = evar::app::read_node_config(fs::path(EVAR_SOURCE_DIR) / "scripts/bedside/node.json");
+  ASSERT_TRUE(c.frames && c.carm && c.scene && c.detector);
+  EXPECT_FALSE(c.frames->packet_socket);
+  EXPECT_EQ(*c.carm, "serial:/dev/evarnode-carm,baud=115200");  // the udev rule's stable name
+  EXPECT_EQ(*c.scene, "/var/lib/evarnode/case/scene.json");      // inside the service's StateDirectory
+}

@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# The bedside service files as install-bedside.sh writes them (docs/SECURITY.md):
+# the unit passes systemd's own checks with no warning, its exposure score stays "OK"
+# (at most 2.5 of 10), the packet-socket drop-in is only there when asked for, and the
+# udev rule names the adapter given. Usage: bedside_files.sh SOURCE_DIR EVARNODE_BINARY
+set -euo pipefail
+src=$1 bin=$2
+out=$(mktemp -d)
+trap 'rm -rf "$out"' EXIT
+fail() { echo "FAIL: $*" >&2; exit 1; }
+
+bash "$src/scripts/install-bedside.sh" --render "$out/plain" --bin "$bin" --carm-usb 1D6B:0104 >/dev/null
+cd "$out/plain"
+warnings=$(systemd-analyze verify ./evarnode.service 2>&1) || fail "systemd-analyze verify: $warnings"
+[ -z "$warnings" ] || fail "systemd-analyze verify warns: $warnings"
+systemd-analyze security --offline=true --threshold=25 ./evarnode.service >"$out/security.txt" 2>&1 ||
+  fail "exposure above 2.5: $(grep Overall "$out/security.txt")"
+grep -q '^CapabilityBoundingSet=$' evarnode.service || fail "the unit grants capabilities"
+grep -q '^User=evarnode$' evarnode.service || fail "the unit does not run as the evarnode user"
+[ ! -e evarnode.service.d/packet-socket.conf ] || fail "packet-socket drop-in written without --packet-socket"
+grep -q 'ATTR{idVendor}=="1d6b", ATTR{idProduct}=="0104", GROUP="evarnode", MODE="0660"' 70-evarnode.rules ||
+  fail "udev rule for the USB adapter missing: $(cat 70-evarnode.rules)"
+grep -q 'SYMLINK+="evarnode-carm"' 70-evarnode.rules || fail "no stable name for a USB-serial adapter"
+
+bash "$src/scripts/install-bedside.sh" --render "$out/raw" --bin "$bin" --packet-socket >/dev/null
+grep -q '^AmbientCapabilities=CAP_NET_RAW$' "$out/raw/evarnode.service.d/packet-socket.conf" || fail "no CAP_NET_RAW drop-in"
+if grep -q 'idVendor' "$out/raw/70-evarnode.rules"; then fail "a rule for an adapter nobody named"; fi
+
+if bash "$src/scripts/install-bedside.sh" --render "$out/bad" --carm-usb 1d6b-0104 2>"$out/err.txt"; then
+  fail "a malformed VID:PID was accepted"
+fi
+grep -q "'1d6b-0104' is not VID:PID" "$out/err.txt" || fail "unclear error: $(cat "$out/err.txt")"
+echo "bedside files OK: $(grep Overall "$out/security.txt")"
