@@ -272,6 +272,7 @@ void LiveNode::compose_loop() {
     lines.push_back(line);
     ComposedFrame out;
     out.P_ct = view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
+    out.mm_per_px = view ? mm_at_isocenter_per_px(view->view) : 0.0;
     try {
       const int bits = f->format == acquisition::PixelFormat::Mono8 ? 8 : 16;
       out.image = std::make_shared<const overlay::Image>(
@@ -292,8 +293,6 @@ void LiveNode::compose_loop() {
       stats_.frames_with_roadmap += out.P_ct ? 1 : 0;
       latencies_.push_back(out.latency_ms);
       if (latencies_.size() > kLatencyWindow) latencies_.pop_front();
-      if (options_.keep_frame_log)
-        frame_log_.push_back({out.sequence, out.P_ct, view ? mm_at_isocenter_per_px(view->view) : 0.0, model});
     }
     if (options_.backpressure) output_.push_wait(std::move(out));
     else output_.push(std::move(out));
@@ -437,11 +436,6 @@ NodeStatistics LiveNode::statistics() const {
 std::shared_ptr<const PublishedModel> LiveNode::model() const {
   std::lock_guard lock(model_mutex_);
   return model_;
-}
-
-std::vector<FrameLogEntry> LiveNode::frame_log() const {
-  std::lock_guard lock(stats_mutex_);
-  return frame_log_;
 }
 
 }  // namespace evar::app

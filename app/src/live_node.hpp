@@ -49,7 +49,6 @@ struct NodeOptions {
   std::chrono::milliseconds video_stall{1000};  ///< no frame for this long: "no video"
   std::chrono::milliseconds alert_hold{5000};   ///< a failed adaptation stays on screen this long
   std::size_t input_queue = 4, output_queue = 8;
-  bool keep_frame_log = false;                  ///< remember every frame's geometry and model (evaluation)
   /// Make the source wait when the input queue is full instead of dropping the oldest frame:
   /// for replays, whose source can wait; live sources cannot.
   bool backpressure = false;
@@ -69,6 +68,7 @@ struct ComposedFrame {
   std::int64_t device_time_ns = 0;
   double latency_ms = 0.0;                        ///< arrival → composited
   std::optional<geometry::ProjectionMatrix> P_ct; ///< the roadmap's projection; empty: none drawn
+  double mm_per_px = 0.0;                         ///< at the isocenter, with P_ct
   std::shared_ptr<const PublishedModel> model;
 };
 
@@ -103,14 +103,6 @@ struct NodeStatistics {
   std::optional<std::int64_t> carm_clock_offset_ns;
 };
 
-/// Per frame, when NodeOptions::keep_frame_log is set.
-struct FrameLogEntry {
-  std::uint64_t sequence = 0;
-  std::optional<geometry::ProjectionMatrix> P_ct;  ///< empty: no usable geometry (none, moving)
-  double mm_per_px = 0.0;                          ///< at the isocenter, with P_ct
-  std::shared_ptr<const PublishedModel> model;
-};
-
 class LiveNode {
  public:
   /// The scene must outlive the node. Throws geometry::InputError for a scene the
@@ -135,7 +127,6 @@ class LiveNode {
   overlay::RoadmapMode mode() const { return mode_.load(); }
   NodeStatistics statistics() const;
   std::shared_ptr<const PublishedModel> model() const;
-  std::vector<FrameLogEntry> frame_log() const;
 
  private:
   struct Analysis {  // a frame offered to the analysis thread
@@ -179,7 +170,6 @@ class LiveNode {
   NodeStatistics stats_;
   std::deque<double> latencies_;  // the last kLatencyWindow frames
   std::vector<double> adaptation_latencies_;
-  std::vector<FrameLogEntry> frame_log_;
 
   struct Alert {
     std::string text;

@@ -84,7 +84,6 @@ int run_node(const RunCommand& cmd) {
   const auto mode = overlay::parse_roadmap_mode(cmd.mode);
   if (!mode) throw std::invalid_argument("--mode " + cmd.mode + ": expected undeformed, adapted or both");
   options.mode = *mode;
-  options.keep_frame_log = session.has_value();
   options.backpressure = session.has_value();
   const geometry::Scene scene = geometry::load_scene(scene_path);
 
@@ -110,6 +109,12 @@ int run_node(const RunCommand& cmd) {
     auto s = std::make_unique<IgtlSink>(o, scene, options.detector.col_spacing_mm, 15.0);
     log().info("OpenIGTLink server on {}:{} (3D Slicer: OpenIGTLinkIF, client to this port)", cmd.igtl_bind, s->port());
     igtl = s.get();
+    sinks.push_back(std::move(s));
+  }
+  EvaluationSink* evaluation = nullptr;
+  if (session && session->truth) {
+    auto s = std::make_unique<EvaluationSink>(*session, scene);
+    evaluation = s.get();
     sinks.push_back(std::move(s));
   }
   std::atomic<bool> quit{false};
@@ -207,8 +212,9 @@ int run_node(const RunCommand& cmd) {
                    {"igtl_messages", igtl ? igtl->statistics().messages_sent : 0}}}};
   if (s.carm_clock_offset_ns) report["carm_clock_offset_ns"] = *s.carm_clock_offset_ns;
   std::size_t evaluated = 0;
-  if (session && session->truth) {
-    const std::vector<LandmarkError> errors = evaluate_frame_log(*session, scene, node.frame_log(), &evaluated);
+  if (evaluation) {
+    const std::vector<LandmarkError> errors = evaluation->result();
+    evaluated = evaluation->frames();
     nlohmann::json lm = nlohmann::json::array();
     std::ostringstream md;
     md << "| landmark | frames | initial (mm) | adapted (mm) | initial vertical (mm) | adapted vertical (mm) |\n"

@@ -5,6 +5,7 @@
 #include <cmath>
 #include <map>
 #include <numeric>
+#include <stdexcept>
 
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/scene.hpp"
@@ -113,17 +114,32 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   return result;
 }
 
-std::vector<LandmarkError> evaluate_frame_log(const sim::Session& session, const geometry::Scene& scene,
-                                              const std::vector<FrameLogEntry>& log, std::size_t* frames) {
-  *frames = 0;
-  if (!session.truth || session.frames.empty()) return {};
-  OstiumErrors errors(scene.landmarks, session.truth->ostia);
-  for (const auto& e : log) {
-    if (!e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) continue;
-    const sim::FrameRecord& record = session.frames[(e.sequence - 1) % session.frames.size()];
-    if (errors.add(record.frame, *e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks)) ++*frames;
-  }
-  return errors.result();
+namespace {
+const std::vector<sim::OstiumTruth>& ostia_of(const sim::Session& session) {
+  if (!session.truth || session.frames.empty())
+    throw std::invalid_argument("the evaluation needs a session with frames and ground truth");
+  return session.truth->ostia;
+}
+}  // namespace
+
+EvaluationSink::EvaluationSink(const sim::Session& session, const geometry::Scene& scene)
+    : session_(session), errors_(scene.landmarks, ostia_of(session)) {}
+
+void EvaluationSink::write(const ComposedFrame& e) {
+  if (!e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) return;
+  const sim::FrameRecord& record = session_.frames[(e.sequence - 1) % session_.frames.size()];
+  std::lock_guard lock(mutex_);
+  if (errors_.add(record.frame, *e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks)) ++frames_;
+}
+
+std::vector<LandmarkError> EvaluationSink::result() const {
+  std::lock_guard lock(mutex_);
+  return errors_.result();
+}
+
+std::size_t EvaluationSink::frames() const {
+  std::lock_guard lock(mutex_);
+  return frames_;
 }
 
 nlohmann::json to_json(const LandmarkError& l) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include <map>
+#include <mutex>
 
 #include <nlohmann/json.hpp>
 
@@ -81,11 +82,26 @@ struct CaseEvaluation {
 CaseEvaluation evaluate_session(const std::filesystem::path& session, const EvaluationOptions& options = {},
                                 const std::function<void(std::size_t, std::size_t)>& progress = {});
 
-/// The distances in the frames a node composited with an adapted model (its frame log, on a
-/// replay of `session`: sequence n is the session's frame (n − 1) modulo its length).
-/// `frames` gets how many frames were measured. Empty for a session without ground truth.
-std::vector<LandmarkError> evaluate_frame_log(const sim::Session& session, const geometry::Scene& scene,
-                                              const std::vector<FrameLogEntry>& log, std::size_t* frames);
+/// An output sink that measures, frame by frame as the node shows them, the distances in
+/// the frames composited with an adapted model, on a replay of `session` (sequence n is the
+/// session's frame (n − 1) modulo its length). It keeps sums, not frames or models, so a
+/// replay looped for hours runs in constant memory. The session must have ground truth.
+class EvaluationSink final : public OutputSink {
+ public:
+  EvaluationSink(const sim::Session& session, const geometry::Scene& scene);
+  std::string name() const override { return "evaluation"; }
+  void write(const ComposedFrame& frame) override;
+  /// The means per landmark so far (only those measured).
+  std::vector<LandmarkError> result() const;
+  /// Frames measured so far.
+  std::size_t frames() const;
+
+ private:
+  const sim::Session& session_;
+  mutable std::mutex mutex_;
+  OstiumErrors errors_;
+  std::size_t frames_ = 0;
+};
 
 /// {"label", "frames", "initial_mm", "adapted_mm", "initial_vertical_mm", "adapted_vertical_mm"}.
 nlohmann::json to_json(const LandmarkError& l);

@@ -59,12 +59,14 @@ class LiveNodeReplay : public ::testing::Test {
 TEST_F(LiveNodeReplay, TheAdaptedOverlayAppearsAndTheOstiumErrorFalls) {
   app::NodeOptions o = options();
   o.backpressure = true;  // a replay can wait: every frame is shown
-  o.keep_frame_log = true;
   std::vector<std::unique_ptr<app::OutputSink>> sinks;
   auto video = std::make_unique<app::VideoSink>(dir_ / "out" / "overlay.avi", 15.0);
   auto snapshots = std::make_unique<app::SnapshotSink>(dir_ / "out" / "snapshots");
   auto* video_ptr = video.get();
   auto* snapshots_ptr = snapshots.get();
+  auto evaluation = std::make_unique<app::EvaluationSink>(session(), *scene_);
+  auto* evaluation_ptr = evaluation.get();
+  sinks.push_back(std::move(evaluation));
   sinks.push_back(std::move(video));
   sinks.push_back(std::move(snapshots));
   app::LiveNode node(*scene_, o, std::move(sinks));
@@ -85,9 +87,8 @@ TEST_F(LiveNodeReplay, TheAdaptedOverlayAppearsAndTheOstiumErrorFalls) {
   // the preoperative model (by more than half a pixel: 0.25 mm); no landmark ends up
   // farther by more than 1 mm (about 2 px).
   // Which view pairs are adapted depends on timing, so nothing here depends on which.
-  std::size_t frames = 0;
-  const auto errors = app::evaluate_frame_log(session(), *scene_, node.frame_log(), &frames);
-  ASSERT_GT(frames, 20u);
+  const auto errors = evaluation_ptr->result();
+  ASSERT_GT(evaluation_ptr->frames(), 20u);
   const std::string carrier_ostium = "internal_" + generated_->carrier;  // internal_iliac_right
   bool seen = false;
   for (const auto& l : errors) {
