@@ -71,11 +71,7 @@ void CArmLinkReceiver::received(std::span<const std::uint8_t> bytes, Clock::time
   });
   stats_.link = decoder_.stats();
   stats_.last_error = decoder_.last_error();
-  if (stats_.link.errors() != errors_reported_) {
-    errors_reported_ = stats_.link.errors();
-    pending_.push_back({state_, name_ + ": " + decoder_.last_error() + " (" + std::to_string(errors_reported_) +
-                                    " bad frames so far)"});
-  }
+  report_errors(now);
   if (!samples.empty()) {
     last_sample_ = now;
     set_state(StreamState::Streaming, name_ + " streaming");
@@ -83,8 +79,22 @@ void CArmLinkReceiver::received(std::span<const std::uint8_t> bytes, Clock::time
   deliver(lock, samples);
 }
 
+void CArmLinkReceiver::report_errors(Clock::time_point now) {
+  const std::uint64_t errors = stats_.link.errors();
+  if (errors == errors_reported_ || (last_error_notice_ && now - *last_error_notice_ < kErrorNoticeInterval)) return;
+  const std::string total = " (" + std::to_string(errors) + " bad frames so far)";
+  if (!last_error_notice_ || errors - errors_reported_ == 1)
+    pending_.push_back({state_, name_ + ": " + decoder_.last_error() + total});
+  else
+    pending_.push_back({state_, name_ + ": " + std::to_string(errors - errors_reported_) +
+                                    " bad frames since the last report" + total + "; the last: " + decoder_.last_error()});
+  errors_reported_ = errors;
+  last_error_notice_ = now;
+}
+
 void CArmLinkReceiver::tick(Clock::time_point now) {
   std::unique_lock lock(mutex_);
+  report_errors(now);  // what a burst left unreported
   if (state_ == StreamState::Streaming && last_sample_ && now - *last_sample_ > stale_after_)
     set_state(StreamState::Stalled, name_ + ": no geometry for " + std::to_string(stale_after_.count()) + " ms");
   deliver(lock, {});

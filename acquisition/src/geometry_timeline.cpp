@@ -15,7 +15,13 @@ double lerp(double a, double b, double w) { return a + (b - a) * w; }
 GeometryTimeline::GeometryTimeline(GeometryTimelineOptions options) : options_(options) {}
 
 void GeometryTimeline::add(const CArmState& sample) {
-  if (!samples_.empty() && sample.device_time_ns < samples_.back().device_time_ns) {
+  if (!samples_.empty() && sample.device_time_ns <= samples_.back().device_time_ns) {
+    const std::int64_t behind_ns = samples_.back().device_time_ns - sample.device_time_ns;
+    if (behind_ns <= std::chrono::nanoseconds(options_.restart_after).count()) {
+      ++late_samples_;  // interpolation needs increasing times; the newer samples already cover it
+      return;
+    }
+    ++restarts_;
     samples_.clear();
     clock_.reset();
   }

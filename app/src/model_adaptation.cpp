@@ -64,7 +64,26 @@ AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& 
     throw AdaptationError(std::string("deformation failed: ") + e.what());
   }
   m.deform_ms = ms_since(t0);
+  check_finite(m);
   return m;
+}
+
+void check_finite(const AdaptedModel& m) {
+  const auto& d = m.deformation;
+  for (std::size_t v = 0; v < d.vessels.size(); ++v) {
+    const auto& V = d.vessels[v].mesh.V;
+    for (Eigen::Index i = 0; i < V.rows(); ++i)
+      if (!V.row(i).allFinite())
+        throw AdaptationError("deformation refused: vessel " +
+                              (v < d.reports.size() ? d.reports[v].name : std::to_string(v)) + " vertex " +
+                              std::to_string(i) + " is not finite");
+  }
+  for (const auto& l : d.landmarks)
+    if (!l.position_lps.allFinite())
+      throw AdaptationError("deformation refused: landmark " + l.label + " is not finite");
+  for (std::size_t k = 0; k < m.reconstruction.points.size(); ++k)
+    if (!m.reconstruction.points[k].allFinite())
+      throw AdaptationError("reconstruction refused: device point " + std::to_string(k) + " is not finite");
 }
 
 }  // namespace evar::app

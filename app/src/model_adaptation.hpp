@@ -39,7 +39,13 @@ overlay::RoadmapModel roadmap_model(const geometry::Scene& scene, const AdaptedM
 /// Puts a model's deformed vessels, moved landmarks and device into a roadmap.
 void show_adapted(overlay::RoadmapModel& roadmap, const AdaptedModel& adapted);
 
+/// AdaptationError naming the first vessel vertex, landmark or device point that is not
+/// finite: the last guard before a model reaches the screen (a NaN vertex would draw a
+/// wrong roadmap as if it were right), whatever the solver below promised.
+void check_finite(const AdaptedModel& model);
+
 /// `previous`: the last model's deformation, to warm-start the solve (SceneDeformer::deform).
+/// The result has passed check_finite.
 AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& pair, const AdaptationOptions& options,
                          const deform::SceneDeformation* previous = nullptr);
 

@@ -93,5 +93,25 @@ TEST(GeometryTimeline, ARestartedCArmClockStartsAFreshHistory) {
   restarted.primary_deg = 30.0;
   tl.add(restarted);
   EXPECT_EQ(tl.size(), 1u);
+  EXPECT_EQ(tl.restarts(), 1u);
   EXPECT_NEAR(tl.at(sc.at(1.2))->state.primary_deg, 30.0, 1e-9);
+}
+
+TEST(GeometryTimeline, ALateOrRepeatedSampleIsDroppedNotTakenForARestart) {
+  Scenario sc;
+  acq::GeometryTimeline tl;
+  const auto samples = sc.samples(3.0);
+  for (const auto& s : samples) tl.add(s);
+  const std::size_t kept = tl.size();
+  const double before = tl.at(sc.at(2.95))->state.primary_deg;
+  acq::CArmState late = samples[samples.size() - 3];  // 0.2 s behind the newest, arriving now
+  late.host_arrival = sc.at(3.05);
+  late.primary_deg = 99.0;
+  tl.add(late);
+  tl.add(samples.back());  // a repeat
+  EXPECT_EQ(tl.size(), kept);
+  EXPECT_EQ(tl.late_samples(), 2u);
+  EXPECT_EQ(tl.restarts(), 0u);
+  EXPECT_DOUBLE_EQ(tl.at(sc.at(2.95))->state.primary_deg, before);
+  EXPECT_FALSE(tl.at(sc.at(2.95))->stale);
 }

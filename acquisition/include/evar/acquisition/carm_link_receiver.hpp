@@ -25,6 +25,9 @@ struct CArmLinkStatistics {
 class CArmLinkReceiver {
  public:
   using Clock = std::chrono::steady_clock;
+  /// Bad frames are reported at once, then summed into at most one notice per interval,
+  /// so a link that spews garbage cannot flood the log or the screen.
+  static constexpr std::chrono::seconds kErrorNoticeInterval{10};
   /// `stale_after`: a streaming link that delivers no geometry for this long is Stalled.
   CArmLinkReceiver(std::string name, std::chrono::milliseconds stale_after);
 
@@ -48,6 +51,7 @@ class CArmLinkReceiver {
     std::string reason;
   };
   void set_state(StreamState s, const std::string& reason);  // mutex_ held by the caller
+  void report_errors(Clock::time_point now);                 // mutex_ held by the caller
   void deliver(std::unique_lock<std::mutex>& lock, const std::vector<CArmState>& samples);
 
   std::string name_;
@@ -60,6 +64,7 @@ class CArmLinkReceiver {
   std::string reason_;
   std::optional<Clock::time_point> last_sample_;
   std::uint64_t errors_reported_ = 0;
+  std::optional<Clock::time_point> last_error_notice_;
   CArmLinkStatistics stats_;
   std::vector<Notice> pending_;
 };

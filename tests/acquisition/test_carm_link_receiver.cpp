@@ -1,0 +1,66 @@
+// The C-arm link receiver that serial and USB share, driven directly with bytes and a
+// simulated clock: a link that spews garbage is reported at once, then summed into at
+// most one notice per kErrorNoticeInterval, so it cannot flood the log or the screen,
+// and good samples in between still arrive.
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <string>
+#include <vector>
+
+#include "evar/acquisition/carm_link_protocol.hpp"
+#include "evar/acquisition/carm_link_receiver.hpp"
+
+using namespace evar::acquisition;
+using namespace std::chrono_literals;
+
+namespace {
+
+std::vector<std::uint8_t> good_sample(std::uint16_t sequence, std::int64_t t_ns) {
+  carm_link::GeometryMessage m;
+  m.sequence = sequence;
+  m.state.device_time_ns = t_ns;
+  m.state.primary_deg = 30.0;
+  m.state.sid_mm = 1200.0;
+  m.state.sod_mm = 800.0;
+  return carm_link::encode(m);
+}
+
+}  // namespace
+
+TEST(CArmLinkReceiver, ContinuousGarbageGivesOneNoticeAtOnceThenOneSummaryPerInterval) {
+  CArmLinkReceiver rx("serial /dev/ttyX", 1000ms);
+  std::vector<std::string> error_notices;
+  int samples = 0;
+  rx.set_callbacks([&](const CArmState&) { ++samples; },
+                   [&](StreamState, const std::string& reason) {
+                     if (reason.find("bad frames") != std::string::npos) error_notices.push_back(reason);
+                   });
+  rx.connected();
+  const auto t0 = CArmLinkReceiver::Clock::time_point{} + 1h;
+  const std::vector<std::uint8_t> garbage{0x00, 0x03, 0x41, 0x42, 0x00};  // a frame too short to be a message
+  // 25 s of a link that sends a bad frame and a good sample every 10 ms.
+  std::uint16_t seq = 0;
+  for (int k = 0; k < 2500; ++k) {
+    const auto now = t0 + k * 10ms;
+    rx.received(garbage, now);
+    rx.received(good_sample(seq++, 1'000'000'000LL + k * 10'000'000LL), now);
+    if (k % 10 == 0) rx.tick(now);
+  }
+  EXPECT_EQ(samples, 2500);
+  EXPECT_EQ(rx.statistics().link.errors(), 2500u);
+  // At 0 s, 10 s and 20 s: three notices for 2500 bad frames, not 2500.
+  ASSERT_EQ(error_notices.size(), 3u);
+  EXPECT_NE(error_notices[0].find("(1 bad frames so far)"), std::string::npos) << error_notices[0];
+  EXPECT_NE(error_notices[1].find("1000 bad frames since the last report (1001 bad frames so far)"), std::string::npos)
+      << error_notices[1];
+  EXPECT_NE(error_notices[1].find("the last: "), std::string::npos) << error_notices[1];
+  // What the last burst left unreported comes with the next tick after the interval, even
+  // when the garbage has stopped.
+  rx.tick(t0 + 40s);
+  ASSERT_EQ(error_notices.size(), 4u);
+  EXPECT_NE(error_notices[3].find("499 bad frames since the last report (2500 bad frames so far)"), std::string::npos)
+      << error_notices[3];
+  rx.tick(t0 + 60s);
+  EXPECT_EQ(error_notices.size(), 4u);  // nothing new, nothing said
+}
