@@ -346,6 +346,12 @@ void LiveNode::adaptation_loop() {
                  "deformation {:.1f} ms; ready {:.0f} ms after the second view arrived",
                  m->frame_earlier, m->frame_later, m->reconstruction.points.size(), m->reconstruction.mean_residual_px,
                  m->reconstruct_ms, m->deform_ms, ready_ms);
+      if (log().should_log(spdlog::level::debug))
+        for (const auto& r : m->deformation.reports)
+          log().debug("  {}: {}; {} handles, {} constrained; {} iterations in {} round(s){}; {:.1f} ms", r.name, r.role,
+                      r.control_points, r.constrained_vertices, r.iterations, r.rounds,
+                      r.converged ? "" : " (NOT converged)",
+                      r.timings.control_points_ms + r.timings.factor_ms + r.timings.iterate_ms);
     } catch (const std::exception& e) {
       {
         std::lock_guard lock(stats_mutex_);
