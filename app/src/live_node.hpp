@@ -43,7 +43,8 @@ struct NodeOptions {
   ViewPairOptions pairs;
   AdaptationOptions adaptation;
   deform::DeformOptions deform;
-  overlay::CompositorOptions compositor;
+  /// The roadmap layer is drawn in the background: no frame waits for a new view's or model's layer.
+  overlay::CompositorOptions compositor{.supersample = 2, .window_level = {}, .layer_in_background = true};
   overlay::RoadmapMode mode = overlay::RoadmapMode::Both;
   acquisition::GeometryTimelineOptions timeline;
   std::chrono::milliseconds video_stall{1000};  ///< no frame for this long: "no video"
@@ -67,7 +68,7 @@ struct ComposedFrame {
   std::uint64_t sequence = 0;
   std::int64_t device_time_ns = 0;
   double latency_ms = 0.0;                        ///< arrival → composited
-  std::optional<geometry::ProjectionMatrix> P_ct; ///< the roadmap's projection; empty: none drawn
+  std::optional<geometry::ProjectionMatrix> P_ct; ///< the roadmap's projection; empty: `model` not drawn (no geometry, or its layer not ready)
   double mm_per_px = 0.0;                         ///< at the isocenter, with P_ct
   std::shared_ptr<const PublishedModel> model;
 };

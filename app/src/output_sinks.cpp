@@ -24,7 +24,13 @@ void SnapshotSink::write(const ComposedFrame& frame) {
   const std::uint64_t version = frame.model ? frame.model->version : 0;
   if (previous_ && version != previous_version_) {
     save(*previous_, "model-" + std::to_string(version) + "-before.png");
-    save(*frame.image, "model-" + std::to_string(version) + "-after.png");
+    after_ = version;
+  }
+  // "After" is the first frame drawn with the new model: the compositor may show the
+  // previous one for a frame or two while it draws the new roadmap.
+  if (after_ && (*after_ != version || frame.P_ct)) {
+    if (*after_ == version) save(*frame.image, "model-" + std::to_string(version) + "-after.png");
+    after_.reset();  // or superseded by a newer model before it was drawn
   }
   if (requested_.exchange(false)) save(*frame.image, "snapshot-" + std::to_string(frame.sequence) + ".png");
   previous_ = frame.image;

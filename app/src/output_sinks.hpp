@@ -32,7 +32,7 @@ class VideoSink final : public OutputSink {
 };
 
 /// PNG pictures in a directory: at every model change the last frame before it
-/// (model-N-before.png) and the first frame showing it (model-N-after.png); and the next
+/// (model-N-before.png) and the first frame drawn with it (model-N-after.png); and the next
 /// frame after request() (snapshot-SEQUENCE.png).
 class SnapshotSink final : public OutputSink {
  public:
@@ -47,6 +47,7 @@ class SnapshotSink final : public OutputSink {
   std::filesystem::path directory_;
   std::shared_ptr<const overlay::Image> previous_;  // held, not copied
   std::uint64_t previous_version_ = 0;
+  std::optional<std::uint64_t> after_;  // the model whose first drawn frame is still to be saved
   std::atomic<bool> requested_{false};
   std::vector<std::filesystem::path> written_;
 };

@@ -5,11 +5,10 @@
 #include <cstring>
 #include <stdexcept>
 
-#include <Eigen/Geometry>
 #include <opencv2/imgproc.hpp>
 
-#include "evar/overlay/perspective_projection.hpp"
 #include "image_mat.hpp"
+#include "roadmap_layer.hpp"
 
 namespace evar::overlay {
 
@@ -37,6 +36,31 @@ inline unsigned value(const GreyFrame& f, int x, int y) {
   const std::uint8_t* row = f.data + static_cast<std::size_t>(y) * static_cast<std::size_t>(f.stride_bytes);
   if (f.bits == 8) return row[x];
   return static_cast<unsigned>(row[2 * x]) | (static_cast<unsigned>(row[2 * x + 1]) << 8);
+}
+
+// The status block, top left, on a darkened box so it reads on any background.
+void draw_status(Image& out, const StatusBlock& status) {
+  if (status.lines.empty() && status.alerts.empty()) return;
+  cv::Mat canvas = detail::wrap(out);
+  const double scale = std::max(0.4, 0.6 * out.height / 1024.0);
+  const int thickness = out.height >= 768 ? 2 : 1;
+  int baseline = 0;
+  const int line_px = cv::getTextSize("Ag", cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).height + baseline + 6;
+  int width = 0;
+  for (const auto* group : {&status.lines, &status.alerts})
+    for (const auto& s : *group)
+      width = std::max(width, cv::getTextSize(s, cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).width);
+  const int lines = static_cast<int>(status.lines.size() + status.alerts.size());
+  const cv::Rect box = cv::Rect(0, 0, width + 16, lines * line_px + 10) & cv::Rect(0, 0, out.width, out.height);
+  cv::Mat roi = canvas(box);
+  roi.convertTo(roi, -1, 0.35);  // darken behind the text so it reads on any background
+  int y = 4 + line_px - baseline - 3;
+  const auto put = [&](const std::string& s, Bgr c) {
+    cv::putText(canvas, s, {8, y}, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(c.b, c.g, c.r), thickness, cv::LINE_AA);
+    y += line_px;
+  };
+  for (const auto& s : status.lines) put(s, kText);
+  for (const auto& s : status.alerts) put(s, kAlert);
 }
 
 }  // namespace
@@ -83,7 +107,12 @@ FrameCompositor::FrameCompositor(CompositorOptions options) : options_(options) 
   if (options_.supersample < 1 || options_.supersample > 8)
     throw std::invalid_argument("compositor: supersample " + std::to_string(options_.supersample) + " (1 to 8)");
   if (!(options_.window_level.window >= 0.0)) throw std::invalid_argument("compositor: negative window");
+  if (options_.layer_in_background) worker_ = std::make_unique<detail::LayerWorker>(options_.supersample);
 }
+
+FrameCompositor::~FrameCompositor() = default;
+
+std::size_t FrameCompositor::layer_renders() const { return own_renders_ + (worker_ ? worker_->renders() : 0); }
 
 void FrameCompositor::update_lut(const GreyFrame& f) {
   WindowLevel wl = options_.window_level;
@@ -121,57 +150,40 @@ void FrameCompositor::update_lut(const GreyFrame& f) {
   lut_window_ = wl;
 }
 
-bool FrameCompositor::same_layer(const LayerKey& a, const LayerKey& b) const {
-  if (a.model != b.model || a.mode != b.mode || a.width != b.width || a.height != b.height) return false;
-  if (a.P == b.P) return true;
-  // Angle and table readings jitter while the C-arm stands still: a projection that moves
-  // no corner of the model's bounding box by a quarter pixel draws the same roadmap.
-  for (const Eigen::Vector3d& c : layer_corners_) {
-    const Eigen::Vector3d pa = a.P * c.homogeneous(), pb = b.P * c.homogeneous();
-    if (pa.z() <= 0 || pb.z() <= 0 || (pa.hnormalized() - pb.hnormalized()).norm() >= 0.25) return false;
-  }
-  return true;
-}
-
-void FrameCompositor::render_layer(const LayerKey& key, const RoadmapModel& model) {
-  Eigen::AlignedBox3d box;
-  for (const auto* meshes : {&model.initial, &model.adapted})
-    for (const auto& m : *meshes)
-      for (Eigen::Index i = 0; i < m.V.rows(); ++i) box.extend(m.V.row(i).transpose());
-  layer_corners_.clear();
-  if (!box.isEmpty())
-    for (int k = 0; k < 8; ++k) layer_corners_.push_back(box.corner(static_cast<Eigen::AlignedBox3d::CornerType>(k)));
-  const PerspectiveProjection view(key.P, key.width, key.height);
-  const Overlay overlay = roadmap_overlay(model, key.mode);
-  DrawOptions draw;
-  draw.supersample = options_.supersample;
-  draw.label_font_scale = std::max(0.4, 0.55 * key.height / 1024.0);
-  Image black = Image::filled(key.width, key.height, {0, 0, 0});
-  Image white = Image::filled(key.width, key.height, {255, 255, 255});
-  composite(black, view, overlay, draw);
-  composite(white, view, overlay, draw);
-  layer_b_ = std::move(black.bgr);
-  layer_k_.resize(layer_b_.size());
-  for (std::size_t i = 0; i < layer_b_.size(); ++i)
-    layer_k_[i] = static_cast<std::uint8_t>(std::max(0, int{white.bgr[i]} - int{layer_b_[i]}));
-  ++layer_renders_;
-}
-
 Image FrameCompositor::compose(const GreyFrame& frame, const geometry::ProjectionMatrix* P_ct,
                                const std::shared_ptr<const RoadmapModel>& model, RoadmapMode mode,
                                const StatusBlock& status) {
   check_frame(frame);
   update_lut(frame);
-  const bool roadmap = P_ct != nullptr && model != nullptr;
-  if (roadmap) {
-    const LayerKey key{*P_ct, model.get(), mode, frame.width, frame.height};
-    if (!key_ || !same_layer(*key_, key)) {
-      key_.reset();  // a throw below leaves no half-made layer behind
-      render_layer(key, *model);
-      key_ = key;
-      layer_model_ = model;
+  const detail::RoadmapLayer* shown = nullptr;
+  std::string pending;  // a status line while the layer asked for is being drawn
+  last_shown_ = RoadmapShown::None;
+  if (P_ct != nullptr && model != nullptr) {
+    const detail::LayerKey key{*P_ct, model.get(), mode, frame.width, frame.height};
+    if (worker_)
+      if (auto fresh = worker_->take()) layer_ = std::move(fresh);
+    if (!layer_ || !layer_->serves(key)) {
+      if (!worker_) {
+        layer_.reset();  // a throw below leaves no half-made layer behind
+        layer_ = std::make_shared<const detail::RoadmapLayer>(detail::draw_roadmap_layer(key, model, options_.supersample));
+        ++own_renders_;
+      } else {
+        worker_->request(key, model);
+        const std::string error = worker_->error();
+        if (!error.empty()) pending = "roadmap not drawn: " + error;
+        else if (layer_ && layer_->aligned_with(key)) pending = "roadmap: drawing the new model (previous shown)";
+        else pending = "roadmap: drawing for this view";
+      }
+    }
+    if (layer_ && layer_->serves(key)) {
+      shown = layer_.get();
+      last_shown_ = RoadmapShown::Current;
+    } else if (layer_ && layer_->aligned_with(key) && pending.find("not drawn") == std::string::npos) {
+      shown = layer_.get();
+      last_shown_ = RoadmapShown::Previous;
     }
   }
+  const bool roadmap = shown != nullptr;
   Image out;
   out.width = frame.width;
   out.height = frame.height;
@@ -187,8 +199,8 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
       }
       continue;
     }
-    const std::uint8_t* b = layer_b_.data() + static_cast<std::size_t>(y) * frame.width * 3;
-    const std::uint8_t* k = layer_k_.data() + static_cast<std::size_t>(y) * frame.width * 3;
+    const std::uint8_t* b = shown->b.data() + static_cast<std::size_t>(y) * frame.width * 3;
+    const std::uint8_t* k = shown->k.data() + static_cast<std::size_t>(y) * frame.width * 3;
     for (int x = 0; x < frame.width; ++x) {
       const unsigned g = frame.bits == 8 ? lut[row[x]] : lut[row[2 * x] | (row[2 * x + 1] << 8)];
       for (int c = 0; c < 3; ++c) {
@@ -197,27 +209,12 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
       }
     }
   }
-  if (!status.lines.empty() || !status.alerts.empty()) {
-    cv::Mat canvas = detail::wrap(out);
-    const double scale = std::max(0.4, 0.6 * out.height / 1024.0);
-    const int thickness = out.height >= 768 ? 2 : 1;
-    int baseline = 0;
-    const int line_px = cv::getTextSize("Ag", cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).height + baseline + 6;
-    int width = 0;
-    for (const auto* group : {&status.lines, &status.alerts})
-      for (const auto& s : *group)
-        width = std::max(width, cv::getTextSize(s, cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).width);
-    const int lines = static_cast<int>(status.lines.size() + status.alerts.size());
-    const cv::Rect box = cv::Rect(0, 0, width + 16, lines * line_px + 10) & cv::Rect(0, 0, out.width, out.height);
-    cv::Mat roi = canvas(box);
-    roi.convertTo(roi, -1, 0.35);  // darken behind the text so it reads on any background
-    int y = 4 + line_px - baseline - 3;
-    const auto put = [&](const std::string& s, Bgr c) {
-      cv::putText(canvas, s, {8, y}, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(c.b, c.g, c.r), thickness, cv::LINE_AA);
-      y += line_px;
-    };
-    for (const auto& s : status.lines) put(s, kText);
-    for (const auto& s : status.alerts) put(s, kAlert);
+  if (pending.empty()) {
+    draw_status(out, status);
+  } else {
+    StatusBlock with_pending = status;
+    with_pending.lines.push_back(pending);
+    draw_status(out, with_pending);
   }
   return out;
 }

@@ -3,7 +3,9 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <chrono>
 #include <memory>
+#include <thread>
 #include <vector>
 
 #include "evar/geometry/carm_projection.hpp"
@@ -149,3 +151,55 @@ TEST(FrameCompositor, ModesShowWhatTheySay) {
 }
 
 }  // namespace
+
+namespace {
+// Composes until the compositor shows `want` (its worker drew the layer), at most 10 s.
+overlay::Image compose_until(overlay::FrameCompositor& c, const Scene& s, const geometry::ProjectionMatrix& P,
+                             const std::shared_ptr<overlay::RoadmapModel>& model, overlay::RoadmapShown want) {
+  overlay::Image out;
+  for (int i = 0; i < 1000; ++i) {
+    out = c.compose(s.frame, &P, model, overlay::RoadmapMode::Both, {});
+    if (c.last_roadmap() == want) break;
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  return out;
+}
+}  // namespace
+
+TEST(FrameCompositor, InTheBackgroundNoFrameWaitsForItsLayerAndNoneShowsAMisplacedRoadmap) {
+  Scene s;
+  overlay::FrameCompositor direct;  // draws every layer before returning
+  overlay::CompositorOptions o;
+  o.layer_in_background = true;
+  overlay::FrameCompositor c(o);
+  const overlay::Image plain = direct.compose(s.frame, nullptr, s.model, overlay::RoadmapMode::Both, {});
+
+  // A new view: the frame comes back at once without a roadmap (its layer is being drawn),
+  // and says so; the tube's column is bare grey.
+  const overlay::Image first = c.compose(s.frame, &s.P, s.model, overlay::RoadmapMode::Both, {});
+  EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::None);
+  EXPECT_EQ(at(first, 127, 200), at(plain, 127, 200));
+  // Once drawn, exactly what the direct compositor shows.
+  const overlay::Image drawn = compose_until(c, s, s.P, s.model, overlay::RoadmapShown::Current);
+  ASSERT_EQ(c.last_roadmap(), overlay::RoadmapShown::Current);
+  EXPECT_EQ(drawn.bgr, direct.compose(s.frame, &s.P, s.model, overlay::RoadmapMode::Both, {}).bgr);
+
+  // A new model at the same view: the previous model's layer (drawn for this view) stands
+  // in until the new one is drawn.
+  auto adapted = std::make_shared<overlay::RoadmapModel>(*s.model);
+  adapted->initial.front().V.col(0).array() += 10.0;  // moved 10 mm (15 px) to the patient's left
+  c.compose(s.frame, &s.P, adapted, overlay::RoadmapMode::Both, {});
+  EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::Previous);
+  const overlay::Image moved = compose_until(c, s, s.P, adapted, overlay::RoadmapShown::Current);
+  EXPECT_EQ(moved.bgr, direct.compose(s.frame, &s.P, adapted, overlay::RoadmapMode::Both, {}).bgr);
+
+  // A new angulation: no stand-in, the old layer would be misplaced.
+  geometry::CArmView turned = s.view;
+  turned.primary_angle_deg = 30;
+  const auto P2 = geometry::projection_matrix(turned);
+  c.compose(s.frame, &P2, adapted, overlay::RoadmapMode::Both, {});
+  EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::None);
+  compose_until(c, s, P2, adapted, overlay::RoadmapShown::Current);
+  EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::Current);
+  EXPECT_EQ(c.layer_renders(), 3u);
+}

@@ -61,12 +61,32 @@ struct StatusBlock {
 struct CompositorOptions {
   int supersample = 2;        ///< roadmap antialiasing (DrawOptions::supersample)
   WindowLevel window_level;
+  /// Draw the roadmap layer on a worker thread, so no frame waits for it: until the layer
+  /// for a new view is ready the frame shows no roadmap, and until the layer for a new model
+  /// is ready it shows the previous model's (drawn for this very view); the status block
+  /// says so. Off: compose() draws the layer itself before returning (stills, tests).
+  bool layer_in_background = false;
 };
+
+/// What compose() drew in its last frame.
+enum class RoadmapShown {
+  None,      ///< no roadmap (no projection or model, or its layer is still being drawn)
+  Current,   ///< the model asked for
+  Previous,  ///< the previous model, at this view, while the asked one is drawn
+};
+
+namespace detail {
+struct RoadmapLayer;
+class LayerWorker;
+}  // namespace detail
 
 class FrameCompositor {
  public:
   /// std::invalid_argument for a supersample outside 1..8 or a negative window.
   explicit FrameCompositor(CompositorOptions options = {});
+  ~FrameCompositor();
+  FrameCompositor(const FrameCompositor&) = delete;
+  FrameCompositor& operator=(const FrameCompositor&) = delete;
 
   /// The composited frame. `P_ct` null draws no roadmap (no usable geometry); `model` null
   /// likewise. Mode Adapted or Both with a model that has no adapted meshes draws the
@@ -77,34 +97,25 @@ class FrameCompositor {
 
   /// How often the roadmap layer was rendered (a cache miss: another model, mode or size,
   /// or a projection that moves the model by a quarter pixel or more), for tests and reports.
-  std::size_t layer_renders() const { return layer_renders_; }
+  std::size_t layer_renders() const;
+  /// What the last composed frame showed of the roadmap.
+  RoadmapShown last_roadmap() const { return last_shown_; }
   /// The display window of the last frame (after automatic choice).
   WindowLevel last_window() const { return last_window_; }
 
  private:
-  struct LayerKey {
-    geometry::ProjectionMatrix P;
-    const RoadmapModel* model = nullptr;
-    RoadmapMode mode = RoadmapMode::Both;
-    int width = 0, height = 0;
-  };
-  /// The layer drawn for `a` serves `b`: same model, mode and size, and a projection that
-  /// moves nothing by a quarter pixel.
-  bool same_layer(const LayerKey& a, const LayerKey& b) const;
-  void render_layer(const LayerKey& key, const RoadmapModel& model);
   void update_lut(const GreyFrame& frame);
 
   CompositorOptions options_;
-  std::optional<LayerKey> key_;
-  std::shared_ptr<const RoadmapModel> layer_model_;  // keeps the key's model address valid
-  std::vector<std::uint8_t> layer_b_, layer_k_;       // premultiplied colour, transmittance
-  std::vector<Eigen::Vector3d> layer_corners_;        // the drawn model's bounding box
+  std::shared_ptr<const detail::RoadmapLayer> layer_;  // the newest layer drawn
+  std::unique_ptr<detail::LayerWorker> worker_;        // with layer_in_background
+  std::size_t own_renders_ = 0;
+  RoadmapShown last_shown_ = RoadmapShown::None;
   std::vector<std::uint8_t> lut_;
   int lut_bits_ = 0;
   WindowLevel lut_window_{-1.0, 0.0};
   WindowLevel last_window_;
   std::vector<std::uint16_t> samples_;
-  std::size_t layer_renders_ = 0;
 };
 
 /// The Overlay a mode draws (colours as in compose), for stills and other sinks.
