@@ -35,7 +35,8 @@ done
 # The files, into a staging directory.
 stage=$(mktemp -d)
 trap 'rm -rf "$stage"' EXIT
-sed "s|/usr/local/bin/evarnode|$bin|" "$root/scripts/bedside/evarnode.service" > "$stage/evarnode.service"
+escaped_bin=$(printf '%s' "$bin" | sed 's/[&|\\]/\\&/g')
+sed "s|/usr/local/bin/evarnode|$escaped_bin|" "$root/scripts/bedside/evarnode.service" > "$stage/evarnode.service"
 cp "$root/scripts/bedside/evarnode-packet-socket.conf" "$stage/packet-socket.conf"
 {
   echo "# evarnode bedside devices (written by scripts/install-bedside.sh; docs/SECURITY.md)."
@@ -80,7 +81,10 @@ if [ ! -e /etc/evarnode/node.json ]; then
   install -m 0640 -g evarnode "$root/scripts/bedside/node.json" /etc/evarnode/node.json
   echo "evarnode: edit /etc/evarnode/node.json (scene, registration, detector, grabber, C-arm link)"
 fi
-if command -v udevadm >/dev/null; then udevadm control --reload && udevadm trigger --subsystem-match=usb --subsystem-match=tty --subsystem-match=video4linux; fi
+if command -v udevadm >/dev/null; then
+  udevadm control --reload && udevadm trigger --subsystem-match=usb --subsystem-match=tty --subsystem-match=video4linux ||
+    echo "evarnode: udev is not running here; the rule applies from the next boot" >&2
+fi
 if [ -d /run/systemd/system ]; then
   systemctl daemon-reload
   systemctl enable evarnode.service

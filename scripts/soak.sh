@@ -35,13 +35,14 @@ rm -rf "$out/run"
 "$bin" run --replay "$session" --fast --loop "$loops" --no-video --no-igtl --no-progress --out "$out/run" \
   > "$out/node.log" 2>&1 &
 pid=$!
+trap 'kill "$pid" 2>/dev/null || true' INT TERM EXIT
 start=$(date +%s)
 echo "seconds,rss_kib,fds,threads,snapshots_kib" > "$out/samples.csv"
 while kill -0 "$pid" 2>/dev/null; do
   if [ -r "/proc/$pid/status" ]; then
     rss=$(awk '/^VmRSS:/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
     threads=$(awk '/^Threads:/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
-    fds=$(ls "/proc/$pid/fd" 2>/dev/null | wc -l)
+    fds=$(ls "/proc/$pid/fd" 2>/dev/null | wc -l || true)
     snaps=$(du -sk "$out/run/snapshots" 2>/dev/null | cut -f1 || echo 0)
     [ -n "$rss" ] && echo "$(($(date +%s) - start)),$rss,$fds,$threads,${snaps:-0}" >> "$out/samples.csv"
   fi

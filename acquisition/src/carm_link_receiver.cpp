@@ -65,8 +65,14 @@ void CArmLinkReceiver::received(std::span<const std::uint8_t> bytes, Clock::time
     } else {
       const auto& status = std::get<carm_link::StatusMessage>(m);
       stats_.last_status = status;
-      if (status.level != carm_link::StatusLevel::Info)
-        pending_.push_back({state_, "C-arm " + std::string(to_string(status.level)) + ": " + status.text});
+      std::string text = "C-arm " + std::string(to_string(status.level)) + ": " + status.text;
+      // The same status repeated within the interval is news once (a C-arm may repeat it every frame).
+      const bool repeat = text == last_status_text_ && last_status_notice_ && now - *last_status_notice_ < kErrorNoticeInterval;
+      if (status.level != carm_link::StatusLevel::Info && !repeat) {
+        pending_.push_back({state_, text});
+        last_status_text_ = std::move(text);
+        last_status_notice_ = now;
+      }
     }
   });
   stats_.link = decoder_.stats();

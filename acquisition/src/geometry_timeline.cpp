@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <limits>
 
 namespace evar::acquisition {
 
@@ -16,7 +17,10 @@ GeometryTimeline::GeometryTimeline(GeometryTimelineOptions options) : options_(o
 
 void GeometryTimeline::add(const CArmState& sample) {
   if (!samples_.empty() && sample.device_time_ns <= samples_.back().device_time_ns) {
-    const std::int64_t behind_ns = samples_.back().device_time_ns - sample.device_time_ns;
+    // Device times come off the wire: saturate rather than overflow on absurd ones.
+    std::int64_t behind_ns = 0;
+    if (__builtin_sub_overflow(samples_.back().device_time_ns, sample.device_time_ns, &behind_ns))
+      behind_ns = std::numeric_limits<std::int64_t>::max();
     if (behind_ns <= std::chrono::nanoseconds(options_.restart_after).count()) {
       ++late_samples_;  // interpolation needs increasing times; the newer samples already cover it
       return;

@@ -27,10 +27,11 @@ void SnapshotSink::write(const ComposedFrame& frame) {
     after_ = version;
   }
   // "After" is the first frame drawn with the new model: the compositor may show the
-  // previous one for a frame or two while it draws the new roadmap.
-  if (after_ && (*after_ != version || frame.P_ct)) {
-    if (*after_ == version) save(*frame.image, "model-" + std::to_string(version) + "-after.png");
-    after_.reset();  // or superseded by a newer model before it was drawn
+  // previous one for a frame or two while it draws the new roadmap. A model superseded
+  // before it was drawn has none (after_ moved on to the newer one above).
+  if (after_ && frame.P_ct) {
+    save(*frame.image, "model-" + std::to_string(version) + "-after.png");
+    after_.reset();
   }
   if (requested_.exchange(false)) save(*frame.image, "snapshot-" + std::to_string(frame.sequence) + ".png");
   previous_ = frame.image;

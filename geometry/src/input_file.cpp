@@ -14,8 +14,9 @@ namespace {
   throw InputError(file.string() + ": " + what);
 }
 
+// Exact: "64 MiB", or "67108865 bytes" when not a whole number of MiB.
 std::string size_text(std::uintmax_t bytes) {
-  if (bytes >= kMiB) return std::to_string(bytes / kMiB) + " MiB";
+  if (bytes >= kMiB && bytes % kMiB == 0) return std::to_string(bytes / kMiB) + " MiB";
   return std::to_string(bytes) + " bytes";
 }
 

@@ -4,6 +4,7 @@
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
+#include <utility>
 
 #include <opencv2/imgproc.hpp>
 
@@ -160,8 +161,16 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
   last_shown_ = RoadmapShown::None;
   if (P_ct != nullptr && model != nullptr) {
     const detail::LayerKey key{*P_ct, model.get(), mode, frame.width, frame.height};
-    if (worker_)
-      if (auto fresh = worker_->take()) layer_ = std::move(fresh);
+    if (worker_) {
+      // Two slots: a layer finished for a view the C-arm has already left must not evict
+      // the one for the view it came back to. The newest always stays (the worker skips
+      // requests it already served).
+      if (auto fresh = worker_->take()) {
+        if (!fresh->serves(key) && layer_ && layer_->serves(key)) spare_ = std::move(fresh);
+        else spare_ = std::exchange(layer_, std::move(fresh));
+      }
+      if ((!layer_ || !layer_->serves(key)) && spare_ && spare_->serves(key)) std::swap(layer_, spare_);
+    }
     if (!layer_ || !layer_->serves(key)) {
       if (!worker_) {
         layer_.reset();  // a throw below leaves no half-made layer behind
@@ -169,7 +178,7 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
         ++own_renders_;
       } else {
         worker_->request(key, model);
-        const std::string error = worker_->error();
+        const std::string error = worker_->error_for(key);
         if (!error.empty()) pending = "roadmap not drawn: " + error;
         else if (layer_ && layer_->aligned_with(key)) pending = "roadmap: drawing the new model (previous shown)";
         else pending = "roadmap: drawing for this view";

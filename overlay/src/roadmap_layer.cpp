@@ -12,6 +12,7 @@ namespace evar::overlay::detail {
 bool RoadmapLayer::aligned_with(const LayerKey& other) const {
   if (other.mode != key.mode || other.width != key.width || other.height != key.height) return false;
   if (other.P == key.P) return true;
+  if (corners.empty()) return false;  // nothing to measure the move by: only the same projection will do
   for (const Eigen::Vector3d& c : corners) {
     const Eigen::Vector3d pa = key.P * c.homogeneous(), pb = other.P * c.homogeneous();
     if (pa.z() <= 0 || pb.z() <= 0 || (pa.hnormalized() - pb.hnormalized()).norm() >= 0.25) return false;
@@ -56,9 +57,18 @@ LayerWorker::~LayerWorker() {
   thread_.join();
 }
 
+namespace {
+bool same_content(const LayerKey& key, const RoadmapModel* model, RoadmapMode mode, int width, int height) {
+  return key.model == model && key.mode == mode && key.width == width && key.height == height;
+}
+}  // namespace
+
 void LayerWorker::request(const LayerKey& key, std::shared_ptr<const RoadmapModel> model) {
   {
     std::lock_guard lock(mutex_);
+    if (failure_ && same_content(key, failure_->model, failure_->mode, failure_->width, failure_->height) &&
+        std::chrono::steady_clock::now() - failure_->at < kRetryAfter)
+      return;
     job_.emplace(key, std::move(model));
   }
   wake_.notify_one();
@@ -74,9 +84,11 @@ std::size_t LayerWorker::renders() const {
   return renders_;
 }
 
-std::string LayerWorker::error() const {
+std::string LayerWorker::error_for(const LayerKey& key) const {
   std::lock_guard lock(mutex_);
-  return error_;
+  if (failure_ && same_content(key, failure_->model, failure_->mode, failure_->width, failure_->height))
+    return failure_->what;
+  return {};
 }
 
 void LayerWorker::run() {
@@ -89,17 +101,21 @@ void LayerWorker::run() {
     if (last_ && last_->serves(key)) continue;  // asked again while it was being drawn
     lock.unlock();
     std::shared_ptr<const RoadmapLayer> layer;
+    std::string failed;
     try {
-      layer = std::make_shared<const RoadmapLayer>(draw_roadmap_layer(key, std::move(model), supersample_));
+      layer = std::make_shared<const RoadmapLayer>(draw_roadmap_layer(key, model, supersample_));
     } catch (const std::exception& e) {
-      // Drawing fails only for want of memory. The frames go on without this layer, say so
-      // (error()), and the next request tries again.
-      lock.lock();
-      error_ = e.what();
-      continue;
+      failed = e.what();  // out of memory, or a model the drawing refuses (a non-finite marker)
+    } catch (...) {
+      failed = "unknown error";
     }
     lock.lock();
-    error_.clear();
+    if (!failed.empty()) {
+      // The frames go on without this layer; the compositor says why (error_for).
+      failure_ = Failure{key.model, key.mode, key.width, key.height, std::chrono::steady_clock::now(), failed, model};
+      continue;
+    }
+    if (failure_ && same_content(key, failure_->model, failure_->mode, failure_->width, failure_->height)) failure_.reset();
     ++renders_;
     last_ = done_ = std::move(layer);
   }

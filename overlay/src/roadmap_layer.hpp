@@ -4,6 +4,7 @@
 // premultiplied colour B and the transmittance K = W − B, so a frame's grey g composites
 // as B + g·K/255. And the worker that draws layers on its own thread, so that a frame
 // never waits for one (a new view or model costs tens of milliseconds to draw).
+#include <chrono>
 #include <condition_variable>
 #include <cstdint>
 #include <memory>
@@ -52,12 +53,17 @@ class LayerWorker {
   LayerWorker(const LayerWorker&) = delete;
   LayerWorker& operator=(const LayerWorker&) = delete;
 
+  /// Asks for a layer. A model, mode and size whose layer failed are not tried again for
+  /// kRetryAfter (a failure that recurs must not keep a core busy).
   void request(const LayerKey& key, std::shared_ptr<const RoadmapModel> model);
-  /// The newest finished layer not taken yet, or null.
+  /// The newest finished layer not taken yet, or null. Every finished layer is handed out
+  /// once; the compositor keeps the newest (the worker skips a request it already serves).
   std::shared_ptr<const RoadmapLayer> take();
   std::size_t renders() const;
-  /// Why the last layer could not be drawn ("" when it was).
-  std::string error() const;
+  /// Why the layer for `key`'s model, mode and size could not be drawn; "" if it was not tried or worked.
+  std::string error_for(const LayerKey& key) const;
+
+  static constexpr std::chrono::seconds kRetryAfter{1};
 
  private:
   void run();
@@ -68,7 +74,15 @@ class LayerWorker {
   std::optional<std::pair<LayerKey, std::shared_ptr<const RoadmapModel>>> job_;
   std::shared_ptr<const RoadmapLayer> done_, last_;
   std::size_t renders_ = 0;
-  std::string error_;
+  struct Failure {
+    const RoadmapModel* model;
+    RoadmapMode mode;
+    int width, height;
+    std::chrono::steady_clock::time_point at;
+    std::string what;
+    std::shared_ptr<const RoadmapModel> keep;  // keeps the model address valid
+  };
+  std::optional<Failure> failure_;
   bool stop_ = false;
   std::thread thread_;  // last: starts after everything it uses
 };

@@ -64,3 +64,27 @@ TEST(CArmLinkReceiver, ContinuousGarbageGivesOneNoticeAtOnceThenOneSummaryPerInt
   rx.tick(t0 + 60s);
   EXPECT_EQ(error_notices.size(), 4u);  // nothing new, nothing said
 }
+
+TEST(CArmLinkReceiver, AStatusTheCArmRepeatsIsReportedOncePerInterval) {
+  CArmLinkReceiver rx("usb 1209:ea01", 1000ms);
+  std::vector<std::string> notices;
+  rx.set_callbacks([](const CArmState&) {},
+                   [&](StreamState, const std::string& reason) {
+                     if (reason.starts_with("C-arm ")) notices.push_back(reason);
+                   });
+  rx.connected();
+  const auto t0 = CArmLinkReceiver::Clock::time_point{} + 1h;
+  carm_link::StatusMessage warning;
+  warning.level = carm_link::StatusLevel::Warning;
+  warning.text = "tube temperature high";
+  for (int k = 0; k < 2500; ++k) {  // every 10 ms for 25 s
+    warning.sequence = static_cast<std::uint16_t>(k);
+    rx.received(carm_link::encode(warning), t0 + k * 10ms);
+  }
+  ASSERT_EQ(notices.size(), 3u);  // at 0, 10 and 20 s
+  EXPECT_EQ(notices[0], "C-arm warning: tube temperature high");
+  warning.text = "collimator moving";  // something new is news at once
+  rx.received(carm_link::encode(warning), t0 + 25s + 10ms);
+  ASSERT_EQ(notices.size(), 4u);
+  EXPECT_EQ(notices[3], "C-arm warning: collimator moving");
+}

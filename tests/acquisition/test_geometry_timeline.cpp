@@ -1,5 +1,6 @@
 #include <gtest/gtest.h>
 
+#include <limits>
 #include <random>
 
 #include "evar/acquisition/clock_offset.hpp"
@@ -109,6 +110,11 @@ TEST(GeometryTimeline, ALateOrRepeatedSampleIsDroppedNotTakenForARestart) {
   late.primary_deg = 99.0;
   tl.add(late);
   tl.add(samples.back());  // a repeat
+  acq::CArmState absurd = samples.back();  // a device time at the far end of int64 (garbage that passed the CRC)
+  absurd.device_time_ns = std::numeric_limits<std::int64_t>::min();
+  acq::GeometryTimeline copy = tl;
+  copy.add(absurd);  // no overflow (UBSan would stop here): a restart
+  EXPECT_EQ(copy.restarts(), 1u);
   EXPECT_EQ(tl.size(), kept);
   EXPECT_EQ(tl.late_samples(), 2u);
   EXPECT_EQ(tl.restarts(), 0u);

@@ -56,7 +56,7 @@ TEST(InputFile, AJsonFileOverItsLimitIsRefusedByNameBeforeParsing) {
   TempDir dir;
   const auto file = sparse_file(dir.path / "huge.mrk.json", kJsonLimit.bytes + 1);
   const std::string message = error_of([&] { read_curve(file); });
-  EXPECT_THAT(message, HasSubstr("huge.mrk.json: is 64 MiB, more than the 64 MiB accepted for a JSON file")) << message;
+  EXPECT_THAT(message, HasSubstr("huge.mrk.json: is 67108865 bytes, more than the 64 MiB accepted for a JSON file")) << message;
 }
 
 TEST(InputFile, AJsonFileAtItsLimitIsReadAndJudgedOnItsContent) {
@@ -69,9 +69,9 @@ TEST(InputFile, AJsonFileAtItsLimitIsReadAndJudgedOnItsContent) {
 TEST(InputFile, MeshAndDicomFilesHaveTheirOwnLimits) {
   TempDir dir;
   const auto mesh = sparse_file(dir.path / "vessel.stl", kMeshLimit.bytes + 4096);
-  EXPECT_THAT(error_of([&] { read_mesh(mesh); }), HasSubstr("vessel.stl: is 1024 MiB, more than the 1024 MiB accepted for a mesh file"));
+  EXPECT_THAT(error_of([&] { read_mesh(mesh); }), HasSubstr("vessel.stl: is 1073745920 bytes, more than the 1024 MiB accepted for a mesh file"));
   const auto dicom = sparse_file(dir.path / "run.dcm", kDicomLimit.bytes + 1);
-  EXPECT_THAT(error_of([&] { read_xa_dicom(dicom); }), HasSubstr("run.dcm: is 4096 MiB, more than the 4096 MiB accepted for a DICOM file"));
+  EXPECT_THAT(error_of([&] { read_xa_dicom(dicom); }), HasSubstr("run.dcm: is 4294967297 bytes, more than the 4096 MiB accepted for a DICOM file"));
   // A mesh of the JSON limit's size is still a mesh the mesh limit accepts: the limits are per kind.
   check_input_file(sparse_file(dir.path / "big.stl", kJsonLimit.bytes + 1), kMeshLimit);
 }

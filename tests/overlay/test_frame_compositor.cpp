@@ -203,3 +203,29 @@ TEST(FrameCompositor, InTheBackgroundNoFrameWaitsForItsLayerAndNoneShowsAMisplac
   EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::Current);
   EXPECT_EQ(c.layer_renders(), 3u);
 }
+
+TEST(FrameCompositor, InTheBackgroundALayerForAViewLeftBehindEvictsNothing) {
+  // The C-arm settles at B, then comes back to A before B's layer is drawn: A keeps its
+  // roadmap when B's layer arrives, and B's is there at once if the C-arm returns to B.
+  Scene s;
+  overlay::CompositorOptions o;
+  o.layer_in_background = true;
+  overlay::FrameCompositor c(o);
+  compose_until(c, s, s.P, s.model, overlay::RoadmapShown::Current);
+  geometry::CArmView b = s.view;
+  b.primary_angle_deg = 30;
+  const auto Pb = geometry::projection_matrix(b);
+  c.compose(s.frame, &Pb, s.model, overlay::RoadmapMode::Both, {});
+  EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::None);
+  for (int i = 0; i < 1000 && c.layer_renders() < 2; ++i) {
+    c.compose(s.frame, &s.P, s.model, overlay::RoadmapMode::Both, {});  // back at A meanwhile
+    EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::Current);
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  ASSERT_EQ(c.layer_renders(), 2u);
+  c.compose(s.frame, &s.P, s.model, overlay::RoadmapMode::Both, {});  // B's layer arrives here
+  EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::Current);
+  c.compose(s.frame, &Pb, s.model, overlay::RoadmapMode::Both, {});
+  EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::Current);  // kept, not drawn again
+  EXPECT_EQ(c.layer_renders(), 2u);
+}

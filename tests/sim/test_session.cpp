@@ -245,7 +245,7 @@ TEST(Session, AnOversizedTableOrFrameIsRefusedByNameBeforeItIsRead) {
   const auto s = small_session(images);
   sim::write_session(dir.path, s, images);
   fs::resize_file(dir.path / "carm.csv", geometry::kTableLimit.bytes + 1);  // sparse: no disk used
-  EXPECT_NE(error_reading(dir.path).find("carm.csv: is 256 MiB, more than the 256 MiB accepted for a CSV table"),
+  EXPECT_NE(error_reading(dir.path).find("carm.csv: is 268435457 bytes, more than the 256 MiB accepted for a CSV table"),
             std::string::npos)
       << error_reading(dir.path);
   sim::write_session(dir.path, s, images);
@@ -255,7 +255,7 @@ TEST(Session, AnOversizedTableOrFrameIsRefusedByNameBeforeItIsRead) {
     sim::read_session_frame(r, 0);
     FAIL() << "no error";
   } catch (const geometry::InputError& e) {
-    EXPECT_NE(std::string(e.what()).find("f0.png: is 256 MiB, more than the 256 MiB accepted for an image file"),
+    EXPECT_NE(std::string(e.what()).find("f0.png: is 268435457 bytes, more than the 256 MiB accepted for an image file"),
               std::string::npos)
         << e.what();
   }

@@ -26,7 +26,8 @@ class CArmLinkReceiver {
  public:
   using Clock = std::chrono::steady_clock;
   /// Bad frames are reported at once, then summed into at most one notice per interval,
-  /// so a link that spews garbage cannot flood the log or the screen.
+  /// and a C-arm status message repeated within it is reported once, so a link that spews
+  /// garbage or the same warning cannot flood the log or the screen.
   static constexpr std::chrono::seconds kErrorNoticeInterval{10};
   /// `stale_after`: a streaming link that delivers no geometry for this long is Stalled.
   CArmLinkReceiver(std::string name, std::chrono::milliseconds stale_after);
@@ -65,6 +66,8 @@ class CArmLinkReceiver {
   std::optional<Clock::time_point> last_sample_;
   std::uint64_t errors_reported_ = 0;
   std::optional<Clock::time_point> last_error_notice_;
+  std::string last_status_text_;
+  std::optional<Clock::time_point> last_status_notice_;
   CArmLinkStatistics stats_;
   std::vector<Notice> pending_;
 };

@@ -107,7 +107,7 @@ class FrameCompositor {
   void update_lut(const GreyFrame& frame);
 
   CompositorOptions options_;
-  std::shared_ptr<const detail::RoadmapLayer> layer_;  // the newest layer drawn
+  std::shared_ptr<const detail::RoadmapLayer> layer_, spare_;  // the layer in use, and the other one kept
   std::unique_ptr<detail::LayerWorker> worker_;        // with layer_in_background
   std::size_t own_renders_ = 0;
   RoadmapShown last_shown_ = RoadmapShown::None;
