@@ -2,7 +2,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
 
 namespace evar::acquisition {
 
@@ -16,13 +15,17 @@ double lerp(double a, double b, double w) { return a + (b - a) * w; }
 GeometryTimeline::GeometryTimeline(GeometryTimelineOptions options) : options_(options) {}
 
 void GeometryTimeline::add(const CArmState& sample) {
+  // Device times come off the wire. Beyond ±2^62 ns (146 years) they are garbage that
+  // passed the CRC, and differences with them could overflow.
+  constexpr std::int64_t kLimit = std::int64_t{1} << 62;
+  if (sample.device_time_ns <= -kLimit || sample.device_time_ns >= kLimit) {
+    ++dropped_samples_;
+    return;
+  }
   if (!samples_.empty() && sample.device_time_ns <= samples_.back().device_time_ns) {
-    // Device times come off the wire: saturate rather than overflow on absurd ones.
-    std::int64_t behind_ns = 0;
-    if (__builtin_sub_overflow(samples_.back().device_time_ns, sample.device_time_ns, &behind_ns))
-      behind_ns = std::numeric_limits<std::int64_t>::max();
+    const std::int64_t behind_ns = samples_.back().device_time_ns - sample.device_time_ns;
     if (behind_ns <= std::chrono::nanoseconds(options_.restart_after).count()) {
-      ++late_samples_;  // interpolation needs increasing times; the newer samples already cover it
+      ++dropped_samples_;  // interpolation needs increasing times; the newer samples already cover it
       return;
     }
     ++restarts_;

@@ -278,8 +278,7 @@ void LiveNode::compose_loop() {
       out.image = std::make_shared<const overlay::Image>(
           compositor.compose({f->width, f->height, f->stride_bytes, bits, f->pixels.data()},
                              out.P_ct ? &*out.P_ct : nullptr, model->roadmap, mode, {lines, current_alerts()}));
-      // Sinks and the evaluation see a projection only on frames drawn with this model.
-      if (compositor.last_roadmap() != overlay::RoadmapShown::Current) out.P_ct.reset();
+      out.roadmap = compositor.last_roadmap();
     } catch (const std::exception& e) {
       set_alert("compose", std::string("frame not shown: ") + e.what(), true);
       continue;
@@ -292,7 +291,7 @@ void LiveNode::compose_loop() {
     {
       std::lock_guard lock(stats_mutex_);
       ++stats_.frames_composited;
-      stats_.frames_with_roadmap += compositor.last_roadmap() != overlay::RoadmapShown::None ? 1 : 0;
+      stats_.frames_with_roadmap += out.roadmap != overlay::RoadmapShown::None ? 1 : 0;
       latencies_.push_back(out.latency_ms);
       if (latencies_.size() > kLatencyWindow) latencies_.pop_front();
     }

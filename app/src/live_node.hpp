@@ -68,7 +68,10 @@ struct ComposedFrame {
   std::uint64_t sequence = 0;
   std::int64_t device_time_ns = 0;
   double latency_ms = 0.0;                        ///< arrival → composited
-  std::optional<geometry::ProjectionMatrix> P_ct; ///< the roadmap's projection; empty: `model` not drawn (no geometry, or its layer not ready)
+  std::optional<geometry::ProjectionMatrix> P_ct; ///< the frame's projection; empty: no usable geometry (none drawn)
+  /// What the frame shows of the roadmap: `model`'s (Current), the previous model's while
+  /// `model`'s layer is drawn, or none (no geometry, or a new view's layer not ready yet).
+  overlay::RoadmapShown roadmap = overlay::RoadmapShown::None;
   double mm_per_px = 0.0;                         ///< at the isocenter, with P_ct
   std::shared_ptr<const PublishedModel> model;
 };

@@ -29,7 +29,7 @@ void SnapshotSink::write(const ComposedFrame& frame) {
   // "After" is the first frame drawn with the new model: the compositor may show the
   // previous one for a frame or two while it draws the new roadmap. A model superseded
   // before it was drawn has none (after_ moved on to the newer one above).
-  if (after_ && frame.P_ct) {
+  if (after_ && frame.roadmap == overlay::RoadmapShown::Current) {
     save(*frame.image, "model-" + std::to_string(version) + "-after.png");
     after_.reset();
   }

@@ -23,7 +23,8 @@ app::ComposedFrame frame(std::uint8_t grey, std::uint64_t version, bool drawn) {
   auto m = std::make_shared<app::PublishedModel>();
   m->version = version;
   f.model = m;
-  if (drawn) f.P_ct = geometry::ProjectionMatrix::Identity();
+  f.P_ct = geometry::ProjectionMatrix::Identity();
+  f.roadmap = drawn ? overlay::RoadmapShown::Current : overlay::RoadmapShown::Previous;
   return f;
 }
 

@@ -37,21 +37,22 @@ class GeometryTimeline {
 
   /// A sample as a CArmGeometrySource delivers it (device time and host arrival set).
   /// Samples whose device time goes back by more than restart_after (a restarted C-arm
-  /// clock) restart the history; a late or repeated sample is dropped and counted.
+  /// clock) restart the history; a late or repeated sample, or one with an absurd time
+  /// (beyond ±146 years), is dropped and counted.
   void add(const CArmState& sample);
   /// The geometry at host time `t` (a frame's device_time_on_host); empty before any sample.
   std::optional<FrameGeometry> at(Clock::time_point t) const;
   /// host steady clock − C-arm clock, as estimated from the samples so far.
   std::optional<std::int64_t> carm_clock_offset_ns() const { return clock_.offset_ns(); }
   std::size_t size() const { return samples_.size(); }
-  std::uint64_t late_samples() const { return late_samples_; }  ///< dropped: out of order or repeated
+  std::uint64_t dropped_samples() const { return dropped_samples_; }  ///< late, repeated or absurd
   std::uint64_t restarts() const { return restarts_; }
 
  private:
   GeometryTimelineOptions options_;
   ClockOffsetEstimator clock_{256};
   std::deque<CArmState> samples_;  // in C-arm time; a query's host time is mapped onto it
-  std::uint64_t late_samples_ = 0, restarts_ = 0;
+  std::uint64_t dropped_samples_ = 0, restarts_ = 0;
 };
 
 }  // namespace evar::acquisition
