@@ -65,13 +65,15 @@ void CArmLinkReceiver::received(std::span<const std::uint8_t> bytes, Clock::time
     } else {
       const auto& status = std::get<carm_link::StatusMessage>(m);
       stats_.last_status = status;
-      std::string text = "C-arm " + std::string(to_string(status.level)) + ": " + status.text;
-      // The same status repeated within the interval is news once (a C-arm may repeat it every frame).
-      const bool repeat = text == last_status_text_ && last_status_notice_ && now - *last_status_notice_ < kErrorNoticeInterval;
-      if (status.level != carm_link::StatusLevel::Info && !repeat) {
-        pending_.push_back({state_, text});
-        last_status_text_ = std::move(text);
-        last_status_notice_ = now;
+      if (status.level != carm_link::StatusLevel::Info) {
+        std::string text = "C-arm " + std::string(to_string(status.level)) + ": " + status.text;
+        // The same status repeated within the interval is news once (a C-arm may repeat it every frame).
+        const bool repeat = text == last_status_text_ && last_status_notice_ && now - *last_status_notice_ < kNoticeInterval;
+        if (!repeat) {
+          pending_.push_back({state_, text});
+          last_status_text_ = std::move(text);
+          last_status_notice_ = now;
+        }
       }
     }
   });
@@ -87,7 +89,7 @@ void CArmLinkReceiver::received(std::span<const std::uint8_t> bytes, Clock::time
 
 void CArmLinkReceiver::report_errors(Clock::time_point now) {
   const std::uint64_t errors = stats_.link.errors();
-  if (errors == errors_reported_ || (last_error_notice_ && now - *last_error_notice_ < kErrorNoticeInterval)) return;
+  if (errors == errors_reported_ || (last_error_notice_ && now - *last_error_notice_ < kNoticeInterval)) return;
   const std::string total = " (" + std::to_string(errors) + " bad frames so far)";
   if (!last_error_notice_ || errors - errors_reported_ == 1)
     pending_.push_back({state_, name_ + ": " + decoder_.last_error() + total});

@@ -7,7 +7,6 @@
 #include <cstring>
 #include <fstream>
 #include <stdexcept>
-#include <system_error>
 
 #include "evar/geometry/input_file.hpp"
 #include "mesh_formats.hpp"

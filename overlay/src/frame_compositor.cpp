@@ -158,6 +158,7 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
   update_lut(frame);
   const detail::RoadmapLayer* shown = nullptr;
   std::string pending;  // a status line while the layer asked for is being drawn
+  bool failed = false;  // ...or could not be drawn: then no stand-in either
   last_shown_ = RoadmapShown::None;
   if (P_ct != nullptr && model != nullptr) {
     const detail::LayerKey key{*P_ct, model.get(), mode, frame.width, frame.height};
@@ -179,7 +180,8 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
       } else {
         worker_->request(key, model);
         const std::string error = worker_->error_for(key);
-        if (!error.empty()) pending = "roadmap not drawn: " + error;
+        failed = !error.empty();
+        if (failed) pending = "roadmap not drawn: " + error;
         else if (layer_ && layer_->aligned_with(key)) pending = "roadmap: drawing the new model (previous shown)";
         else pending = "roadmap: drawing for this view";
       }
@@ -187,7 +189,7 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
     if (layer_ && layer_->serves(key)) {
       shown = layer_.get();
       last_shown_ = RoadmapShown::Current;
-    } else if (layer_ && layer_->aligned_with(key) && pending.find("not drawn") == std::string::npos) {
+    } else if (layer_ && !failed && layer_->aligned_with(key)) {
       shown = layer_.get();
       last_shown_ = RoadmapShown::Previous;
     }

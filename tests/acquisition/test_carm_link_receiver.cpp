@@ -1,6 +1,6 @@
 // The C-arm link receiver that serial and USB share, driven directly with bytes and a
 // simulated clock: a link that spews garbage is reported at once, then summed into at
-// most one notice per kErrorNoticeInterval, so it cannot flood the log or the screen,
+// most one notice per kNoticeInterval, so it cannot flood the log or the screen,
 // and good samples in between still arrive.
 #include <gtest/gtest.h>
 

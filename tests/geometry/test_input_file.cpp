@@ -18,6 +18,7 @@
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/xa_dicom.hpp"
+#include "support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
 using namespace evar::geometry;
@@ -25,14 +26,7 @@ using testing::HasSubstr;
 
 namespace {
 
-struct TempDir {
-  fs::path path = fs::temp_directory_path() / ("evar_input_file_" + std::to_string(::getpid()));
-  TempDir() {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
+using evar::test::TempDir;
 
 fs::path sparse_file(const fs::path& file, std::uintmax_t bytes) {
   std::ofstream(file) << "{";

@@ -14,6 +14,7 @@
 
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/xa_dicom.hpp"
+#include "support/temp_dir.hpp"
 
 using namespace evar::geometry;
 namespace fs = std::filesystem;
@@ -40,11 +41,7 @@ cv::Mat ramp16(int seed) {
   return m;
 }
 
-struct TempDir {
-  fs::path path = fs::temp_directory_path() / ("evar_xa_" + std::to_string(::getpid()));
-  TempDir() { fs::create_directories(path); }
-  ~TempDir() { fs::remove_all(path); }
-};
+using evar::test::TempDir;
 
 std::string error_of(const fs::path& p, int frame = 0) {
   try {

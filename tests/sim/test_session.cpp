@@ -9,20 +9,14 @@
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/input_file.hpp"
 #include "evar/sim/session.hpp"
+#include "support/temp_dir.hpp"
 
 using namespace evar;
 namespace fs = std::filesystem;
 
 namespace {
 
-struct TempDir {
-  fs::path path = fs::temp_directory_path() / ("evar_session_" + std::to_string(::getpid()));
-  TempDir() {
-    fs::remove_all(path);
-    fs::create_directories(path);
-  }
-  ~TempDir() { fs::remove_all(path); }
-};
+using evar::test::TempDir;
 
 sim::Session small_session(std::vector<cv::Mat>& images) {
   sim::Session s;

@@ -28,7 +28,7 @@ class CArmLinkReceiver {
   /// Bad frames are reported at once, then summed into at most one notice per interval,
   /// and a C-arm status message repeated within it is reported once, so a link that spews
   /// garbage or the same warning cannot flood the log or the screen.
-  static constexpr std::chrono::seconds kErrorNoticeInterval{10};
+  static constexpr std::chrono::seconds kNoticeInterval{10};
   /// `stale_after`: a streaming link that delivers no geometry for this long is Stalled.
   CArmLinkReceiver(std::string name, std::chrono::milliseconds stale_after);
 
