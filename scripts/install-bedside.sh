@@ -1,7 +1,8 @@
 #!/usr/bin/env bash
 # Installs evarnode as the hardened bedside service (docs/SECURITY.md): the binary, a
-# dedicated system user, the systemd unit, the udev rule for the C-arm adapter and a
-# starting /etc/evarnode/node.json (kept if present). Idempotent; needs root.
+# dedicated system user, the systemd unit, the udev rule for the C-arm adapter, the GigE
+# receive-buffer cap (sysctl) and a starting /etc/evarnode/node.json (kept if present).
+# Idempotent; needs root.
 #
 #   sudo scripts/install-bedside.sh [--carm-usb VID:PID] [--grabber-usb VID:PID] [--packet-socket]
 #   scripts/install-bedside.sh --render DIR [--bin PATH] [...]   (writes the files into DIR only)
@@ -57,7 +58,7 @@ cp "$root/scripts/bedside/evarnode-packet-socket.conf" "$stage/packet-socket.con
 
 if [ -n "$render" ]; then
   mkdir -p "$render/evarnode.service.d"
-  cp "$stage/evarnode.service" "$stage/70-evarnode.rules" "$render/"
+  cp "$stage/evarnode.service" "$stage/70-evarnode.rules" "$root/scripts/bedside/60-evarnode-gige.conf" "$render/"
   [ "$packet_socket" = 1 ] && cp "$stage/packet-socket.conf" "$render/evarnode.service.d/"
   echo "evarnode: bedside files written to $render"
   exit 0
@@ -75,6 +76,9 @@ else
   rm -f /etc/systemd/system/evarnode.service.d/packet-socket.conf
 fi
 install -D -m 0644 "$stage/70-evarnode.rules" /etc/udev/rules.d/70-evarnode.rules
+install -D -m 0644 "$root/scripts/bedside/60-evarnode-gige.conf" /etc/sysctl.d/60-evarnode-gige.conf
+sysctl -q -p /etc/sysctl.d/60-evarnode-gige.conf ||
+  echo "evarnode: could not raise net.core.rmem_max here (a container?); it applies from the next boot" >&2
 install -D -m 0644 "$root/docs/SECURITY.md" /usr/local/share/doc/evarnode/SECURITY.md
 if [ ! -e /etc/evarnode/node.json ]; then
   install -d -m 0750 -g evarnode /etc/evarnode

@@ -21,6 +21,9 @@ grep -q '^User=evarnode$' evarnode.service || fail "the unit does not run as the
 grep -q 'ATTR{idVendor}=="1d6b", ATTR{idProduct}=="0104", GROUP="evarnode", MODE="0660"' 70-evarnode.rules ||
   fail "udev rule for the USB adapter missing: $(cat 70-evarnode.rules)"
 grep -q 'SYMLINK+="evarnode-carm"' 70-evarnode.rules || fail "no stable name for a USB-serial adapter"
+grep -Eq '^net\.core\.rmem_max = [0-9]+$' 60-evarnode-gige.conf || fail "no receive-buffer cap for the GigE stream"
+[ "$(sed -n 's/^net\.core\.rmem_max = //p' 60-evarnode-gige.conf)" -ge $((8 * 2 * 1024 * 1024)) ] ||
+  fail "the receive-buffer cap holds fewer than 8 frames of 1024 x 1024 16-bit"
 
 bash "$src/scripts/install-bedside.sh" --render "$out/raw" --bin "$bin" --packet-socket >/dev/null
 grep -q '^AmbientCapabilities=CAP_NET_RAW$' "$out/raw/evarnode.service.d/packet-socket.conf" || fail "no CAP_NET_RAW drop-in"

@@ -3,8 +3,10 @@
 
 #include <arv.h>
 
+#include <algorithm>
 #include <condition_variable>
 #include <cstring>
+#include <fstream>
 #include <stdexcept>
 #include <utility>
 
@@ -17,6 +19,15 @@ namespace evar::acquisition {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+
+// The most a process without CAP_NET_ADMIN may ask for as a socket's receive buffer; empty
+// when /proc does not say.
+std::optional<std::int64_t> receive_buffer_limit_bytes() {
+  std::ifstream in("/proc/sys/net/core/rmem_max");
+  std::int64_t v = 0;
+  if (in >> v && v > 0) return v;
+  return std::nullopt;
+}
 
 // Owns one GObject reference.
 template <class T>
@@ -98,6 +109,7 @@ struct GigECameraSource::Impl {
   std::uint64_t stream_completed = 0, stream_failed = 0, stream_underruns = 0;  // this connection
   std::optional<std::uint64_t> last_raw_id;
   std::uint64_t id_epoch = 0;  // unwraps 16-bit GVSP 1.x block ids (0 is never used)
+  std::string streaming_reason;
 
   void set_state(StreamState s, const std::string& why) { reporter.set(s, why); }
 
@@ -180,8 +192,20 @@ struct GigECameraSource::Impl {
     stream = GObjectPtr<ArvStream>(arv_camera_create_stream(cam, nullptr, nullptr, &error));
     check(error, id + ": creating the stream");
     stream_completed = stream_failed = stream_underruns = 0;  // this stream's counters start at 0
-    // The default socket buffer is smaller than one frame: let Aravis size it to the payload.
-    g_object_set(stream.get(), "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_AUTO, nullptr);
+    // Packets that arrive while the stream thread waits for the CPU queue in the socket; a
+    // full socket drops them and the frame is lost. Aravis's "auto" size is one payload,
+    // which lasts a single frame period; ask for several frames.
+    const std::int64_t want = std::clamp<std::int64_t>(std::int64_t{options.socket_buffer_frames} * payload,
+                                                       std::int64_t{256} << 10, std::int64_t{256} << 20);
+    const std::optional<std::int64_t> limit = receive_buffer_limit_bytes();
+    const std::int64_t granted = limit ? std::min(want, *limit) : want;
+    std::string note;
+    if (granted < want)
+      note = "receive buffer capped at " + std::to_string(granted >> 10) + " KiB by net.core.rmem_max (" +
+             std::to_string(granted / std::max(1, payload)) + " frames of " + std::to_string(payload >> 10) +
+             " KiB; " + std::to_string(options.socket_buffer_frames) + " wanted): raise it, see docs/SECURITY.md";
+    g_object_set(stream.get(), "socket-buffer", ARV_GV_STREAM_SOCKET_BUFFER_FIXED, "socket-buffer-size",
+                 static_cast<gint>(want), nullptr);
     for (int i = 0; i < options.buffers; ++i)
       arv_stream_push_buffer(stream.get(), arv_buffer_new_allocate(static_cast<size_t>(payload)));
     arv_camera_set_acquisition_mode(cam, ARV_ACQUISITION_MODE_CONTINUOUS, &error);
@@ -194,6 +218,9 @@ struct GigECameraSource::Impl {
     std::lock_guard lock(mutex);
     stats.camera_id = id;
     stats.packet_size = packet;
+    stats.socket_buffer_bytes = static_cast<int>(granted);
+    stats.socket_buffer_note = note;
+    streaming_reason = "GigE camera " + id + " streaming" + (note.empty() ? "" : "; " + note);
     stats.packet_socket = packet_socket;
     ++stats.connections;
     earlier_epochs = totals_locked();
@@ -263,6 +290,7 @@ struct GigECameraSource::Impl {
       tracker.observe(f.sequence);
       clock.add(f.device_time_ns, host_ns);
       f.device_time_on_host = Clock::time_point(std::chrono::nanoseconds(clock.to_host_ns(f.device_time_ns)));
+      f.device_clock = true;
     }
     if (on_frame) on_frame(f);
   }
@@ -297,7 +325,7 @@ struct GigECameraSource::Impl {
           const bool ok = arv_buffer_get_status(buffer) == ARV_BUFFER_STATUS_SUCCESS;
           if (ok) {
             last_frame = Clock::now();
-            set_state(StreamState::Streaming, "GigE camera " + stats.camera_id + " streaming");
+            set_state(StreamState::Streaming, streaming_reason);
           }
           handle(buffer);
           arv_stream_push_buffer(stream.get(), buffer);
@@ -345,6 +373,7 @@ struct GigECameraSource::Impl {
 
 GigECameraSource::GigECameraSource(GigECameraOptions options) : impl_(std::make_unique<Impl>()) {
   if (options.buffers < 2) throw std::invalid_argument("GigE: need at least 2 buffers");
+  if (options.socket_buffer_frames < 1) throw std::invalid_argument("GigE: the socket buffer must hold a frame");
   if (options.frame_rate_hz && !(*options.frame_rate_hz > 0.0))
     throw std::invalid_argument("GigE: frame rate must be positive");
   if (options.region && (options.region->width <= 0 || options.region->height <= 0 || options.region->x < 0 ||

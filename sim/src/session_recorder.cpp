@@ -7,12 +7,12 @@
 #include <fstream>
 #include <limits>
 #include <mutex>
-#include <set>
 #include <nlohmann/json.hpp>
 #include <stdexcept>
 #include <thread>
 #include <vector>
 
+#include "evar/acquisition/clock_offset.hpp"
 #include "evar/geometry/scene.hpp"
 
 namespace evar::sim {
@@ -55,44 +55,52 @@ std::int64_t ns_of(std::chrono::steady_clock::time_point t) {
 
 }  // namespace
 
-// C-arm samples on the host clock. arrival − device time is the clock offset plus a delay
-// that is never negative, so the smallest difference near a sample (within ±30 s of C-arm
-// time, short enough that a crystal's drift stays under a few ms) is its offset. A stretch
-// of the C-arm's clock ends where the clock goes back (a restarted C-arm) or jumps ahead
-// (the difference falls by more than a second: delays only ever raise it).
 std::vector<CArmSample> carm_on_host_clock(const std::vector<CArmState>& states) {
-  constexpr std::int64_t kWindowNs = 30'000'000'000, kJumpNs = 1'000'000'000;
-  std::vector<std::int64_t> diff(states.size());
-  for (std::size_t i = 0; i < states.size(); ++i) diff[i] = ns_of(states[i].host_arrival) - states[i].device_time_ns;
+  std::vector<acquisition::ClockPair> pairs;
+  pairs.reserve(states.size());
+  for (const CArmState& s : states) pairs.push_back({s.device_time_ns, ns_of(s.host_arrival)});
+  const std::vector<std::int64_t> host_ns = acquisition::device_times_on_host(pairs);
   std::vector<CArmSample> out;
-  std::size_t begin = 0;
-  while (begin < states.size()) {
-    std::size_t end = begin + 1;
-    while (end < states.size() && states[end].device_time_ns >= states[end - 1].device_time_ns &&
-           diff[end] > diff[end - 1] - kJumpNs)
-      ++end;
-    std::multiset<std::int64_t> window;  // diffs of the samples within ±30 s of sample i
-    std::size_t lo = begin, hi = begin;
-    for (std::size_t i = begin; i < end; ++i) {
-      while (hi < end && states[hi].device_time_ns <= states[i].device_time_ns + kWindowNs) window.insert(diff[hi++]);
-      while (states[lo].device_time_ns < states[i].device_time_ns - kWindowNs) window.erase(window.find(diff[lo++]));
-      const CArmState& s = states[i];
-      CArmSample c;
-      c.timestamp_ns = s.device_time_ns + *window.begin();
-      if (!out.empty()) c.timestamp_ns = std::max(c.timestamp_ns, out.back().timestamp_ns);  // the format: never decreasing
-      c.primary_deg = s.primary_deg;
-      c.secondary_deg = s.secondary_deg;
-      c.sid_mm = s.sid_mm;
-      c.sod_mm = s.sod_mm;
-      c.table_mm = {s.table_mm[0], s.table_mm[1], s.table_mm[2]};
-      c.fluoro_on = s.fluoro_on;
-      c.moving = s.moving;
-      out.push_back(c);
-    }
-    begin = end;
+  out.reserve(states.size());
+  for (std::size_t i = 0; i < states.size(); ++i) {
+    const CArmState& s = states[i];
+    CArmSample c;
+    c.timestamp_ns = host_ns[i];
+    c.primary_deg = s.primary_deg;
+    c.secondary_deg = s.secondary_deg;
+    c.sid_mm = s.sid_mm;
+    c.sod_mm = s.sod_mm;
+    c.table_mm = {s.table_mm[0], s.table_mm[1], s.table_mm[2]};
+    c.fluoro_on = s.fluoro_on;
+    c.moving = s.moving;
+    out.push_back(c);
   }
   return out;
 }
+
+namespace {
+
+// Frames timed by a device clock were stamped live with the offset known so far; with the
+// whole recording at hand, each gets the offset of the frames around it, later ones too.
+// `frames` is in frame-number order and stays so.
+void map_frames_offline(const std::vector<std::pair<std::int64_t, acquisition::ClockPair>>& device_clock_frames,
+                        std::vector<FrameRecord>& frames) {
+  if (device_clock_frames.empty()) return;
+  std::vector<acquisition::ClockPair> pairs;
+  pairs.reserve(device_clock_frames.size());
+  for (const auto& [frame, pair] : device_clock_frames) pairs.push_back(pair);
+  const std::vector<std::int64_t> host_ns = acquisition::device_times_on_host(pairs);
+  std::size_t k = 0;
+  std::int64_t last = std::numeric_limits<std::int64_t>::min();
+  for (FrameRecord& r : frames) {
+    while (k < device_clock_frames.size() && device_clock_frames[k].first < r.frame) ++k;
+    if (k < device_clock_frames.size() && device_clock_frames[k].first == r.frame) r.timestamp_ns = host_ns[k];
+    r.timestamp_ns = std::max(r.timestamp_ns, last);
+    last = r.timestamp_ns;
+  }
+}
+
+}  // namespace
 
 struct SessionRecorder::Impl {
   RecorderOptions options;
@@ -112,6 +120,8 @@ struct SessionRecorder::Impl {
   std::vector<CArmState> states;
   std::int64_t next_frame = 1;
   std::int64_t last_frame_ns = std::numeric_limits<std::int64_t>::min();
+  // Frames whose time is a device clock: (frame number, clock sample), mapped again at finish.
+  std::vector<std::pair<std::int64_t, acquisition::ClockPair>> device_clock_frames;
 
   Impl(RecorderOptions o, acquisition::FrameSource& f, acquisition::CArmGeometrySource& c)
       : options(std::move(o)), frames(f), carm(c) {}
@@ -136,6 +146,7 @@ struct SessionRecorder::Impl {
     r.timestamp_ns = std::max(ns_of(f.device_time_on_host), last_frame_ns);
     last_frame_ns = r.timestamp_ns;
     r.source = options.source;
+    if (f.device_clock) device_clock_frames.push_back({r.frame, {f.device_time_ns, ns_of(f.host_arrival)}});
     char name[32];
     std::snprintf(name, sizeof name, "f%07lld.png", static_cast<long long>(r.frame));
     r.file = name;
@@ -272,6 +283,7 @@ Session SessionRecorder::finish() {
   s.ct_to_carm = d.options.ct_to_carm;
   s.device_thickness_mm = d.options.device_thickness_mm.value_or(d.scene.device_thickness_mm);
   s.frames = d.written;
+  map_frames_offline(d.device_clock_frames, s.frames);
   s.carm = carm_on_host_clock(d.states);
   if (d.size) s.detector = {d.size->first, d.size->second, d.options.pixel_spacing_mm, d.options.pixel_spacing_mm};
   if (s.frames.empty()) {

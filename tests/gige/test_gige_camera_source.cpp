@@ -3,6 +3,8 @@
 // arv-fake-gv-camera-0.8 program. They share UDP port 3956, so ctest runs these one at a time.
 #include <arv.h>
 #include <gtest/gtest.h>
+
+#include <fstream>
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -132,6 +134,18 @@ TEST(GigECameraSource, ReceivesEveryFrameWholeAndInOrderFromAGigEVisionCameraOnL
   EXPECT_EQ(st.frames.dropped, 0u);
   EXPECT_EQ(st.camera_id, "Aravis-Fake-" + serial);
   EXPECT_GT(st.packet_size, 0);
+  // The socket holds 8 frames of 2 MiB while the stream thread waits for the CPU, or as
+  // much as net.core.rmem_max lets it, and then says so.
+  std::int64_t rmem_max = 0;
+  std::ifstream("/proc/sys/net/core/rmem_max") >> rmem_max;
+  const std::int64_t want = 8 * 2 * 1024 * 1024;
+  EXPECT_EQ(st.socket_buffer_bytes, rmem_max > 0 ? std::min(want, rmem_max) : want);
+  if (rmem_max > 0 && rmem_max < want) {
+    EXPECT_NE(st.socket_buffer_note.find("net.core.rmem_max"), std::string::npos) << st.socket_buffer_note;
+  } else {
+    EXPECT_EQ(st.socket_buffer_note, "");
+  }
+  EXPECT_TRUE(rx.frames.front().device_clock);
   ASSERT_TRUE(st.clock_offset_ns.has_value());
   // The fake camera stamps frames with the wall clock, so the true offset is the steady
   // clock minus the wall clock; the estimate adds the smallest delivery delay (a few ms on

@@ -4,6 +4,7 @@
 #include <gtest/gtest.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -122,12 +123,20 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
     const auto* was = sim::carm_at(original, original.frames[static_cast<std::size_t>(k)].timestamp_ns);
     const auto* now = sim::carm_at(back, back.frames[static_cast<std::size_t>(i)].timestamp_ns);
     ASSERT_TRUE(was && now);
-    EXPECT_NEAR(now->primary_deg, was->primary_deg, 0.0005) << "frame " << k;
+    // Said on failure: how far the frame was recorded from the C-arm changes around it
+    // (about 100 ms each way in the original; the camera period adds up to 25 ms).
+    const std::int64_t t = back.frames[static_cast<std::size_t>(i)].timestamp_ns;
+    const auto next = std::upper_bound(back.carm.begin(), back.carm.end(), t,
+                                       [](std::int64_t a, const sim::CArmSample& c) { return a < c.timestamp_ns; });
+    EXPECT_NEAR(now->primary_deg, was->primary_deg, 0.0005)
+        << "frame " << k << " recorded as frame " << i << ", " << 1e-6 * static_cast<double>(t - now->timestamp_ns)
+        << " ms after the C-arm state in force and "
+        << (next == back.carm.end() ? -1.0 : 1e-6 * static_cast<double>(next->timestamp_ns - t)) << " ms before the next";
   }
   const auto report = nlohmann::json::parse(std::ifstream(out / "record_report.json"));
   EXPECT_EQ(report["frames"]["written"].get<std::size_t>(), back.frames.size());
   EXPECT_EQ(report["frames"]["not_recorded_disk_behind"], 0);
-  EXPECT_EQ(report["frames"]["statistics"]["dropped"], 0);
+  EXPECT_EQ(report["frames"]["statistics"]["dropped"], 0) << report.dump(2);
   fs::remove_all(dir);
 }
 

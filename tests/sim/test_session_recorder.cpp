@@ -110,6 +110,80 @@ TEST_F(Recording, AReplayedSessionRecordsBackFrameForFrameWithItsGeometry) {
   EXPECT_EQ(out.frames.size(), 12u);
 }
 
+// Sources the test drives by hand, on its own thread: what each delivers and when it
+// "arrived" are the test's to choose.
+class ScriptedFrames final : public acquisition::FrameSource {
+ public:
+  void start(FrameCallback on_frame, StateCallback) override { on_frame_ = std::move(on_frame); }
+  void stop() override { on_frame_ = nullptr; }
+  acquisition::StreamState state() const override { return acquisition::StreamState::Streaming; }
+  acquisition::SequenceStats statistics() const override { return {}; }
+  std::string description() const override { return "scripted frames"; }
+  void deliver(const acquisition::Frame& f) const { on_frame_(f); }
+
+ private:
+  FrameCallback on_frame_;
+};
+
+class ScriptedCArm final : public acquisition::CArmGeometrySource {
+ public:
+  void start(StateCallback on_state, StreamCallback) override { on_state_ = std::move(on_state); }
+  void stop() override { on_state_ = nullptr; }
+  acquisition::StreamState state() const override { return acquisition::StreamState::Streaming; }
+  std::string description() const override { return "scripted C-arm"; }
+  void deliver(const acquisition::CArmState& s) const { on_state_(s); }
+
+ private:
+  StateCallback on_state_;
+};
+
+TEST_F(Recording, FramesAtTheStartOfAStreamAreTimedAsExactlyAsTheRest) {
+  // A camera's first frames often reach the host late (the stream thread is still being
+  // scheduled, buffers queue); an estimate that sees only earlier frames stamps them late
+  // by as much, and the geometry in force at them comes out wrong. The recording is timed
+  // from all its frames, later ones too.
+  ScriptedFrames frames;
+  ScriptedCArm carm;
+  RecorderOptions o = options();
+  o.max_queued_frames = 100;  // delivered at once, faster than the disk takes them
+  SessionRecorder recorder(o, frames, carm);
+  recorder.start();
+  const std::int64_t host0 = 9'000'000'000'000, device0 = 123'000'000'000;  // the camera's own epoch
+  std::mt19937 rng(7);
+  std::uniform_int_distribution<int> jitter_us(300, 3000);
+  std::vector<std::int64_t> truth;
+  for (int k = 0; k < 80; ++k) {
+    acquisition::Frame f;
+    f.format = acquisition::PixelFormat::Mono8;
+    f.width = f.height = f.stride_bytes = 4;
+    f.pixels.assign(16, static_cast<std::uint8_t>(k));
+    f.sequence = static_cast<std::uint64_t>(k);
+    const std::int64_t captured = host0 + k * 25'000'000LL;  // 40 fps
+    f.device_time_ns = device0 + (captured - host0);
+    const std::int64_t late_ns = k < 12 ? 150'000'000 : 0;  // the first 12 frames queue up
+    f.host_arrival = std::chrono::steady_clock::time_point(std::chrono::nanoseconds(captured + late_ns + jitter_us(rng) * 1000LL));
+    f.device_time_on_host = f.host_arrival;  // what a live estimate with no better sample gives
+    f.device_clock = true;
+    frames.deliver(f);
+    truth.push_back(captured);
+    if (k % 10 == 0) {
+      acquisition::CArmState c;
+      c.device_time_ns = 5'000'000'000 + (captured - host0);
+      c.host_arrival = std::chrono::steady_clock::time_point(std::chrono::nanoseconds(captured));
+      c.primary_deg = k;
+      carm.deliver(c);
+    }
+  }
+  const Session s = recorder.finish();
+  ASSERT_EQ(s.frames.size(), truth.size());
+  for (std::size_t k = 0; k < truth.size(); ++k) {
+    // Off by no more than the smallest delivery delay around the frame (0.3 to 3 ms).
+    const double off_ms = 1e-6 * static_cast<double>(s.frames[k].timestamp_ns - truth[k]);
+    EXPECT_GE(off_ms, 0.0) << "frame " << k;
+    EXPECT_LT(off_ms, 3.0) << "frame " << k;
+  }
+}
+
 TEST_F(Recording, GreyLevelsOfEightAndTwelveBitFramesKeepTheirMeaning) {
   acquisition::Frame f;
   f.format = acquisition::PixelFormat::Mono8;

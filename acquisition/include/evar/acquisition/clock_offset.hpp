@@ -7,6 +7,8 @@
 #include <cstdint>
 #include <deque>
 #include <optional>
+#include <span>
+#include <vector>
 
 namespace evar::acquisition {
 
@@ -25,5 +27,21 @@ class ClockOffsetEstimator {
   std::size_t window_;
   std::deque<std::int64_t> diffs_;
 };
+
+/// One sample of a device's clock: its own time and when the host received it.
+struct ClockPair {
+  std::int64_t device_ns = 0;
+  std::int64_t host_ns = 0;
+};
+
+/// The offline estimate, for a recording that has all its samples: per sample, device time
+/// plus the smallest arrival delay among the samples within ±`window_ns` of device time
+/// around it, earlier and later ones alike (the online estimator sees only the past, so the
+/// first samples of a stream carry its start-up delays). A clock that goes back or jumps
+/// ahead by more than `jump_ns` (delays only ever raise the difference) starts a new stretch
+/// with its own offset. The result is in input order and never decreases.
+std::vector<std::int64_t> device_times_on_host(std::span<const ClockPair> samples,
+                                               std::int64_t window_ns = 30'000'000'000,
+                                               std::int64_t jump_ns = 1'000'000'000);
 
 }  // namespace evar::acquisition

@@ -24,6 +24,11 @@ struct Frame {
   /// The device timestamp mapped onto the host's steady clock by the source's clock-offset
   /// estimate (equal to host_arrival where the source has no device clock).
   std::chrono::steady_clock::time_point device_time_on_host;
+  /// device_time_ns is the device's own clock, mapped by an online estimate that sees only
+  /// earlier frames; a recording may map it again from (device_time_ns, host_arrival) with
+  /// every frame (acquisition::device_times_on_host). False where device_time_on_host is
+  /// already exact or is the arrival time.
+  bool device_clock = false;
 };
 
 }  // namespace evar::acquisition

@@ -38,6 +38,9 @@ struct GigECameraOptions {
   std::optional<double> frame_rate_hz;      ///< default: the camera's current rate
   std::optional<int> packet_size;           ///< bytes; default: negotiated with the camera
   int buffers = 16;                         ///< the pool handed to the stream
+  /// The stream socket's receive buffer holds this many frames' packets, so a stream thread
+  /// that waits for the CPU loses none (the kernel caps it at net.core.rmem_max).
+  int socket_buffer_frames = 8;
   /// Aravis's packet socket (less CPU per packet than a UDP socket) only when asked and the
   /// process holds CAP_NET_RAW explicitly (docs/SECURITY.md); never on loopback, where it
   /// receives nothing. Otherwise a plain UDP socket, whoever runs the node.
@@ -56,6 +59,8 @@ struct GigEStatistics {
   std::optional<std::int64_t> typical_delay_ns;
   std::string camera_id;                ///< the camera actually opened
   int packet_size = 0;
+  int socket_buffer_bytes = 0;          ///< the receive buffer asked for, within net.core.rmem_max
+  std::string socket_buffer_note;       ///< why it holds less than socket_buffer_frames (empty when it does not)
   bool packet_socket = false;           ///< Aravis's packet socket in use (see GigECameraOptions)
 };
 
