@@ -273,6 +273,11 @@ int run_cli(const std::vector<std::string>& args) {
   rn->add_option("--out", run.out, "output directory (created)")->capture_default_str();
   rn->add_option("--video", run.video, "video file in --out: .avi (Motion-JPEG), .mp4 or .mkv")->capture_default_str();
   rn->add_flag("--no-video", run.no_video, "write no video");
+  rn->add_option("--snapshot-budget-mb", run.snapshot_budget_mb,
+                 "disk kept for the before/after pictures of model changes in --out/snapshots; past it the oldest "
+                 "are deleted (pictures taken with the s key never are); 0 = no limit")
+      ->check(CLI::Range(0.0, 1e9))
+      ->capture_default_str();
   rn->add_flag("!--no-igtl", run.igtl, "no OpenIGTLink server");
   rn->add_option("--igtl-port", run.igtl_port, "OpenIGTLink port (0 = any free one)")->check(CLI::Range(0, 65535))->capture_default_str();
   rn->add_option("--igtl-bind", run.igtl_bind, "address the server listens on (0.0.0.0 = every interface)")->capture_default_str();

@@ -1,5 +1,6 @@
 #pragma once
 // The subcommands, each parsed by cli.cpp into its options struct.
+#include <cstdint>
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -117,6 +118,7 @@ struct RunCommand {
   std::filesystem::path config, replay, out = "out/run";
   std::string video = "overlay.avi";
   bool no_video = false;
+  std::uintmax_t snapshot_budget_mb = 1024;  ///< model-change pictures kept within this (0 = no limit)
   bool igtl = true;
   int igtl_port = 18944;
   std::string igtl_bind = "127.0.0.1";

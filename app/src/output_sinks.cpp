@@ -1,5 +1,8 @@
 #include "output_sinks.hpp"
 
+#include <iterator>
+#include <stdexcept>
+
 namespace evar::app {
 
 void VideoSink::write(const ComposedFrame& frame) {
@@ -11,29 +14,60 @@ void VideoSink::finish() {
   if (writer_) writer_->close();
 }
 
-SnapshotSink::SnapshotSink(std::filesystem::path directory) : directory_(std::move(directory)) {
+SnapshotSink::SnapshotSink(std::filesystem::path directory, std::uintmax_t max_bytes)
+    : directory_(std::move(directory)), max_bytes_(max_bytes) {
   std::filesystem::create_directories(directory_);
 }
 
-void SnapshotSink::save(const overlay::Image& image, const std::string& file) {
-  overlay::write_png(directory_ / file, image);
-  written_.push_back(directory_ / file);
+void SnapshotSink::save(const overlay::Image& image, const std::string& file, bool requested) {
+  const std::filesystem::path path = directory_ / file;
+  overlay::write_png(path, image);
+  std::error_code ec;
+  const std::uintmax_t size = std::filesystem::file_size(path, ec);
+  pictures_.push_back({path, ec ? 0 : size, requested});
+  bytes_ += pictures_.back().bytes;
+  keep_within_budget();
+}
+
+void SnapshotSink::keep_within_budget() {
+  if (max_bytes_ == 0) return;
+  // The newest picture stays even when it alone is over the budget: it is the one just taken.
+  for (auto it = pictures_.begin(); bytes_ > max_bytes_ && it != pictures_.end() && std::next(it) != pictures_.end();) {
+    if (it->requested) {
+      ++it;
+      continue;
+    }
+    std::error_code ec;
+    std::filesystem::remove(it->path, ec);
+    if (ec) throw std::runtime_error("snapshots: cannot delete " + it->path.string() + " to stay within " +
+                                     std::to_string(max_bytes_ >> 20) + " MiB: " + ec.message());
+    bytes_ -= it->bytes;
+    ++deleted_;
+    it = pictures_.erase(it);
+  }
+}
+
+std::vector<std::filesystem::path> SnapshotSink::kept() const {
+  std::vector<std::filesystem::path> out;
+  out.reserve(pictures_.size());
+  for (const auto& p : pictures_) out.push_back(p.path);
+  return out;
 }
 
 void SnapshotSink::write(const ComposedFrame& frame) {
   const std::uint64_t version = frame.model ? frame.model->version : 0;
   if (previous_ && version != previous_version_) {
-    save(*previous_, "model-" + std::to_string(version) + "-before.png");
+    save(*previous_, "model-" + std::to_string(version) + "-before.png", false);
     after_ = version;
   }
   // "After" is the first frame drawn with the new model: the compositor may show the
   // previous one for a frame or two while it draws the new roadmap. A model superseded
   // before it was drawn has none (after_ moved on to the newer one above).
   if (after_ && frame.roadmap == overlay::RoadmapShown::Current) {
-    save(*frame.image, "model-" + std::to_string(version) + "-after.png");
+    save(*frame.image, "model-" + std::to_string(version) + "-after.png", false);
     after_.reset();
   }
-  if (requested_.exchange(false)) save(*frame.image, "snapshot-" + std::to_string(frame.sequence) + ".png");
+  if (requested_.exchange(false)) save(*frame.image, "snapshot-" + std::to_string(frame.sequence) + ".png", true);
   previous_ = frame.image;
   previous_version_ = version;
 }

@@ -2,6 +2,8 @@
 // The node's outputs as OutputSinks: a video file, before/after snapshots of every model
 // change (and on request), OpenIGTLink to 3D Slicer, and the bedside window.
 #include <atomic>
+#include <cstdint>
+#include <deque>
 #include <filesystem>
 #include <functional>
 #include <memory>
@@ -33,23 +35,37 @@ class VideoSink final : public OutputSink {
 
 /// PNG pictures in a directory: at every model change the last frame before it
 /// (model-N-before.png) and the first frame drawn with it (model-N-after.png); and the next
-/// frame after request() (snapshot-SEQUENCE.png).
+/// frame after request() (snapshot-SEQUENCE.png). A node that runs for days would fill its
+/// disk with model-change pictures, so they are kept within `max_bytes` (0 = no limit):
+/// past it the oldest go first. Requested snapshots are never deleted.
 class SnapshotSink final : public OutputSink {
  public:
-  explicit SnapshotSink(std::filesystem::path directory);
+  explicit SnapshotSink(std::filesystem::path directory, std::uintmax_t max_bytes = 0);
   std::string name() const override { return "snapshots in " + directory_.string(); }
   void write(const ComposedFrame& frame) override;
   void request() { requested_ = true; }
-  const std::vector<std::filesystem::path>& written() const { return written_; }
+  /// The pictures on disk, oldest first (deleted ones are not listed).
+  std::vector<std::filesystem::path> kept() const;
+  std::uint64_t deleted() const { return deleted_; }
+  std::uintmax_t bytes() const { return bytes_; }  ///< of the pictures kept
 
  private:
-  void save(const overlay::Image& image, const std::string& file);
+  struct Picture {
+    std::filesystem::path path;
+    std::uintmax_t bytes = 0;
+    bool requested = false;
+  };
+  void save(const overlay::Image& image, const std::string& file, bool requested);
+  void keep_within_budget();
   std::filesystem::path directory_;
+  std::uintmax_t max_bytes_;
   std::shared_ptr<const overlay::Image> previous_;  // held, not copied
   std::uint64_t previous_version_ = 0;
   std::optional<std::uint64_t> after_;  // the model whose first drawn frame is still to be saved
   std::atomic<bool> requested_{false};
-  std::vector<std::filesystem::path> written_;
+  std::deque<Picture> pictures_;  // oldest first
+  std::uintmax_t bytes_ = 0;
+  std::uint64_t deleted_ = 0;
 };
 
 /// OpenIGTLink: frames as IMAGE "evarnode" (at most `max_fps`), each vessel's mesh as

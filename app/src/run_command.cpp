@@ -98,7 +98,7 @@ int run_node(const RunCommand& cmd) {
     sinks.push_back(std::move(s));
   }
   {
-    auto s = std::make_unique<SnapshotSink>(cmd.out / "snapshots");
+    auto s = std::make_unique<SnapshotSink>(cmd.out / "snapshots", cmd.snapshot_budget_mb << 20);
     snapshots = s.get();
     sinks.push_back(std::move(s));
   }
@@ -205,9 +205,10 @@ int run_node(const RunCommand& cmd) {
                    {"video_frames", video ? video->frames() : 0},
                    {"snapshots", [&] {
                       nlohmann::json a = nlohmann::json::array();
-                      for (const auto& p : snapshots->written()) a.push_back(p.string());
+                      for (const auto& p : snapshots->kept()) a.push_back(p.string());
                       return a;
                     }()},
+                   {"snapshots_deleted_for_budget", snapshots->deleted()},
                    {"igtl_port", igtl ? igtl->port() : 0},
                    {"igtl_messages", igtl ? igtl->statistics().messages_sent : 0}}}};
   if (s.carm_clock_offset_ns) report["carm_clock_offset_ns"] = *s.carm_clock_offset_ns;
@@ -246,7 +247,11 @@ int run_node(const RunCommand& cmd) {
              s.frames_in, seconds, s.frames_composited, s.frames_with_roadmap, s.dropped_input + s.dropped_output,
              s.latency_ms.p50, s.latency_ms.p99, s.adaptations, s.adaptation_failures);
   if (video) log().info("video: {} ({} frames)", (cmd.out / cmd.video).string(), video->frames());
-  for (const auto& p : snapshots->written()) log().info("snapshot: {}", p.string());
+  log().info("snapshots: {} in {} ({:.1f} MiB){}", snapshots->kept().size(), (cmd.out / "snapshots").string(),
+             static_cast<double>(snapshots->bytes()) / (1 << 20),
+             snapshots->deleted() ? "; " + std::to_string(snapshots->deleted()) + " older model pictures deleted for the " +
+                                        std::to_string(cmd.snapshot_budget_mb) + " MiB budget"
+                                  : std::string());
   log().info("report: {}{}", (cmd.out / "run_report.json").string(),
              evaluated ? "; evaluation: " + (cmd.out / "eval.md").string() : "");
   return 0;

@@ -44,7 +44,8 @@ TEST(SnapshotSink, AfterIsTheFirstFrameDrawnWithTheNewModel) {
     sink.write(frame(50, 1, true));
     sink.write(frame(60, 2, false));  // model 2, superseded before it was ever drawn
     sink.write(frame(70, 3, true));
-    ASSERT_EQ(sink.written().size(), 5u);
+    ASSERT_EQ(sink.kept().size(), 5u);
+    EXPECT_EQ(sink.deleted(), 0u);
   }
   EXPECT_EQ(grey_of(dir / "model-1-before.png"), 20);
   EXPECT_EQ(grey_of(dir / "model-1-after.png"), 40);
@@ -52,5 +53,44 @@ TEST(SnapshotSink, AfterIsTheFirstFrameDrawnWithTheNewModel) {
   EXPECT_FALSE(fs::exists(dir / "model-2-after.png"));
   EXPECT_EQ(grey_of(dir / "model-3-before.png"), 60);
   EXPECT_EQ(grey_of(dir / "model-3-after.png"), 70);
+  fs::remove_all(dir);
+}
+
+TEST(SnapshotSink, KeepsModelPicturesWithinItsBudgetAndNeverDeletesARequestedSnapshot) {
+  const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_budget_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  std::uintmax_t one = 0;  // bytes of one picture (all are the same size here)
+  {
+    app::SnapshotSink probe(dir / "probe");
+    probe.request();
+    probe.write(frame(1, 0, true));
+    one = probe.bytes();
+  }
+  ASSERT_GT(one, 0u);
+  {
+    app::SnapshotSink sink(dir / "run", 5 * one + one / 2);
+    sink.write(frame(10, 0, true));
+    sink.request();
+    sink.write(frame(11, 0, true));  // the clinician's picture
+    for (std::uint8_t v = 1; v <= 20; ++v) {
+      sink.write(frame(static_cast<std::uint8_t>(20 + v), v, true));  // before and after of model v
+    }
+    EXPECT_LE(sink.bytes(), 5 * one + one / 2);
+    EXPECT_GE(sink.kept().size(), 4u);  // pictures differ by a few bytes: 4 or 5 fit
+    EXPECT_EQ(sink.deleted() + sink.kept().size(), 40u + 1u);  // every model picture, and the requested one
+    std::uintmax_t on_disk = 0;
+    std::size_t files = 0;
+    for (const auto& e : fs::directory_iterator(dir / "run")) {
+      on_disk += e.file_size();
+      ++files;
+    }
+    EXPECT_EQ(files, sink.kept().size());
+    EXPECT_EQ(on_disk, sink.bytes());
+  }
+  EXPECT_TRUE(fs::exists(dir / "run" / "snapshot-0.png"));  // requested: kept though the oldest
+  EXPECT_FALSE(fs::exists(dir / "run" / "model-1-before.png"));
+  EXPECT_FALSE(fs::exists(dir / "run" / "model-18-after.png"));
+  EXPECT_EQ(grey_of(dir / "run" / "model-20-before.png"), 39);
+  EXPECT_EQ(grey_of(dir / "run" / "model-20-after.png"), 40);
   fs::remove_all(dir);
 }
