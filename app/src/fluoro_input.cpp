@@ -1,12 +1,12 @@
 #include "fluoro_input.hpp"
 
-#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
 #include <vector>
 
 #include "evar/geometry/input_error.hpp"
+#include "evar/geometry/image_file.hpp"
 #include "evar/geometry/input_file.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "view_input.hpp"
@@ -21,14 +21,7 @@ FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesyste
     in.image = frame.pixels;
     in.view = frame.view;
   } else {
-    geometry::check_input_file(image, geometry::kImageLimit);
-    cv::Mat raw;
-    try {
-      raw = cv::imread(image.string(), cv::IMREAD_UNCHANGED);
-    } catch (const cv::Exception& e) {
-      throw geometry::InputError(image.string() + ": cannot decode the image (" + e.msg + ")");
-    }
-    if (raw.empty()) throw geometry::InputError(image.string() + ": not an image OpenCV can read (PNG, TIFF, ...)");
+    cv::Mat raw = geometry::read_image_file(image);
     if (raw.channels() == 3 || raw.channels() == 4) {
       cv::Mat grey;
       cv::cvtColor(raw, grey, raw.channels() == 3 ? cv::COLOR_BGR2GRAY : cv::COLOR_BGRA2GRAY);

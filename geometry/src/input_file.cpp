@@ -1,8 +1,11 @@
 #include "evar/geometry/input_file.hpp"
 
+#include <fcntl.h>
+#include <sys/stat.h>
+#include <unistd.h>
+
 #include <cerrno>
 #include <cstring>
-#include <fstream>
 #include <system_error>
 
 #include "evar/geometry/input_error.hpp"
@@ -40,16 +43,31 @@ void check_input_file(const std::filesystem::path& file, InputLimit limit) {
 }
 
 std::string read_input_file(const std::filesystem::path& file, InputLimit limit) {
-  check_input_file(file, limit);
-  std::ifstream in(file, std::ios::binary);
-  if (!in) fail(file, std::string("cannot open: ") + std::strerror(errno));
+  check_input_file(file, limit);  // the clear messages (missing, a directory, too large)
+  // What was checked may be replaced before it is opened: the descriptor is checked again.
+  // O_NONBLOCK, so that a FIFO put there cannot hold the open.
+  const int fd = ::open(file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
+  if (fd < 0) fail(file, std::string("cannot open: ") + std::strerror(errno));
+  struct Close {
+    int fd;
+    ~Close() { ::close(fd); }
+  } closer{fd};
+  struct stat st {};
+  if (::fstat(fd, &st) != 0) fail(file, std::string("cannot read its status: ") + std::strerror(errno));
+  if (!S_ISREG(st.st_mode)) fail(file, "is not a regular file");
+  if (static_cast<std::uintmax_t>(st.st_size) > limit.bytes) too_large(file, static_cast<std::uintmax_t>(st.st_size), limit);
+  ::fcntl(fd, F_SETFL, ::fcntl(fd, F_GETFL) & ~O_NONBLOCK);
   std::string bytes;
+  bytes.reserve(static_cast<std::size_t>(st.st_size));
   char chunk[1 << 16];
-  while (in.read(chunk, sizeof chunk) || in.gcount() > 0) {
-    bytes.append(chunk, static_cast<std::size_t>(in.gcount()));
-    if (bytes.size() > limit.bytes) too_large(file, bytes.size(), limit);
+  for (;;) {
+    const ssize_t n = ::read(fd, chunk, sizeof chunk);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) fail(file, std::string("read error: ") + std::strerror(errno));
+    if (n == 0) break;
+    bytes.append(chunk, static_cast<std::size_t>(n));
+    if (bytes.size() > limit.bytes) too_large(file, bytes.size(), limit);  // it grew while read
   }
-  if (in.bad()) fail(file, "read error");
   return bytes;
 }
 

@@ -13,6 +13,7 @@
 
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/input_error.hpp"
+#include "evar/geometry/image_file.hpp"
 #include "evar/geometry/input_file.hpp"
 #include "evar/geometry/json_fields.hpp"
 
@@ -231,14 +232,7 @@ Session read_session(const std::filesystem::path& directory) {
 cv::Mat read_session_frame(const Session& session, std::size_t index) {
   if (index >= session.frames.size()) throw std::out_of_range("read_session_frame: no frame " + std::to_string(index));
   const fs::path file = (session.directory / session.frames_index).parent_path() / session.frames[index].file;
-  geometry::check_input_file(file, geometry::kImageLimit);
-  cv::Mat image;
-  try {
-    image = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
-  } catch (const cv::Exception& e) {
-    fail(file, 0, "cannot decode (" + e.msg + ")");
-  }
-  if (image.empty()) fail(file, 0, "not a readable PNG");
+  const cv::Mat image = geometry::read_image_file(file);
   if (image.type() != CV_16UC1) fail(file, 0, "expected a 16-bit single-channel PNG");
   if (image.cols != session.detector.cols || image.rows != session.detector.rows)
     fail(file, 0, std::to_string(image.cols) + " x " + std::to_string(image.rows) + " pixels, but the detector is " +

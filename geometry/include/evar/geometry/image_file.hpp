@@ -1,0 +1,13 @@
+#pragma once
+// Image files (PNG, TIFF, JPEG, ... as OpenCV reads them) decoded from one read of the file:
+// the size limit holds and no other file can be swapped in between the checks and the read.
+#include <filesystem>
+#include <opencv2/core.hpp>
+
+namespace evar::geometry {
+
+/// Depth and channels as stored (IMREAD_UNCHANGED). InputError naming the file when it is
+/// missing, too large (kImageLimit) or cannot be decoded.
+cv::Mat read_image_file(const std::filesystem::path& file);
+
+}  // namespace evar::geometry

@@ -1,0 +1,24 @@
+#include "evar/geometry/image_file.hpp"
+
+#include <opencv2/imgcodecs.hpp>
+#include <string>
+
+#include "evar/geometry/input_error.hpp"
+#include "evar/geometry/input_file.hpp"
+
+namespace evar::geometry {
+
+cv::Mat read_image_file(const std::filesystem::path& file) {
+  const std::string bytes = read_input_file(file, kImageLimit);
+  cv::Mat image;
+  try {
+    image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())),
+                         cv::IMREAD_UNCHANGED);
+  } catch (const cv::Exception& e) {
+    throw InputError(file.string() + ": cannot decode the image (" + e.msg + ")");
+  }
+  if (image.empty()) throw InputError(file.string() + ": not an image OpenCV can read (PNG, TIFF, JPEG, ...)");
+  return image;
+}
+
+}  // namespace evar::geometry
