@@ -9,14 +9,19 @@ namespace evar::app {
 ViewPairSelector::ViewPairSelector(double min_separation_deg, ViewPairOptions options)
     : min_separation_deg_(min_separation_deg), options_(options) {
   if (!(options_.same_view_deg > 0 && options_.same_view_deg < min_separation_deg_ && min_separation_deg_ < 90) ||
-      options_.max_views < 2)
-    throw std::invalid_argument("view pairs: need 0 < same_view_deg < min_separation_deg < 90 and max_views >= 2");
+      options_.max_views < 2 || options_.max_gap_ns <= 0)
+    throw std::invalid_argument(
+        "view pairs: need 0 < same_view_deg < min_separation_deg < 90, max_views >= 2 and a positive max_gap_ns");
 }
 
 std::optional<ViewPair> ViewPairSelector::add(ViewCandidate candidate) {
   const auto separation = [&](const ViewCandidate& other) {
     return geometry::view_separation_deg(other.geometry.P_ct, candidate.geometry.P_ct);
   };
+  // The device may have moved since: old views go, and all go when time went back.
+  std::erase_if(views_, [&](const ViewCandidate& v) {
+    return v.time_ns > candidate.time_ns || candidate.time_ns - v.time_ns > options_.max_gap_ns;
+  });
   const bool same_as_current = !views_.empty() && separation(views_.back()) < options_.same_view_deg;
   if (same_as_current) {
     views_.back() = candidate;

@@ -5,7 +5,8 @@
 // candidate after the C-arm went to another view makes a pair with the newest candidate of
 // the most recent view at least the reconstruction's minimum separation away
 // (geometry::ReconstructionOptions::min_separation_deg): a view pair, reconstructed and
-// adapted to in the background. Newer pairs supersede older ones.
+// adapted to in the background. Newer pairs supersede older ones; views older than
+// ViewPairOptions::max_gap_ns are not paired.
 #include <Eigen/Core>
 #include <cstdint>
 #include <optional>
@@ -30,6 +31,12 @@ struct ViewPair {
 struct ViewPairOptions {
   double same_view_deg = 2.0;        ///< candidates closer than this are one view
   std::size_t max_views = 8;         ///< views remembered (the oldest is forgotten)
+  /// Two views are reconstructed as one device only if it did not move in between: a view
+  /// older than this (by candidate time) is forgotten. Turning the C-arm to a second view
+  /// takes seconds; two minutes leave room for a pause, not for the next step of the
+  /// procedure. A candidate older than the ones remembered (a clock or a replay that
+  /// started over) forgets them all.
+  std::int64_t max_gap_ns = 120'000'000'000;
 };
 
 class ViewPairSelector {

@@ -183,4 +183,34 @@ TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView
   EXPECT_THROW(app::ViewPairSelector(10.0, {20.0, 8}), std::invalid_argument);
 }
 
+TEST(ViewPairSelector, AViewOlderThanTheGapOrFromBeforeATimeRestartIsNotPaired) {
+  sim::DetectorSpec d{256, 256, 1.0, 1.0};
+  const auto candidate = [&](std::uint64_t frame, double primary, double t_s) {
+    acquisition::CArmState s;
+    s.primary_deg = primary;
+    s.sid_mm = 1200;
+    s.sod_mm = 800;
+    app::ViewCandidate c;
+    c.frame = frame;
+    c.time_ns = static_cast<std::int64_t>(t_s * 1e9);
+    c.geometry = app::frame_view(d, Eigen::Matrix4d::Identity(), s);
+    return c;
+  };
+  app::ViewPairOptions o;
+  o.max_gap_ns = 60'000'000'000;
+  app::ViewPairSelector selector(20.0, o);
+  EXPECT_FALSE(selector.add(candidate(1, 0, 100.0)));
+  EXPECT_FALSE(selector.add(candidate(2, 40, 161.0)));  // 61 s later: the device may have moved
+  const auto pair = selector.add(candidate(3, 0, 200.0));  // 39 s after view 2
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.frame, 2u);
+  // Time went back (a clock or a replay that started over): what came before is forgotten.
+  EXPECT_FALSE(selector.add(candidate(4, 40, 5.0)));
+  const auto fresh = selector.add(candidate(5, 0, 6.0));
+  ASSERT_TRUE(fresh);
+  EXPECT_EQ(fresh->earlier.frame, 4u);
+  o.max_gap_ns = 0;
+  EXPECT_THROW(app::ViewPairSelector(20.0, o), std::invalid_argument);
+}
+
 }  // namespace
