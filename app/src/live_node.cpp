@@ -271,13 +271,14 @@ void LiveNode::compose_loop() {
     std::snprintf(line, sizeof line, "roadmap: %s   latency %.0f ms", overlay::to_string(mode), last_latency_ms);
     lines.push_back(line);
     ComposedFrame out;
+    out.status = {std::move(lines), current_alerts()};
     out.P_ct = view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
     out.mm_per_px = view ? mm_at_isocenter_per_px(view->view) : 0.0;
     try {
       const int bits = f->format == acquisition::PixelFormat::Mono8 ? 8 : 16;
       out.image = std::make_shared<const overlay::Image>(
           compositor.compose({f->width, f->height, f->stride_bytes, bits, f->pixels.data()},
-                             out.P_ct ? &*out.P_ct : nullptr, model->roadmap, mode, {lines, current_alerts()}));
+                             out.P_ct ? &*out.P_ct : nullptr, model->roadmap, mode, out.status));
       out.roadmap = compositor.last_roadmap();
     } catch (const std::exception& e) {
       set_alert("compose", std::string("frame not shown: ") + e.what(), true);

@@ -74,6 +74,7 @@ struct ComposedFrame {
   overlay::RoadmapShown roadmap = overlay::RoadmapShown::None;
   double mm_per_px = 0.0;                         ///< at the isocenter, with P_ct
   std::shared_ptr<const PublishedModel> model;
+  overlay::StatusBlock status;                    ///< the text drawn on the frame: state lines and alerts
 };
 
 /// Where composited frames go: a window, a video file, snapshots, OpenIGTLink. Called on

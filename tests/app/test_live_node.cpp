@@ -3,12 +3,17 @@
 // a stalled video are reported while the video goes on.
 #include <gtest/gtest.h>
 
+#include <spdlog/sinks/ostream_sink.h>
+
+#include <algorithm>
 #include <filesystem>
+#include <sstream>
 #include <thread>
 
 #include "evar/sim/session_generator.hpp"
 #include "evar/sim/session_replay.hpp"
 #include "live_node.hpp"
+#include "logging.hpp"
 #include "output_sinks.hpp"
 #include "session_evaluation.hpp"
 #include "view_pair_selector.hpp"
@@ -118,6 +123,106 @@ TEST_F(LiveNodeReplay, AFailedReconstructionIsReportedAndTheVideoGoesOn) {
   EXPECT_EQ(s.adaptations, 0u);
   EXPECT_NE(s.last_failure.find("refused"), std::string::npos) << s.last_failure;
   EXPECT_EQ(node.model()->version, 0u);  // the preoperative model stays
+}
+
+// What each composed frame said on screen, in order.
+class StatusRecorder final : public app::OutputSink {
+ public:
+  struct Shown {
+    std::uint64_t version = 0;
+    bool adapted = false;
+    overlay::StatusBlock status;
+  };
+  std::string name() const override { return "status recorder"; }
+  void write(const app::ComposedFrame& f) override {
+    frames.push_back({f.model ? f.model->version : 0, f.model && f.model->adapted, f.status});
+  }
+  std::vector<Shown> frames;  // read after the node stopped
+};
+
+bool any_contains(const std::vector<std::string>& lines, const std::string& text) {
+  return std::any_of(lines.begin(), lines.end(), [&](const std::string& l) { return l.find(text) != std::string::npos; });
+}
+
+std::size_t count_of(const std::string& log, const std::string& text) {
+  std::size_t n = 0;
+  for (std::size_t at = log.find(text); at != std::string::npos; at = log.find(text, at + 1)) ++n;
+  return n;
+}
+
+TEST_F(LiveNodeReplay, AfterALaterAdaptationFailsTheLastGoodModelStaysOnScreenAndBothScreenAndLogSaySo) {
+  // The session as recorded until the C-arm leaves the second view; from then on the link
+  // reports the table 300 mm off (a wrong table reading, an unannounced table move), so
+  // the next pair's two views disagree and no device can come of them. A pause before the
+  // third view leaves the first pair time to be adapted, however slow the build.
+  sim::Session faulty = session();
+  const auto view_of = [&](std::int64_t t) {
+    const sim::CArmSample* c = sim::carm_at(faulty, t);
+    return std::make_pair(std::lround(c->primary_deg), std::lround(c->secondary_deg));
+  };
+  std::vector<std::pair<long, long>> views;
+  std::int64_t last_of_second_view = 0;
+  for (const auto& f : faulty.frames) {
+    const auto v = view_of(f.timestamp_ns);
+    if (views.empty() || views.back() != v) views.push_back(v);
+    if (views.size() == 2) last_of_second_view = f.timestamp_ns;
+  }
+  ASSERT_GE(views.size(), 3u) << "the session has fewer than three views";
+  constexpr std::int64_t kPauseNs = 40'000'000'000;
+  for (auto& c : faulty.carm)
+    if (c.timestamp_ns > last_of_second_view) {
+      c.timestamp_ns += kPauseNs;
+      c.table_mm.x() += 300.0;
+    }
+  std::uint64_t first_faulty_frame = 0;
+  for (auto& f : faulty.frames)
+    if (f.timestamp_ns > last_of_second_view) {
+      if (!first_faulty_frame) first_faulty_frame = static_cast<std::uint64_t>(f.frame);
+      f.timestamp_ns += kPauseNs;
+    }
+
+  std::ostringstream log;
+  auto log_sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
+  app::log().sinks().push_back(log_sink);
+  app::NodeOptions o = options();
+  o.backpressure = true;
+  o.timeline.stale_after = std::chrono::milliseconds(60'000);  // the link reports changes only
+  auto recorder = std::make_unique<StatusRecorder>();
+  StatusRecorder* shown = recorder.get();
+  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  sinks.push_back(std::move(recorder));
+  app::LiveNode node(*scene_, o, std::move(sinks));
+  sim::SessionReplay replay(faulty, {8.0, 1});
+  node.start(replay.frames(), replay.carm());
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
+  node.stop();
+  app::log().sinks().pop_back();
+
+  const app::NodeStatistics s = node.statistics();
+  ASSERT_GE(s.adaptations, 1u) << s.last_failure;
+  ASSERT_GE(s.adaptation_failures, 1u);
+  const auto model = node.model();
+  ASSERT_TRUE(model->adapted);
+  EXPECT_LT(model->adapted->frame_later, first_faulty_frame) << "a model came of the disagreeing views";
+  EXPECT_EQ(model->version, s.adaptations);
+
+  // On screen: from the first frame that says so, every frame keeps showing the adapted
+  // model, marks it stale and names the failure.
+  std::size_t from = shown->frames.size();
+  for (std::size_t i = 0; i < shown->frames.size() && from == shown->frames.size(); ++i)
+    if (any_contains(shown->frames[i].status.alerts, "last good model kept")) from = i;
+  ASSERT_LT(from, shown->frames.size()) << "no frame said the adaptation failed";
+  for (std::size_t i = from; i < shown->frames.size(); ++i) {
+    const auto& f = shown->frames[i];
+    ASSERT_TRUE(f.adapted) << "frame " << i;
+    EXPECT_EQ(f.version, model->version) << "frame " << i;
+    EXPECT_TRUE(any_contains(f.status.lines, "STALE (last adaptation failed)")) << "frame " << i;
+  }
+  // In the log: each model once, and the failure as a warning that names what was kept.
+  const std::string text = log.str();
+  EXPECT_EQ(count_of(text, "adapted model from frames"), s.adaptations) << text;
+  EXPECT_GE(count_of(text, "[warning] frames "), 1u) << text;
+  EXPECT_GE(count_of(text, "; last good model kept"), 1u) << text;
 }
 
 // A C-arm link that sends one state and falls silent.
