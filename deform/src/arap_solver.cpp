@@ -43,7 +43,7 @@ void check_components(const ArapTerms& terms, const std::vector<int>& constraine
 
 }  // namespace
 
-ArapSystem::ArapSystem(ArapTerms terms, ArapOptions options, ArapTether tether)
+ArapSystem::ArapSystem(ArapTerms terms, ArapOptions options, ArapTether tether, const ArapKnots& knots)
     : terms_(std::move(terms)), options_(options), tether_(std::move(tether)) {
   const int n = terms_.num_unknowns;
   if (options_.max_iterations < 0 || !(options_.tolerance_mm > 0.0) || options_.anderson_window < 1)
@@ -69,6 +69,7 @@ ArapSystem::ArapSystem(ArapTerms terms, ArapOptions options, ArapTether tether)
     A_ += 0.0 * I;
   }
   A_.makeCompressed();
+  if (!knots.arc_of_unknown.empty()) coarse_.emplace(terms_, tether_.weight, knots);
   assemble_ms_ = ms_since(t0);
   const auto t1 = Clock::now();
   if (n > 0) ordering_ = fill_reducing_ordering(A_);
@@ -150,6 +151,8 @@ ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int
     is_constrained_[static_cast<std::size_t>(k)] = 1;
   }
   if (!tethered) check_components(system_->terms(), constrained_);
+  if (system_->coarse() && system_->options().coarse_rotations)
+    coarse_ = system_->coarse()->factor_holding(system_->terms(), system_->tether().weight, constrained_);
 
   const auto k = static_cast<Eigen::Index>(constrained_.size());
   if (method != ConstraintMethod::Refactor && k > 0) {
@@ -234,6 +237,19 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   }
   X = x;
   double E = system_->local_step(X, R);
+  const CoarseSpace* coarse = coarse_ ? system_->coarse() : nullptr;
+  // The rotations for the global step: those fitted at x, turned by the coarse space's
+  // Gauss-Newton step (coarse_space.hpp). Without a coarse space, the fitted ones.
+  const auto turned = [&](const Eigen::MatrixXd& at, const std::vector<Eigen::Matrix3d>& fitted) {
+    if (!coarse) return fitted;
+    Eigen::MatrixXd b;
+    system_->right_hand_side(fitted, b);
+    const Eigen::MatrixXd half_gradient = system_->matrix() * at - b;  // ½ ∇E at (x, R(x))
+    const Eigen::VectorXd xi = -coarse_->solve(coarse->project(half_gradient, is_constrained_));
+    std::vector<Eigen::Matrix3d> out = fitted;
+    if (xi.allFinite()) coarse->turn_cells(xi, out);
+    return out;
+  };
   result.energy.push_back(E);
   result.init_ms = ms_since(t_init);
 
@@ -246,7 +262,7 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   int history = 0, next_col = 0;
   bool have_prev = false;
 
-  Eigen::MatrixXd g = global_step(R, coupling, X_C_full);
+  Eigen::MatrixXd g = global_step(turned(x, R), coupling, X_C_full);
   for (int it = 1; it <= options.max_iterations; ++it) {
     const Eigen::MatrixXd f = g - x;
     result.last_update_mm = n > 0 ? f.rowwise().norm().maxCoeff() : 0.0;
@@ -302,11 +318,19 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
       next_col = 0;
       have_prev = false;
     }
+    if (coarse && !(E_candidate <= E)) {
+      // The turned rotations did not pay here: the plain step, which cannot raise E.
+      ++result.coarse_fallbacks;
+      candidate = global_step(R, coupling, X_C_full);
+      X = candidate;
+      R_candidate = R;
+      E_candidate = system_->local_step(X, R_candidate);
+    }
     x = std::move(candidate);
     R = std::move(R_candidate);
     E = E_candidate;
     result.energy.push_back(E);
-    g = global_step(R, coupling, X_C_full);
+    g = global_step(turned(x, R), coupling, X_C_full);
   }
   if (!result.converged && options.max_iterations > 0) {
     X = g;  // the last global solve is the best estimate we have

@@ -47,6 +47,29 @@ using VesselModel = SceneDeformer::VesselModel;
 constexpr double kMaxLandmarkDistanceMm = 10.0;
 
 
+// Where each vertex and skeleton point lies along the vessel (the arc length of its foot on
+// the centerline) and where it is at rest: the solver's coarse space (coarse_space.hpp).
+ArapKnots vessel_knots(const geometry::Vessel& v, const Skeleton& skeleton, int vertices, int centres, double spacing_mm) {
+  ArapKnots knots;
+  if (!(spacing_mm > 0.0) || v.centerline.size() < 2) return knots;
+  knots.spacing_mm = spacing_mm;
+  const auto& V = v.mesh.mesh.V;
+  knots.rest.resize(vertices + centres, 3);
+  knots.arc_of_unknown.resize(static_cast<std::size_t>(vertices + centres));
+  const geometry::PolylineProjector onto_centerline(v.centerline);
+  int segment = -1;
+  for (int k = 0; k < vertices; ++k) {
+    knots.rest.row(k) = V.row(k);
+    knots.arc_of_unknown[static_cast<std::size_t>(k)] =
+        onto_centerline.project(V.row(k).transpose(), segment, &segment).arc_length_mm;
+  }
+  for (int k = 0; k < centres; ++k) {
+    knots.rest.row(vertices + k) = skeleton.centres[static_cast<std::size_t>(k)].transpose();
+    knots.arc_of_unknown[static_cast<std::size_t>(vertices + k)] = skeleton.arc_mm[static_cast<std::size_t>(k)];
+  }
+  return knots;
+}
+
 std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformOptions& options) {
   auto m = std::make_unique<VesselModel>();
   m->vessel = &v;
@@ -68,7 +91,10 @@ std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformO
   ArapTerms terms = surface_arap_terms(mesh.V, cotangent_weights(mesh), n + centres);
   if (centres > 0) append_skeleton_terms(terms, mesh, m->skeleton, n, options.skeleton.weight);
   m->system = std::make_shared<const ArapSystem>(std::move(terms), options.arap,
-                                                 registration_tether(mesh, n + centres, options.tether_length_mm));
+                                                 registration_tether(mesh, n + centres, options.tether_length_mm),
+                                                 v.kind == geometry::VesselKind::Iliac
+                                                     ? vessel_knots(v, m->skeleton, n, centres, options.coarse_knot_spacing_mm)
+                                                     : ArapKnots{});
   // A vertex no face uses has no shape to keep: it stays where it is (otherwise it would
   // be a part with nothing to determine it).
   std::vector<char> used(static_cast<std::size_t>(n), 0);
@@ -227,6 +253,8 @@ SceneDeformer::SceneDeformer(const geometry::Scene& scene, DeformOptions options
     : scene_(scene), options_(std::move(options)) {
   const auto t0 = Clock::now();
   options_.control.device_thickness_mm = scene.device_thickness_mm;
+  if (!(options_.coarse_knot_spacing_mm >= 0.0) || !std::isfinite(options_.coarse_knot_spacing_mm))
+    throw std::invalid_argument("deform options: coarse_knot_spacing_mm must be 0 (none) or a positive length");
   if (std::none_of(scene.vessels.begin(), scene.vessels.end(),
                    [](const geometry::Vessel& v) { return v.kind == geometry::VesselKind::Aorta; }))
     throw geometry::InputError(scene.file.string() + ": the scene has no vessel of kind \"aorta\"");

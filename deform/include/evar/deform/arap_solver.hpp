@@ -15,7 +15,9 @@
 //                                alternating local rotation fits and global solves
 //                                A_FF x_F = b_F(R) − A_FC x_C, accelerated by Anderson mixing
 //                                with an energy safeguard (Peng et al. 2018) so the energy
-//                                never increases, until the largest update is below tolerance.
+//                                never increases, until the largest update is below tolerance;
+//                                with a coarse space (coarse_space.hpp) the rotations are
+//                                turned by its step before each global solve.
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 #include <Eigen/Sparse>
@@ -25,6 +27,7 @@
 #include <vector>
 
 #include "evar/deform/arap_system.hpp"
+#include "evar/deform/coarse_space.hpp"
 #include "evar/deform/sparse_cholesky.hpp"
 
 namespace evar::deform {
@@ -36,6 +39,9 @@ struct ArapOptions {
   double tolerance_mm = 0.01;    ///< stop when the largest vertex update is below this
   bool anderson = true;          ///< Anderson acceleration (off: plain local/global)
   int anderson_window = 5;       ///< number of previous iterates mixed
+  /// With a coarse space (ArapSystem's knots): before each global step, turn the rotations
+  /// by its Gauss-Newton step (coarse_space.hpp). Off: plain local/global.
+  bool coarse_rotations = true;
   CholeskyBackend backend = CholeskyBackend::Default;
 };
 
@@ -55,6 +61,7 @@ struct ArapResult {
   double last_update_mm = 0.0; ///< largest update of the last iteration
   std::vector<double> energy;  ///< E(x, R(x)) of the initial guess and of every accepted iterate
   int anderson_rejections = 0; ///< accelerated steps refused by the energy safeguard
+  int coarse_fallbacks = 0;    ///< steps where the turned rotations raised E and the plain step was taken
   double factor_ms = 0.0;      ///< numeric factorization for this constraint set
   double init_ms = 0.0;        ///< initial guess (Laplacian editing or warm start)
   double iterate_ms = 0.0;     ///< all iterations
@@ -63,11 +70,12 @@ struct ArapResult {
 /// What depends only on the mesh (and skeleton, tether): shared by every constraint set.
 class ArapSystem {
  public:
-  ArapSystem(ArapTerms terms, ArapOptions options = {}, ArapTether tether = {});
+  ArapSystem(ArapTerms terms, ArapOptions options = {}, ArapTether tether = {}, const ArapKnots& knots = {});
 
   const ArapTerms& terms() const { return terms_; }
   const ArapOptions& options() const { return options_; }
   const ArapTether& tether() const { return tether_; }
+  const CoarseSpace* coarse() const { return coarse_ ? &*coarse_ : nullptr; }  ///< null: no knots given
   int num_unknowns() const { return terms_.num_unknowns; }
   double assemble_ms() const { return assemble_ms_; }
   double ordering_ms() const { return ordering_ms_; }
@@ -89,6 +97,7 @@ class ArapSystem {
   ArapTerms terms_;
   ArapOptions options_;
   ArapTether tether_;
+  std::optional<CoarseSpace> coarse_;
   Eigen::SparseMatrix<double> A_;
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> ordering_;
   double rest_energy_ = 0.0;  ///< Σ_t w_t |e_t|²
@@ -143,6 +152,7 @@ class ArapSolver {
   const SparseCholesky* prefactored_ = nullptr;
   Eigen::MatrixXd W_;
   Eigen::LLT<Eigen::MatrixXd> S_;
+  std::optional<Eigen::LDLT<Eigen::MatrixXd>> coarse_;  // the coarse space's N holding this constraint set
 };
 
 /// Plain surface ARAP on a mesh (no skeleton), used by `evarnode arap`.

@@ -41,6 +41,13 @@ struct DeformOptions {
   /// about the spacing of the aorta's tethering branches (renal, mesenteric, lumbar
   /// arteries) times two. 0 = off (the paper's pure handle-only formulation).
   double tether_length_mm = 50.0;
+  /// Knot spacing of the iliacs' coarse space (coarse_space.hpp, ArapOptions::coarse_rotations);
+  /// 0 = none. An iliac is long and thin, held by handles along one side of its wall and
+  /// at its top: lengths of it hinge and twist about those, the motions local/global
+  /// iterations are slowest on (measured: 26 iterations to come within 0.05 mm of the
+  /// fixed point instead of 12). The aorta is not given one: its iterations converge in
+  /// 6-9 without, and with one they cost more (docs/DEFORMATION.md).
+  double coarse_knot_spacing_mm = 20.0;
 };
 
 struct StageTimings {
