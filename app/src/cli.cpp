@@ -51,6 +51,9 @@ int run_cli(const std::vector<std::string>& args) {
                 "length scale of the weak tether to the registered pose; 0 = off (handles only, as in the paper)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  d->add_flag("!--no-coarse-rotations", deform.coarse_rotations,
+              "plain local/global on the iliacs too, without turning their rotations by the coarse space "
+              "(for comparison; docs/DEFORMATION.md)");
 
   ArapCommand arap;
   auto* a = app.add_subcommand("arap",

@@ -20,6 +20,7 @@ struct DeformCommand {
   int max_iterations = 500;
   int containment_rounds = 3;
   double tether_mm = 50.0;
+  bool coarse_rotations = true;
 };
 int run_deform(const DeformCommand& cmd);
 

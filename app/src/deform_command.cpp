@@ -63,6 +63,7 @@ int run_deform(const DeformCommand& cmd) {
   options.arap.max_iterations = cmd.max_iterations;
   options.containment_rounds = cmd.containment_rounds;
   options.tether_length_mm = cmd.tether_mm;
+  options.arap.coarse_rotations = cmd.coarse_rotations;
   deform::SceneDeformation result;
   try {
     result = deform::deform_scene(scene, device, options);
@@ -103,6 +104,7 @@ int run_deform(const DeformCommand& cmd) {
                            {"solver", deform::to_string(options.arap.backend)},
                            {"tolerance_mm", cmd.tolerance_mm},
                            {"tether_mm", cmd.tether_mm},
+                           {"coarse_rotations", cmd.coarse_rotations},
                            {"vessels", nlohmann::json::array()},
                            {"landmarks", nlohmann::json::array()}};
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {

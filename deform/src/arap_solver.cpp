@@ -237,18 +237,18 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   }
   X = x;
   double E = system_->local_step(X, R);
-  const CoarseSpace* coarse = coarse_ ? system_->coarse() : nullptr;
-  // The rotations for the global step: those fitted at x, turned by the coarse space's
-  // Gauss-Newton step (coarse_space.hpp). Without a coarse space, the fitted ones.
-  const auto turned = [&](const Eigen::MatrixXd& at, const std::vector<Eigen::Matrix3d>& fitted) {
-    if (!coarse) return fitted;
+  const CoarseSpace* const coarse = coarse_ ? system_->coarse() : nullptr;
+  // The global step from the rotations fitted at x: with a coarse space, turned first by its
+  // Gauss-Newton step (coarse_space.hpp).
+  const auto next_global = [&]() -> Eigen::MatrixXd {
+    if (!coarse) return global_step(R, coupling, X_C_full);
     Eigen::MatrixXd b;
-    system_->right_hand_side(fitted, b);
-    const Eigen::MatrixXd half_gradient = system_->matrix() * at - b;  // ½ ∇E at (x, R(x))
+    system_->right_hand_side(R, b);
+    const Eigen::MatrixXd half_gradient = system_->matrix() * x - b;  // ½ ∇E at (x, R(x))
     const Eigen::VectorXd xi = -coarse_->solve(coarse->project(half_gradient, is_constrained_));
-    std::vector<Eigen::Matrix3d> out = fitted;
-    if (xi.allFinite()) coarse->turn_cells(xi, out);
-    return out;
+    std::vector<Eigen::Matrix3d> turned = R;
+    if (xi.allFinite()) coarse->turn_cells(xi, turned);
+    return global_step(turned, coupling, X_C_full);
   };
   result.energy.push_back(E);
   result.init_ms = ms_since(t_init);
@@ -262,7 +262,7 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   int history = 0, next_col = 0;
   bool have_prev = false;
 
-  Eigen::MatrixXd g = global_step(turned(x, R), coupling, X_C_full);
+  Eigen::MatrixXd g = next_global();
   for (int it = 1; it <= options.max_iterations; ++it) {
     const Eigen::MatrixXd f = g - x;
     result.last_update_mm = n > 0 ? f.rowwise().norm().maxCoeff() : 0.0;
@@ -330,7 +330,7 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
     R = std::move(R_candidate);
     E = E_candidate;
     result.energy.push_back(E);
-    g = global_step(turned(x, R), coupling, X_C_full);
+    g = next_global();
   }
   if (!result.converged && options.max_iterations > 0) {
     X = g;  // the last global solve is the best estimate we have

@@ -78,6 +78,7 @@ TEST_F(Cli, DeformWritesMeshesLandmarksReportAndPreview) {
   std::ifstream in(out / "report.json");
   const auto report = nlohmann::json::parse(in);
   EXPECT_EQ(report["device_iliac"], "iliac_right");
+  EXPECT_EQ(report["coarse_rotations"], true);
   ASSERT_EQ(report["vessels"].size(), 3u);
   for (const auto& v : report["vessels"]) {
     for (const char* key : {"control_points", "skeleton_points", "iterations", "final_energy"}) EXPECT_TRUE(v.contains(key)) << key;
@@ -88,6 +89,29 @@ TEST_F(Cli, DeformWritesMeshesLandmarksReportAndPreview) {
   const auto before = evar::geometry::read_mesh(dir_ / "iliac_right.stl").mesh;
   const auto after = evar::geometry::read_mesh(out / "iliac_right.stl").mesh;
   EXPECT_EQ(before.V.rows(), after.V.rows());
+}
+
+TEST_F(Cli, DeformWithoutCoarseRotationsSaysSoAndIteratesTheIliacsPlainly) {
+  const auto with = scratch("deform_coarse"), without = scratch("deform_plain");
+  ASSERT_EQ(evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", with.string(),
+                      "--no-preview"}).code, 0);
+  const auto r = evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out",
+                           without.string(), "--no-preview", "--no-coarse-rotations"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto a = nlohmann::json::parse(std::ifstream(with / "report.json"));
+  const auto b = nlohmann::json::parse(std::ifstream(without / "report.json"));
+  EXPECT_EQ(b["coarse_rotations"], false);
+  // The aorta has no coarse space: the same iterations either way. The carrier iliac's differ.
+  for (std::size_t i = 0; i < a["vessels"].size(); ++i) {
+    const auto& va = a["vessels"][i];
+    const auto& vb = b["vessels"][i];
+    if (va["name"] == "aorta") {
+      EXPECT_EQ(va["iterations"], vb["iterations"]);
+    }
+    if (va["name"] == a["device_iliac"]) {
+      EXPECT_NE(va["iterations"], vb["iterations"]);
+    }
+  }
 }
 
 TEST_F(Cli, MissingSceneFileIsNamed) {
