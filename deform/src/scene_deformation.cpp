@@ -5,6 +5,7 @@
 #include <numeric>
 #include <set>
 #include <cmath>
+#include <cstdio>
 #include <limits>
 #include <map>
 #include <optional>
@@ -347,9 +348,12 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
         const double dist = geometry::project_onto(m->vessel->centerline, d).distance_mm;
         if (dist < nearest) nearest = dist, which = m->vessel->name;
       }
+    char approach[32];
+    std::snprintf(approach, sizeof approach, "%.1f", nearest);
     throw geometry::InputError("device: no part of the device lies in any vessel (closest approach " +
-                               std::to_string(nearest) + " mm to the centerline of '" + which +
-                               "'); check the device file and the CT to C-arm registration");
+                               std::string(approach) + " mm to the centerline of '" + which +
+                               "'); check where the device came from (its file, or the views and C-arm "
+                               "geometry it was reconstructed from) and the CT to C-arm registration");
   }
 
   // Device points inside another vessel's preoperative lumen (closed meshes only) are that
