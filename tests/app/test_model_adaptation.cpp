@@ -8,6 +8,7 @@
 #include <string>
 
 #include "model_adaptation.hpp"
+#include "support/error_message.hpp"
 
 using evar::app::AdaptationError;
 using evar::app::AdaptedModel;
@@ -32,12 +33,7 @@ AdaptedModel finite_model() {
 }
 
 std::string refusal(const AdaptedModel& m) {
-  try {
-    check_finite(m);
-  } catch (const AdaptationError& e) {
-    return e.what();
-  }
-  return "accepted";
+  return evar::test::error_message<AdaptationError>([&] { check_finite(m); }, "accepted");
 }
 
 }  // namespace

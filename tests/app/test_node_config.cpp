@@ -11,6 +11,7 @@
 
 #include "evar/geometry/input_error.hpp"
 #include "node_config.hpp"
+#include "support/error_message.hpp"
 
 namespace fs = std::filesystem;
 using testing::HasSubstr;
@@ -24,12 +25,7 @@ fs::path write_config(const std::string& frames) {
 }
 
 std::string error_of(const std::string& frames) {
-  try {
-    evar::app::read_node_config(write_config(frames));
-  } catch (const evar::geometry::InputError& e) {
-    return e.what();
-  }
-  return "no error";
+  return evar::test::error_message([&] { evar::app::read_node_config(write_config(frames)); });
 }
 
 }  // namespace

@@ -9,6 +9,7 @@
 
 #include "evar/geometry/image_file.hpp"
 #include "evar/geometry/input_error.hpp"
+#include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -19,12 +20,7 @@ using testing::HasSubstr;
 namespace {
 
 std::string error_of(const fs::path& file) {
-  try {
-    read_image_file(file);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "no error";
+  return evar::test::error_message([&] { read_image_file(file); });
 }
 
 }  // namespace

@@ -18,6 +18,7 @@
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/xa_dicom.hpp"
+#include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
@@ -36,12 +37,7 @@ fs::path sparse_file(const fs::path& file, std::uintmax_t bytes) {
 
 template <class F>
 std::string error_of(F&& read) {
-  try {
-    read();
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "no error";
+  return evar::test::error_message(std::forward<F>(read));
 }
 
 }  // namespace

@@ -15,6 +15,7 @@
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "support/temp_dir.hpp"
+#include "support/error_message.hpp"
 
 using namespace evar::geometry;
 namespace fs = std::filesystem;
@@ -44,12 +45,7 @@ cv::Mat ramp16(int seed) {
 using evar::test::TempDir;
 
 std::string error_of(const fs::path& p, int frame = 0) {
-  try {
-    read_xa_dicom(p, frame);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  return "no error";
+  return evar::test::error_message([&] { read_xa_dicom(p, frame); });
 }
 
 // Loads a file, lets `edit` change its dataset, saves it in `xfer`.
