@@ -31,6 +31,8 @@ nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& out
           {"skeleton_points", r.skeleton_points},
           {"rounds", r.rounds},
           {"iterations", r.iterations},
+          {"anderson_rejections", r.anderson_rejections},
+          {"coarse_fallbacks", r.coarse_fallbacks},
           {"converged", r.converged},
           {"final_energy", r.final_energy},
           {"max_displacement_mm", r.max_displacement_mm},

@@ -342,6 +342,7 @@ void LiveNode::adaptation_loop() {
         ++stats_.adaptations;
         stats_.last_failure.clear();
         adaptation_latencies_.push_back(ready_ms);
+        if (adaptation_latencies_.size() > kLatencyWindow) adaptation_latencies_.pop_front();
       }
       clear_alert("adaptation");
       log().info("adapted model from frames {}+{}: device {} points, residual {:.2f} px; reconstruction {:.1f} ms, "
@@ -424,7 +425,7 @@ NodeStatistics LiveNode::statistics() const {
     std::lock_guard lock(stats_mutex_);
     s = stats_;
     latencies.assign(latencies_.begin(), latencies_.end());
-    adaptation = adaptation_latencies_;
+    adaptation.assign(adaptation_latencies_.begin(), adaptation_latencies_.end());
   }
   // Sorted outside the lock: the compose thread takes it for every frame.
   s.latency_ms = percentiles(std::move(latencies));

@@ -103,7 +103,7 @@ struct NodeStatistics {
   std::uint64_t adaptations = 0, adaptation_failures = 0;
   std::uint64_t video_stalls = 0, stale_geometry_frames = 0, moving_frames = 0, sink_errors = 0;
   Percentiles latency_ms;            ///< frame arrival → composited, over the last kLatencyWindow frames
-  Percentiles adaptation_ms;         ///< second view's frame arrival → model ready
+  Percentiles adaptation_ms;         ///< second view's frame arrival → model ready, over the last kLatencyWindow adaptations
   std::string last_failure;          ///< the last adaptation failure ("" if none)
   std::optional<std::int64_t> carm_clock_offset_ns;
 };
@@ -174,7 +174,7 @@ class LiveNode {
   mutable std::mutex stats_mutex_;
   NodeStatistics stats_;
   std::deque<double> latencies_;  // the last kLatencyWindow frames
-  std::vector<double> adaptation_latencies_;
+  std::deque<double> adaptation_latencies_;  // the last kLatencyWindow adaptations
 
   struct Alert {
     std::string text;

@@ -66,6 +66,7 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
     else if (key == "device_diameter_mm") c.device_diameter_mm = number_field(path, value, key, 0.1, 10, "mm");
     else if (key == "min_contrast") c.min_contrast = number_field(path, value, key, 0, 5, "");
     else if (key == "min_separation_deg") c.min_separation_deg = number_field(path, value, key, 5, 80, "degrees");
+    else if (key == "max_view_gap_s") c.max_view_gap_s = number_field(path, value, key, 1, 3600, "s");
     else if (key == "geometry_stale_ms") c.geometry_stale_ms = number_field(path, value, key, 10, 600000, "ms");
     else bad_field(path, key, "unknown setting");
   }

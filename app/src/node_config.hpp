@@ -10,7 +10,7 @@
 //   "carm": "serial:/dev/ttyUSB0,baud=115200",
 //   "fps": 30,
 //   "device_diameter_mm": 0.89, "min_contrast": 0.25, "min_separation_deg": 20,
-//   "geometry_stale_ms": 250
+//   "geometry_stale_ms": 250, "max_view_gap_s": 120
 // }
 // Everything but format and version is optional for replays (the session has the patient,
 // the registration and the detector).
@@ -38,6 +38,8 @@ struct NodeConfig {
   /// C-arm geometry older than this at a frame is stale (default 250 ms: a link that
   /// streams; longer for a C-arm that reports only when something changes).
   std::optional<double> geometry_stale_ms;
+  /// Two views further apart in time than this are not paired (the device has moved on).
+  double max_view_gap_s = 120.0;
 };
 
 /// Throws geometry::InputError "<file>: <field>: <problem>".

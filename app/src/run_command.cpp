@@ -78,6 +78,7 @@ int run_node(const RunCommand& cmd) {
     options.candidate.device_diameter_mm = config->device_diameter_mm;
     options.candidate.min_contrast = config->min_contrast;
     options.adaptation.reconstruction.min_separation_deg = config->min_separation_deg;
+    options.pairs.max_gap_ns = static_cast<std::int64_t>(config->max_view_gap_s * 1e9);
     if (config->geometry_stale_ms)
       options.timeline.stale_after = std::chrono::milliseconds(static_cast<std::int64_t>(*config->geometry_stale_ms));
   }

@@ -202,6 +202,8 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
     const ArapResult r = (round > 0 || previous) ? solver.solve(rows, &X) : solver.solve(rows);
     report.timings.iterate_ms += r.init_ms + r.iterate_ms;
     report.iterations += r.iterations;
+    report.anderson_rejections += r.anderson_rejections;
+    report.coarse_fallbacks += r.coarse_fallbacks;
     report.converged = r.converged;
     report.final_energy = r.energy.empty() ? 0.0 : r.energy.back();
     report.constrained_vertices = static_cast<int>(constrained.size());

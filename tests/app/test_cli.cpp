@@ -105,8 +105,12 @@ TEST_F(Cli, DeformWithoutCoarseRotationsSaysSoAndIteratesTheIliacsPlainly) {
   for (std::size_t i = 0; i < a["vessels"].size(); ++i) {
     const auto& va = a["vessels"][i];
     const auto& vb = b["vessels"][i];
+    // Without a coarse space no step can fall back from one.
+    EXPECT_EQ(vb["coarse_fallbacks"], 0) << vb["name"];
+    EXPECT_LE(va["coarse_fallbacks"].get<int>(), va["iterations"].get<int>()) << va["name"];
     if (va["name"] == "aorta") {
       EXPECT_EQ(va["iterations"], vb["iterations"]);
+      EXPECT_EQ(va["coarse_fallbacks"], 0);
     }
     if (va["name"] == a["device_iliac"]) {
       EXPECT_NE(va["iterations"], vb["iterations"]);

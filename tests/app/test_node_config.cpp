@@ -55,4 +55,19 @@ TEST(NodeConfig, TheBedsideStartingConfigIsValid) {
   EXPECT_FALSE(c.frames->packet_socket);
   EXPECT_EQ(*c.carm, "serial:/dev/evarnode-carm,baud=115200");  // the udev rule's stable name
   EXPECT_EQ(*c.scene, "/var/lib/evarnode/case/scene.json");      // inside the service's StateDirectory
+  EXPECT_EQ(c.max_view_gap_s, 120.0);
+}
+
+TEST(NodeConfig, TheViewGapIsReadInSecondsAndBoundedWithItsField) {
+  const fs::path file = fs::temp_directory_path() / ("evar_node_gap_" + std::to_string(::getpid()) + ".json");
+  const auto with_gap = [&](const std::string& gap) {
+    std::ofstream(file) << R"({"format": "evarnode-node", "version": 1, "max_view_gap_s": )" << gap << "}";
+    return file;
+  };
+  EXPECT_EQ(evar::app::read_node_config(with_gap("30")).max_view_gap_s, 30.0);
+  const std::string zero = evar::test::error_message([&] { evar::app::read_node_config(with_gap("0")); });
+  EXPECT_THAT(zero, HasSubstr("max_view_gap_s"));
+  EXPECT_THAT(evar::test::error_message([&] { evar::app::read_node_config(with_gap("\"2 min\"")); }),
+              HasSubstr("max_view_gap_s"));
+  fs::remove(file);
 }

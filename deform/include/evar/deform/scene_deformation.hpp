@@ -66,6 +66,8 @@ struct VesselReport {
   int skeleton_points = 0;       ///< plane centres + wall hits
   int rounds = 0;                ///< containment rounds solved
   int iterations = 0;            ///< ARAP iterations, all rounds
+  int anderson_rejections = 0;   ///< accelerated steps the energy safeguard refused, all rounds
+  int coarse_fallbacks = 0;      ///< steps where the coarse-turned rotations raised E, all rounds
   bool converged = true;
   double final_energy = 0.0;
   double max_displacement_mm = 0.0;
