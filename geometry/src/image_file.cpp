@@ -3,6 +3,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <string>
 
+#include "evar/geometry/image_header.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/input_file.hpp"
 
@@ -10,6 +11,7 @@ namespace evar::geometry {
 
 cv::Mat read_image_file(const std::filesystem::path& file) {
   const std::string bytes = read_input_file(file, kImageLimit);
+  const ImageHeader header = read_image_header(bytes, file.string());
   cv::Mat image;
   try {
     image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())),
@@ -17,7 +19,11 @@ cv::Mat read_image_file(const std::filesystem::path& file) {
   } catch (const cv::Exception& e) {
     throw InputError(file.string() + ": cannot decode the image (" + e.msg + ")");
   }
-  if (image.empty()) throw InputError(file.string() + ": not an image OpenCV can read (PNG, TIFF, JPEG, ...)");
+  if (image.empty()) throw InputError(file.string() + ": the " + header.format + " image cannot be decoded");
+  if (image.cols != header.width || image.rows != header.height)
+    throw InputError(file.string() + ": the " + header.format + " header says " + std::to_string(header.width) + " x " +
+                     std::to_string(header.height) + " pixels but " + std::to_string(image.cols) + " x " +
+                     std::to_string(image.rows) + " were decoded");
   return image;
 }
 

@@ -7,7 +7,8 @@
 namespace evar::geometry {
 
 /// Depth and channels as stored (IMREAD_UNCHANGED). InputError naming the file when it is
-/// missing, too large (kImageLimit) or cannot be decoded.
+/// missing, too large (kImageLimit), not PNG, TIFF or JPEG, declares more pixels than
+/// image_header.hpp allows (checked before decoding) or cannot be decoded.
 cv::Mat read_image_file(const std::filesystem::path& file);
 
 }  // namespace evar::geometry
