@@ -306,8 +306,15 @@ void LiveNode::compose_loop() {
 void LiveNode::analysis_loop() {
   ViewPairSelector selector(options_.adaptation.reconstruction.min_separation_deg, options_.pairs);
   while (std::optional<Analysis> a = analysis_.take()) {
+    if (adapting_.load()) {
+      std::lock_guard lock(stats_mutex_);
+      ++stats_.analysis_paused;
+      continue;
+    }
     if (retry_pair_.exchange(false)) selector.retry();
+    const auto analysis_start = Clock::now();
     FrameAnalysis r = analyse_frame(wrap(a->frame), a->view, options_.candidate);
+    const double waited_ms = ms_between(a->frame.host_arrival, analysis_start), took_ms = ms_between(analysis_start, Clock::now());
     {
       std::lock_guard lock(stats_mutex_);
       ++stats_.analysed;
@@ -319,8 +326,9 @@ void LiveNode::analysis_loop() {
     }
     ViewCandidate c{a->frame.sequence, steady_ns(a->frame.host_arrival), a->view, std::move(r.curve.points)};
     if (std::optional<ViewPair> pair = selector.add(std::move(c))) {
-      log().info("view pair: frames {} and {}, {:.0f}° apart: adapting", pair->earlier.frame, pair->later.frame,
-                 pair->separation_deg);
+      log().info("view pair: frames {} and {}, {:.0f}° apart: adapting (the second view waited {:.0f} ms and was "
+                 "segmented in {:.0f} ms)",
+                 pair->earlier.frame, pair->later.frame, pair->separation_deg, waited_ms, took_ms);
       pairs_.put(std::move(*pair));
       std::lock_guard lock(stats_mutex_);
       ++stats_.pairs;
@@ -330,6 +338,11 @@ void LiveNode::analysis_loop() {
 
 void LiveNode::adaptation_loop() {
   while (std::optional<ViewPair> pair = pairs_.take()) {
+    adapting_.store(true);
+    struct Done {
+      std::atomic<bool>& flag;
+      ~Done() { flag.store(false); }
+    } done{adapting_};
     try {
       // Warm-started from the model on screen (only this thread publishes).
       const auto shown = model();

@@ -195,7 +195,7 @@ int run_node(const RunCommand& cmd) {
                   {"dropped_input", s.dropped_input}, {"dropped_output", s.dropped_output},
                   {"lost_by_source", s.frames_lost_by_source}, {"wrong_size", s.frames_wrong_size},
                   {"stale_geometry", s.stale_geometry_frames}, {"c_arm_moving", s.moving_frames}}},
-      {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped}, {"candidates", s.candidates},
+      {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped}, {"paused_while_adapting", s.analysis_paused}, {"candidates", s.candidates},
                     {"pairs", s.pairs}, {"pairs_superseded", s.pairs_superseded}}},
       {"adaptation", {{"models", s.adaptations}, {"failures", s.adaptation_failures}, {"last_failure", s.last_failure},
                       {"ready_after_second_view_ms", to_json(s.adaptation_ms)}}},

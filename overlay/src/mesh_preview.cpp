@@ -1,6 +1,7 @@
 #include "evar/overlay/mesh_preview.hpp"
 
 #include <algorithm>
+#include <span>
 #include <array>
 #include <cassert>
 #include <cerrno>
@@ -285,24 +286,13 @@ class LabelPlacer {
   std::vector<cv::Rect> taken_;
 };
 
-void draw_overlay(cv::Mat& image, const ViewProjection& view, const Overlay& overlay, const DrawOptions& options) {
-  const int k = options.supersample;
-  std::vector<cv::Mat1b> masks;
-  masks.reserve(overlay.layers.size());
-  for (const MeshLayer& layer : overlay.layers) {
-    masks.push_back(silhouette(view, layer, image.size(), k));
-    if (layer.fill_alpha <= 0.0) continue;
-    cv::Mat1b coverage;
-    if (k == 1)
-      coverage = masks.back();
-    else
-      cv::resize(masks.back(), coverage, image.size(), 0.0, 0.0, cv::INTER_AREA);  // box average: exact coverage
-    blend(image, coverage, layer.colour, layer.fill_alpha);
-  }
+// The outlines (traced once by the caller), the polylines and the labelled markers.
+void draw_lines_and_markers(cv::Mat& image, const ViewProjection& view, const Overlay& overlay,
+                            const std::vector<std::vector<std::vector<cv::Point>>>& outlines, const DrawOptions& options) {
   for (std::size_t l = 0; l < overlay.layers.size(); ++l) {
     const MeshLayer& layer = overlay.layers[l];
     if (!layer.outline) continue;
-    cv::polylines(image, outline(masks[l], k), true, scalar(layer.colour), layer.outline_px, cv::LINE_AA, kShift);
+    cv::polylines(image, outlines[l], true, scalar(layer.colour), layer.outline_px, cv::LINE_AA, kShift);
   }
   for (const PolylineLayer& line : overlay.polylines) draw_polyline(image, view, line);
 
@@ -324,6 +314,34 @@ void draw_overlay(cv::Mat& image, const ViewProjection& view, const Overlay& ove
   }
   for (const Visible& v : visible)
     if (!v.marker->label.empty()) labels.place(image, v.marker->label, v.uv, v.marker->radius_px, v.marker->colour);
+}
+
+// Draws into every image (all of one size), rasterising the silhouettes and tracing their
+// outlines once: the roadmap layer is drawn on black and on white to recover its colour and
+// coverage, and the fine raster is most of the cost.
+void draw_overlay(std::span<cv::Mat> images, const ViewProjection& view, const Overlay& overlay,
+                  const DrawOptions& options) {
+  if (images.empty()) return;
+  const int k = options.supersample;
+  const cv::Size size = images.front().size();
+  std::vector<std::vector<std::vector<cv::Point>>> outlines(overlay.layers.size());
+  for (std::size_t l = 0; l < overlay.layers.size(); ++l) {
+    const MeshLayer& layer = overlay.layers[l];
+    const cv::Mat1b mask = silhouette(view, layer, size, k);
+    if (layer.outline) outlines[l] = outline(mask, k);
+    if (layer.fill_alpha <= 0.0) continue;
+    cv::Mat1b coverage;
+    if (k == 1)
+      coverage = mask;
+    else
+      cv::resize(mask, coverage, size, 0.0, 0.0, cv::INTER_AREA);  // box average: exact coverage
+    for (cv::Mat& image : images) blend(image, coverage, layer.colour, layer.fill_alpha);
+  }
+  for (cv::Mat& image : images) draw_lines_and_markers(image, view, overlay, outlines, options);
+}
+
+void draw_overlay(cv::Mat& image, const ViewProjection& view, const Overlay& overlay, const DrawOptions& options) {
+  draw_overlay(std::span<cv::Mat>(&image, 1), view, overlay, options);
 }
 
 // ---------------------------------------------------------------------------------------
@@ -553,6 +571,20 @@ void composite(Image& image, const ViewProjection& view, const Overlay& overlay,
   cv::Mat mat = detail::wrap(image);  // shares image.bgr, so drawing lands in the caller's buffer
   if (mat.empty()) return;
   draw_overlay(mat, view, overlay, options);
+}
+
+void composite(std::span<Image* const> images, const ViewProjection& view, const Overlay& overlay,
+               const DrawOptions& options) {
+  check_options(options);
+  check_overlay(overlay);
+  std::vector<cv::Mat> mats;
+  for (Image* image : images) {
+    if (image->width != images.front()->width || image->height != images.front()->height)
+      throw std::invalid_argument("composite: the images differ in size");
+    mats.push_back(detail::wrap(*image));
+  }
+  if (mats.empty() || mats.front().empty()) return;
+  draw_overlay(std::span<cv::Mat>(mats), view, overlay, options);
 }
 
 ComparisonLayout comparison_layout(const ComparisonPicture& picture, const PreviewOptions& options) {

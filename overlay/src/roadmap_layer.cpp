@@ -36,8 +36,8 @@ RoadmapLayer draw_roadmap_layer(const LayerKey& key, std::shared_ptr<const Roadm
   draw.label_font_scale = std::max(0.4, 0.55 * key.height / 1024.0);
   Image black = Image::filled(key.width, key.height, {0, 0, 0});
   Image white = Image::filled(key.width, key.height, {255, 255, 255});
-  composite(black, view, overlay, draw);
-  composite(white, view, overlay, draw);
+  Image* const both[] = {&black, &white};
+  composite(std::span<Image* const>(both), view, overlay, draw);
   layer.b = std::move(black.bgr);
   layer.k.resize(layer.b.size());
   for (std::size_t i = 0; i < layer.b.size(); ++i)

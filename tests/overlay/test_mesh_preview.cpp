@@ -9,6 +9,7 @@
 #include <fstream>
 #include <iterator>
 #include <limits>
+#include <span>
 #include <stdexcept>
 #include <string>
 #include <vector>
@@ -228,6 +229,30 @@ TEST(Composite, OverlappingMeshesInOneLayerAreOutlinedAsOneSilhouetteWithoutSeam
   EXPECT_NEAR(red(inside), 0.3 * 255, 1.0);  // fill only
   EXPECT_NEAR(red(seam), red(inside), 1.0);  // no seam line
   EXPECT_GT(red(outer), 150);                 // the union's boundary is outlined
+}
+
+TEST(Composite, DrawingIntoSeveralImagesAtOnceLeavesEachAsDrawingItAlone) {
+  // The roadmap layer is drawn on black and on white in one call, rasterised once; each
+  // must come out byte for byte as its own call leaves it (fills, outlines, markers, labels).
+  const int size = 160;
+  const OrthographicProjection ap(evar::overlay::view_axes(StandardView::AP), Vector3d::Zero(), 0.5, size, size);
+  evar::overlay::Overlay overlay;
+  overlay.layers.push_back({"vessel", {vessel({-10, 0, 0})}, kRed, 0.35, true, 2});
+  overlay.layers.push_back({"other", {coronal_square(5, 25, -20, 5)}, Bgr{255, 128, 0}, 0.5, true, 1});
+  overlay.markers.push_back({Vector3d(-10, 0, 10), "ostium", "ostia", Bgr{0, 255, 255}, false, 5});
+  const evar::overlay::DrawOptions draw{2, 0.45};
+  Image alone_black = Image::filled(size, size, kBlack), alone_white = Image::filled(size, size, {255, 255, 255});
+  evar::overlay::composite(alone_black, ap, overlay, draw);
+  evar::overlay::composite(alone_white, ap, overlay, draw);
+  Image black = Image::filled(size, size, kBlack), white = Image::filled(size, size, {255, 255, 255});
+  Image* const both[] = {&black, &white};
+  evar::overlay::composite(std::span<Image* const>(both), ap, overlay, draw);
+  EXPECT_EQ(black.bgr, alone_black.bgr);
+  EXPECT_EQ(white.bgr, alone_white.bgr);
+  EXPECT_NE(black.bgr, Image::filled(size, size, kBlack).bgr);  // something was drawn
+  Image small = Image::filled(size / 2, size / 2, kBlack);
+  Image* const mixed[] = {&black, &small};
+  EXPECT_THROW(evar::overlay::composite(std::span<Image* const>(mixed), ap, overlay, draw), std::invalid_argument);
 }
 
 TEST(Composite, UnreferencedVerticesAreIgnoredAndBadIndicesAreReported) {

@@ -10,6 +10,7 @@
 #include <Eigen/Geometry>
 #include <cstdint>
 #include <filesystem>
+#include <span>
 #include <string>
 #include <vector>
 
@@ -95,6 +96,10 @@ struct DrawOptions {
 /// bad options or layer parameters, a face index out of range or a referenced vertex that
 /// is not finite (naming the layer and face).
 void composite(Image& image, const ViewProjection& view, const Overlay& overlay, const DrawOptions& options = {});
+/// The same drawing into each of `images` (all of one size; std::invalid_argument if not),
+/// the silhouettes rasterised and outlined once: each image ends as composite() leaves it.
+void composite(std::span<Image* const> images, const ViewProjection& view, const Overlay& overlay,
+               const DrawOptions& options = {});
 
 /// The comparison picture: the same overlay in an AP and a lateral panel side by side at
 /// one shared scale, a title, a legend and a scale bar.
