@@ -154,6 +154,36 @@ TEST(V4l2Formats, MjpegDecodesToTheImageWithinJpegLoss) {
   EXPECT_LE(worst, 8);
 }
 
+TEST(V4l2Formats, MjpegWithoutHuffmanTablesDecodesAsWithThem) {
+  // Many UVC grabbers send Motion-JPEG without DHT segments, relying on the standard tables
+  // of JPEG Annex K.3 (the decoder must supply them). Same frame, tables stripped.
+  cv::Mat img(48, 64, CV_8UC1);
+  for (int y = 0; y < img.rows; ++y)
+    for (int x = 0; x < img.cols; ++x) img.at<std::uint8_t>(y, x) = static_cast<std::uint8_t>(40 + 2 * x + y);
+  std::vector<std::uint8_t> jpeg;
+  ASSERT_TRUE(cv::imencode(".jpg", img, jpeg, {cv::IMWRITE_JPEG_QUALITY, 95}));  // standard tables
+  std::vector<std::uint8_t> stripped(jpeg.begin(), jpeg.begin() + 2);
+  int tables = 0;
+  for (std::size_t at = 2; at + 4 <= jpeg.size();) {
+    ASSERT_EQ(jpeg[at], 0xFF) << "byte " << at;
+    const int marker = jpeg[at + 1];
+    if (marker == 0xDA) {  // start of scan: the entropy-coded data runs to the end
+      stripped.insert(stripped.end(), jpeg.begin() + static_cast<long>(at), jpeg.end());
+      break;
+    }
+    const std::size_t length = (std::size_t{jpeg[at + 2]} << 8) | jpeg[at + 3];
+    if (marker == 0xC4) ++tables;
+    else stripped.insert(stripped.end(), jpeg.begin() + static_cast<long>(at), jpeg.begin() + static_cast<long>(at + 2 + length));
+    at += 2 + length;
+  }
+  ASSERT_GE(tables, 1);
+  Frame with, without;
+  ASSERT_FALSE(convert_v4l2_buffer({V4L2_PIX_FMT_MJPEG, 64, 48, 0, 64 * 48}, jpeg, with));
+  const auto error = convert_v4l2_buffer({V4L2_PIX_FMT_MJPEG, 64, 48, 0, 64 * 48}, stripped, without);
+  ASSERT_FALSE(error) << *error;
+  EXPECT_EQ(without.pixels, with.pixels);
+}
+
 TEST(V4l2Formats, GarbageOrTheWrongSizeOfMjpegIsAnErrorNotACrash) {
   Frame f;
   std::vector<std::uint8_t> garbage(5000);
