@@ -9,16 +9,8 @@ namespace evar::app {
 FrameView frame_view(const sim::DetectorSpec& detector, const Eigen::Matrix4d& registration,
                      const acquisition::CArmState& state) {
   FrameView f;
-  f.view.primary_angle_deg = state.primary_deg;
-  f.view.secondary_angle_deg = state.secondary_deg;
-  f.view.source_to_detector_mm = state.sid_mm;
-  f.view.source_to_isocenter_mm = state.sod_mm;
-  f.view.detector_cols = detector.cols;
-  f.view.detector_rows = detector.rows;
-  f.view.row_spacing_mm = detector.row_spacing_mm;
-  f.view.col_spacing_mm = detector.col_spacing_mm;
-  f.ct_to_carm = registration;
-  f.ct_to_carm.topRightCorner<3, 1>() += Eigen::Vector3d(state.table_mm[0], state.table_mm[1], state.table_mm[2]);
+  f.view = sim::view_of(detector, state.primary_deg, state.secondary_deg, state.sid_mm, state.sod_mm);
+  f.ct_to_carm = sim::patient_to_carm(registration, Eigen::Vector3d(state.table_mm[0], state.table_mm[1], state.table_mm[2]));
   f.P_ct = geometry::registered(geometry::projection_matrix(f.view), f.ct_to_carm);
   return f;
 }

@@ -313,23 +313,32 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
   write_session_files(directory, session);
 }
 
-geometry::CArmView view_of(const Session& session, const CArmSample& c) {
+geometry::CArmView view_of(const DetectorSpec& detector, double primary_deg, double secondary_deg, double sid_mm,
+                           double sod_mm) {
   geometry::CArmView v;
-  v.primary_angle_deg = c.primary_deg;
-  v.secondary_angle_deg = c.secondary_deg;
-  v.source_to_detector_mm = c.sid_mm;
-  v.source_to_isocenter_mm = c.sod_mm;
-  v.detector_cols = session.detector.cols;
-  v.detector_rows = session.detector.rows;
-  v.row_spacing_mm = session.detector.row_spacing_mm;
-  v.col_spacing_mm = session.detector.col_spacing_mm;
+  v.primary_angle_deg = primary_deg;
+  v.secondary_angle_deg = secondary_deg;
+  v.source_to_detector_mm = sid_mm;
+  v.source_to_isocenter_mm = sod_mm;
+  v.detector_cols = detector.cols;
+  v.detector_rows = detector.rows;
+  v.row_spacing_mm = detector.row_spacing_mm;
+  v.col_spacing_mm = detector.col_spacing_mm;
   return v;
 }
 
-Eigen::Matrix4d patient_to_carm(const Session& session, const CArmSample& c) {
-  Eigen::Matrix4d T = session.ct_to_carm;
-  T.topRightCorner<3, 1>() += c.table_mm;
+geometry::CArmView view_of(const Session& session, const CArmSample& c) {
+  return view_of(session.detector, c.primary_deg, c.secondary_deg, c.sid_mm, c.sod_mm);
+}
+
+Eigen::Matrix4d patient_to_carm(const Eigen::Matrix4d& ct_to_carm, const Eigen::Vector3d& table_mm) {
+  Eigen::Matrix4d T = ct_to_carm;
+  T.topRightCorner<3, 1>() += table_mm;
   return T;
+}
+
+Eigen::Matrix4d patient_to_carm(const Session& session, const CArmSample& c) {
+  return patient_to_carm(session.ct_to_carm, c.table_mm);
 }
 
 const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns) {

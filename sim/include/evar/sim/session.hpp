@@ -90,11 +90,16 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
 void write_session_frame(const std::filesystem::path& directory, const FrameRecord& record, const cv::Mat& image);
 void write_session_files(const std::filesystem::path& directory, const Session& session);
 
+/// The C-arm view of an angulation and distances on a detector (the live node's frames use
+/// it too, so recorded and live geometry cannot drift apart).
+geometry::CArmView view_of(const DetectorSpec& detector, double primary_deg, double secondary_deg, double sid_mm,
+                           double sod_mm);
 /// The C-arm view of a sample on the session's detector.
 geometry::CArmView view_of(const Session& session, const CArmSample& sample);
 
-/// CT → C-arm world at a sample: the registration holds at table position 0; moving the
-/// table by t moves the patient by t in C-arm coordinates.
+/// CT → C-arm world at a table position: the registration holds at table position 0;
+/// moving the table by t moves the patient by t in C-arm coordinates.
+Eigen::Matrix4d patient_to_carm(const Eigen::Matrix4d& ct_to_carm, const Eigen::Vector3d& table_mm);
 Eigen::Matrix4d patient_to_carm(const Session& session, const CArmSample& sample);
 
 /// The C-arm sample in force at time t: the last one at or before t (the first if t is
