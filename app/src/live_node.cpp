@@ -191,6 +191,7 @@ void LiveNode::compose_loop() {
   auto last_frame = Clock::now();
   bool any_frame = false, stalled = false;
   double last_latency_ms = 0.0;
+  std::string layer_error;  // said once in the log; the frames say it themselves
   for (;;) {
     std::optional<acquisition::Frame> f = input_.pop(std::chrono::milliseconds(100));
     if (!f) {
@@ -280,6 +281,13 @@ void LiveNode::compose_loop() {
           compositor.compose({f->width, f->height, f->stride_bytes, bits, f->pixels.data()},
                              out.P_ct ? &*out.P_ct : nullptr, model->roadmap, mode, out.status));
       out.roadmap = compositor.last_roadmap();
+      if (compositor.last_layer_error() != layer_error) {
+        if (!compositor.last_layer_error().empty())
+          log().warn("roadmap layer not drawn: {}; frames go on without the roadmap", compositor.last_layer_error());
+        else
+          log().info("resolved: roadmap layer not drawn: {}", layer_error);
+        layer_error = compositor.last_layer_error();
+      }
     } catch (const std::exception& e) {
       set_alert("compose", std::string("frame not shown: ") + e.what(), true);
       continue;

@@ -160,6 +160,7 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
   std::string pending;  // a status line while the layer asked for is being drawn
   bool failed = false;  // ...or could not be drawn: then no stand-in either
   last_shown_ = RoadmapShown::None;
+  last_layer_error_.clear();
   if (P_ct != nullptr && model != nullptr) {
     const detail::LayerKey key{*P_ct, model.get(), mode, frame.width, frame.height};
     if (worker_) {
@@ -179,9 +180,9 @@ Image FrameCompositor::compose(const GreyFrame& frame, const geometry::Projectio
         ++own_renders_;
       } else {
         worker_->request(key, model);
-        const std::string error = worker_->error_for(key);
-        failed = !error.empty();
-        if (failed) pending = "roadmap not drawn: " + error;
+        last_layer_error_ = worker_->error_for(key);
+        failed = !last_layer_error_.empty();
+        if (failed) pending = "roadmap not drawn: " + last_layer_error_;
         else if (layer_ && layer_->aligned_with(key)) pending = "roadmap: drawing the new model (previous shown)";
         else pending = "roadmap: drawing for this view";
       }

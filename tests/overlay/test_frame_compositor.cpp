@@ -1,8 +1,10 @@
 #include "evar/overlay/frame_compositor.hpp"
 
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <limits>
 #include <chrono>
 #include <memory>
 #include <thread>
@@ -228,4 +230,29 @@ TEST(FrameCompositor, InTheBackgroundALayerForAViewLeftBehindEvictsNothing) {
   c.compose(s.frame, &Pb, s.model, overlay::RoadmapMode::Both, {});
   EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::Current);  // kept, not drawn again
   EXPECT_EQ(c.layer_renders(), 2u);
+}
+
+TEST(FrameCompositor, InTheBackgroundALayerThatCannotBeDrawnLeavesTheFramesGoingAndSaysWhy) {
+  Scene s;
+  overlay::CompositorOptions o;
+  o.layer_in_background = true;
+  overlay::FrameCompositor c(o);
+  overlay::FrameCompositor direct;
+  const overlay::Image plain = direct.compose(s.frame, nullptr, s.model, overlay::RoadmapMode::Both, {});
+  // A landmark that is not finite: the drawing refuses the model on the worker thread.
+  auto broken = std::make_shared<overlay::RoadmapModel>(*s.model);
+  broken->initial_landmarks.front().position_lps.x() = std::numeric_limits<double>::quiet_NaN();
+  overlay::Image out;
+  for (int i = 0; i < 1000 && c.last_layer_error().empty(); ++i) {
+    out = c.compose(s.frame, &s.P, broken, overlay::RoadmapMode::Both, {});
+    std::this_thread::sleep_for(std::chrono::milliseconds(10));
+  }
+  EXPECT_THAT(c.last_layer_error(), testing::HasSubstr("not finite"));
+  EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::None);
+  EXPECT_EQ(at(out, 127, 200), at(plain, 127, 200));  // the frame itself, no roadmap
+  EXPECT_EQ(c.layer_renders(), 0u);
+  // A good model again: its roadmap comes and the error is gone.
+  compose_until(c, s, s.P, s.model, overlay::RoadmapShown::Current);
+  EXPECT_EQ(c.last_roadmap(), overlay::RoadmapShown::Current);
+  EXPECT_TRUE(c.last_layer_error().empty());
 }

@@ -100,6 +100,10 @@ class FrameCompositor {
   std::size_t layer_renders() const;
   /// What the last composed frame showed of the roadmap.
   RoadmapShown last_roadmap() const { return last_shown_; }
+  /// Why the last composed frame has no roadmap although one was asked for, when its layer
+  /// could not be drawn (in the background: an out-of-memory or a model the drawing
+  /// refuses; the frame says so too); empty otherwise. Drawing is retried after a second.
+  const std::string& last_layer_error() const { return last_layer_error_; }
   /// The display window of the last frame (after automatic choice).
   WindowLevel last_window() const { return last_window_; }
 
@@ -111,6 +115,7 @@ class FrameCompositor {
   std::unique_ptr<detail::LayerWorker> worker_;        // with layer_in_background
   std::size_t own_renders_ = 0;
   RoadmapShown last_shown_ = RoadmapShown::None;
+  std::string last_layer_error_;
   std::vector<std::uint8_t> lut_;
   int lut_bits_ = 0;
   WindowLevel lut_window_{-1.0, 0.0};
