@@ -8,6 +8,10 @@
 #ifdef EVAR_HAVE_CHOLMOD
 #include <Eigen/CholmodSupport>
 #endif
+#ifdef EVAR_HAVE_METIS
+#include <iostream>  // Eigen's METIS glue reports failures on std::cerr without including it
+#include <Eigen/MetisSupport>
+#endif
 
 namespace evar::deform {
 
@@ -45,12 +49,27 @@ CholeskyBackend resolve(CholeskyBackend b) {
 }
 }  // namespace
 
+bool nested_dissection_available() {
+#ifdef EVAR_HAVE_METIS
+  return true;
+#else
+  return false;
+#endif
+}
+
 Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> fill_reducing_ordering(const Eigen::SparseMatrix<double>& A) {
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> perm;
-  Eigen::AMDOrdering<int> amd;
-  // AMD wants the full symmetric pattern.
+  // Both want the full symmetric pattern.
   Eigen::SparseMatrix<double> full;
   full = A.selfadjointView<Eigen::Lower>();
+#ifdef EVAR_HAVE_METIS
+  if (full.rows() >= kNestedDissectionFromUnknowns) {
+    Eigen::MetisOrdering<int> metis;
+    metis(full, perm);
+    return perm;
+  }
+#endif
+  Eigen::AMDOrdering<int> amd;
   amd(full, perm);
   return perm;
 }

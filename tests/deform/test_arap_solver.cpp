@@ -1,6 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <Eigen/OrderingMethods>
+#include <algorithm>
+#include <vector>
 
 #include "evar/deform/arap_solver.hpp"
 #include "evar/deform/registration_tether.hpp"
@@ -201,4 +204,43 @@ TEST(ArapSolver, CapacitanceNeedsATether) {
   EXPECT_EQ(system->prefactored(), nullptr);
   EXPECT_THROW(ArapSolver(system, test::vertices_outside_z(m, 1.0, 59.0), deform::ConstraintMethod::Capacitance),
                std::invalid_argument);
+}
+
+TEST(ArapSolver, ALargeMeshIsOrderedByNestedDissectionWithLessFillAndSolvesTheSame) {
+  // 600 mm of tube, 48 around every 1 mm: about 29k vertices, past the size from which the
+  // ordering is METIS nested dissection (sparse_cholesky.hpp).
+  const auto m = test::straight_tube(600.0, 8.0, 48, 1.0);
+  ASSERT_GE(m.V.rows(), deform::kNestedDissectionFromUnknowns);
+  const auto terms = test::tube_terms(m);
+  Eigen::SparseMatrix<double> A = deform::assemble_system_matrix(terms);
+  Eigen::SparseMatrix<double> I(A.rows(), A.cols());
+  I.setIdentity();
+  A += 1e-3 * I;  // a tether makes A positive definite on its own
+  const auto ordering = deform::fill_reducing_ordering(A);
+  ASSERT_EQ(ordering.size(), A.rows());
+  std::vector<int> seen(static_cast<std::size_t>(A.rows()), 0);
+  for (Eigen::Index i = 0; i < ordering.size(); ++i) ++seen[static_cast<std::size_t>(ordering.indices()[i])];
+  EXPECT_EQ(std::count(seen.begin(), seen.end(), 1), A.rows());  // a permutation
+  if (deform::nested_dissection_available()) {
+    // Against AMD on the same pattern: measured 25-40 % fewer entries in L on vessel meshes
+    // of 30k-120k vertices; a straight tube is the easy case for AMD, so only "fewer".
+    Eigen::SparseMatrix<double> full;
+    full = A.selfadjointView<Eigen::Lower>();
+    Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> amd;
+    Eigen::AMDOrdering<int>()(full, amd);
+    const deform::SparseCholesky with_nd(A, ordering, deform::CholeskyBackend::EigenLDLT);
+    const deform::SparseCholesky with_amd(A, amd, deform::CholeskyBackend::EigenLDLT);
+    EXPECT_LT(with_nd.factor_nonzeros(), with_amd.factor_nonzeros());
+  }
+  // And the solver built on it does what it does on small meshes: all handles moved
+  // rigidly give that rigid motion everywhere.
+  const auto handles = test::vertices_outside_z(m, 3.0, 597.0);
+  const Eigen::Matrix3d Q = Eigen::AngleAxisd(0.4, Eigen::Vector3d(0.3, 1, 0.2).normalized()).toRotationMatrix();
+  const Eigen::Vector3d t(4, -2, 7);
+  ArapOptions opt;
+  opt.tolerance_mm = 1e-7;
+  const ArapSolver solver(terms, handles, opt);
+  const auto r = solver.solve(rows_of(rigid(m.V, Q, t), handles));
+  ASSERT_TRUE(r.converged);
+  EXPECT_LT((r.X - rigid(m.V, Q, t)).rowwise().norm().maxCoeff(), 1e-4);
 }

@@ -10,11 +10,23 @@ namespace evar::deform {
 
 enum class CholeskyBackend {
   Default,     ///< the faster one measured on this project's benchmarks (docs/BENCHMARKS.md)
-  EigenLDLT,   ///< Eigen::SimplicialLDLT with AMD ordering
+  EigenLDLT,   ///< Eigen::SimplicialLDLT with the ordering below
   Cholmod,     ///< SuiteSparse CHOLMOD supernodal LL^T (when built with it)
 };
 
-/// AMD ordering of the symmetric pattern of A (lower triangle read).
+/// From this many unknowns on, the ordering is METIS nested dissection (when the build has
+/// METIS), below it AMD. Measured on the example vessels (docs/BENCHMARKS.md): nested
+/// dissection leaves 20 % fewer entries in L at 7.5k vertices, 25 % at 30k and 40 % at
+/// 120k, but costs 6-8 times as long to compute (once per scene): at 7.5k that outweighs
+/// what the solves save over a live sequence's first dozen calls, at 30k it is repaid
+/// within a few calls.
+inline constexpr long kNestedDissectionFromUnknowns = 20000;
+
+/// Whether this build orders large systems by nested dissection (METIS).
+bool nested_dissection_available();
+
+/// Fill-reducing ordering of the symmetric pattern of A (lower triangle read): AMD, or
+/// METIS nested dissection from kNestedDissectionFromUnknowns unknowns on.
 Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> fill_reducing_ordering(const Eigen::SparseMatrix<double>& A);
 
 CholeskyBackend parse_cholesky_backend(const std::string& name);  ///< "default", "eigen", "cholmod"
