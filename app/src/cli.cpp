@@ -276,6 +276,12 @@ int run_cli(const std::vector<std::string>& args) {
   rn->add_option("--out", run.out, "output directory (created)")->capture_default_str();
   rn->add_option("--video", run.video, "video file in --out: .avi (Motion-JPEG), .mp4 or .mkv")->capture_default_str();
   rn->add_flag("--no-video", run.no_video, "write no video");
+  rn->add_option("--video-budget-mb", run.video_budget_mb,
+                 "disk kept for the video: it is written in segments of an eighth of this (the current one is the "
+                 "--video name, finished ones NAME-0001, -0002, ...) and the oldest are deleted past it; about 10 GB "
+                 "an hour at 1024 x 1024; 0 = one file, no limit")
+      ->check(CLI::Range(0.0, 1e9))
+      ->capture_default_str();
   rn->add_option("--snapshot-budget-mb", run.snapshot_budget_mb,
                  "disk kept for the before/after pictures of model changes in --out/snapshots; past it the oldest "
                  "are deleted (pictures taken with the s key never are); 0 = no limit")

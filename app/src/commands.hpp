@@ -119,6 +119,7 @@ struct RunCommand {
   std::filesystem::path config, replay, out = "out/run";
   std::string video = "overlay.avi";
   bool no_video = false;
+  std::uintmax_t video_budget_mb = 16384;    ///< the video kept within this, oldest segments deleted (0 = no limit)
   std::uintmax_t snapshot_budget_mb = 1024;  ///< model-change pictures kept within this (0 = no limit)
   bool igtl = true;
   int igtl_port = 18944;

@@ -1,13 +1,57 @@
 #include "output_sinks.hpp"
 
+#include <algorithm>
+#include <cstdio>
 #include <iterator>
 #include <stdexcept>
 
 namespace evar::app {
 
+VideoSink::VideoSink(std::filesystem::path path, double fps, std::uintmax_t max_bytes)
+    : path_(std::move(path)), fps_(fps), max_bytes_(max_bytes),
+      segment_bytes_(max_bytes == 0 ? 0 : std::max<std::uintmax_t>(max_bytes / 8, 1u << 20)) {}
+
 void VideoSink::write(const ComposedFrame& frame) {
+  // A full segment is finished when the next frame comes, so `path` always holds the newest.
+  if (segment_full_) finish_segment();
   if (!writer_) writer_ = std::make_unique<overlay::VideoFileWriter>(path_, fps_, frame.image->width, frame.image->height);
   writer_->write(*frame.image);
+  ++frames_;
+  // The file's size, every 30 frames: a stat per second of video is plenty.
+  if (segment_bytes_ > 0 && ++frames_in_segment_ % 30 == 0) {
+    std::error_code ec;
+    const std::uintmax_t bytes = std::filesystem::file_size(path_, ec);
+    segment_full_ = !ec && bytes >= segment_bytes_;
+  }
+}
+
+void VideoSink::finish_segment() {
+  segment_full_ = false;
+  writer_->close();
+  writer_.reset();
+  frames_in_segment_ = 0;
+  char number[16];
+  std::snprintf(number, sizeof number, "-%04d", next_number_++);
+  const std::filesystem::path done = path_.parent_path() / (path_.stem().string() + number + path_.extension().string());
+  std::filesystem::rename(path_, done);  // throws naming both paths: the sink reports it
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(done, ec);
+  finished_.push_back({done, ec ? 0 : bytes});
+  finished_bytes_ += finished_.back().bytes;
+  while (!finished_.empty() && finished_bytes_ + segment_bytes_ > max_bytes_) {
+    std::filesystem::remove(finished_.front().path, ec);
+    if (ec) throw std::runtime_error("video: cannot delete " + finished_.front().path.string() + " to stay within " +
+                                     std::to_string(max_bytes_ >> 20) + " MiB: " + ec.message());
+    finished_bytes_ -= finished_.front().bytes;
+    finished_.pop_front();
+    ++deleted_;
+  }
+}
+
+std::vector<std::filesystem::path> VideoSink::segments() const {
+  std::vector<std::filesystem::path> out;
+  for (const auto& s : finished_) out.push_back(s.path);
+  return out;
 }
 
 void VideoSink::finish() {

@@ -18,19 +18,40 @@
 
 namespace evar::app {
 
-/// The composited video; the file is opened with the first frame's size.
+/// The composited video; the file is opened with the first frame's size. A node that runs
+/// for hours would fill its disk (Motion-JPEG at 1024 x 1024 is about 10 GB an hour), so
+/// with `max_bytes` the video is cut into segments of an eighth of it (at least 1 MiB): the
+/// one being written is `path`, finished ones are renamed <stem>-0001<ext>, -0002, ... in
+/// order, and the oldest are deleted while the finished ones and a segment to come would
+/// exceed `max_bytes`. 0 = one file, no limit.
 class VideoSink final : public OutputSink {
  public:
-  VideoSink(std::filesystem::path path, double fps) : path_(std::move(path)), fps_(fps) {}
+  VideoSink(std::filesystem::path path, double fps, std::uintmax_t max_bytes = 0);
   std::string name() const override { return "video " + path_.string(); }
   void write(const ComposedFrame& frame) override;
   void finish() override;
-  std::size_t frames() const { return writer_ ? writer_->frames() : 0; }
+  std::size_t frames() const { return frames_; }  ///< written, all segments
+  /// Finished segments still on disk, oldest first (the one being written is `path`).
+  std::vector<std::filesystem::path> segments() const;
+  std::uint64_t segments_deleted() const { return deleted_; }
 
  private:
+  struct Segment {
+    std::filesystem::path path;
+    std::uintmax_t bytes;
+  };
+  void finish_segment();
+
   std::filesystem::path path_;
   double fps_;
+  std::uintmax_t max_bytes_, segment_bytes_;
   std::unique_ptr<overlay::VideoFileWriter> writer_;
+  std::size_t frames_ = 0, frames_in_segment_ = 0;
+  bool segment_full_ = false;
+  int next_number_ = 1;
+  std::deque<Segment> finished_;
+  std::uintmax_t finished_bytes_ = 0;
+  std::uint64_t deleted_ = 0;
 };
 
 /// PNG pictures in a directory: at every model change the last frame before it

@@ -94,7 +94,7 @@ int run_node(const RunCommand& cmd) {
   SnapshotSink* snapshots = nullptr;
   IgtlSink* igtl = nullptr;
   if (!cmd.no_video) {
-    auto s = std::make_unique<VideoSink>(cmd.out / cmd.video, fps);
+    auto s = std::make_unique<VideoSink>(cmd.out / cmd.video, fps, cmd.video_budget_mb << 20);
     video = s.get();
     sinks.push_back(std::move(s));
   }
@@ -204,6 +204,13 @@ int run_node(const RunCommand& cmd) {
       {"sink_errors", s.sink_errors},
       {"outputs", {{"video", video ? (cmd.out / cmd.video).string() : ""},
                    {"video_frames", video ? video->frames() : 0},
+                   {"video_segments", [&] {
+                      nlohmann::json a = nlohmann::json::array();
+                      if (video)
+                        for (const auto& p : video->segments()) a.push_back(p.string());
+                      return a;
+                    }()},
+                   {"video_segments_deleted_for_budget", video ? video->segments_deleted() : 0},
                    {"snapshots", [&] {
                       nlohmann::json a = nlohmann::json::array();
                       for (const auto& p : snapshots->kept()) a.push_back(p.string());
@@ -247,7 +254,15 @@ int run_node(const RunCommand& cmd) {
              "{} model(s), {} failed",
              s.frames_in, seconds, s.frames_composited, s.frames_with_roadmap, s.dropped_input + s.dropped_output,
              s.latency_ms.p50, s.latency_ms.p99, s.adaptations, s.adaptation_failures);
-  if (video) log().info("video: {} ({} frames)", (cmd.out / cmd.video).string(), video->frames());
+  if (video)
+    log().info("video: {} ({} frames){}", (cmd.out / cmd.video).string(), video->frames(),
+               video->segments().empty() && !video->segments_deleted()
+                   ? std::string()
+                   : fmt::format(", the earlier ones in {} finished segment(s) beside it{}", video->segments().size(),
+                                 video->segments_deleted()
+                                     ? fmt::format("; {} older segment(s) deleted for the {} MiB budget",
+                                                   video->segments_deleted(), cmd.video_budget_mb)
+                                     : std::string()));
   log().info("snapshots: {} in {} ({:.1f} MiB){}", snapshots->kept().size(), (cmd.out / "snapshots").string(),
              static_cast<double>(snapshots->bytes()) / (1 << 20),
              snapshots->deleted() ? "; " + std::to_string(snapshots->deleted()) + " older model pictures deleted for the " +

@@ -1,13 +1,17 @@
 // The snapshot sink's before/after pictures of each new model: "after" is the first frame
 // drawn with the new model, not one where the compositor still showed the previous one
-// while it drew the new roadmap in the background.
+// while it drew the new roadmap in the background. Snapshots and video stay within their
+// disk budgets.
 #include <gtest/gtest.h>
 
 #include <unistd.h>
 
+#include <cstring>
 #include <filesystem>
 #include <memory>
+#include <string>
 
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 #include "output_sinks.hpp"
@@ -92,5 +96,50 @@ TEST(SnapshotSink, KeepsModelPicturesWithinItsBudgetAndNeverDeletesARequestedSna
   EXPECT_FALSE(fs::exists(dir / "run" / "model-18-after.png"));
   EXPECT_EQ(grey_of(dir / "run" / "model-20-before.png"), 39);
   EXPECT_EQ(grey_of(dir / "run" / "model-20-after.png"), 40);
+  fs::remove_all(dir);
+}
+
+TEST(VideoSink, KeepsTheVideoWithinItsBudgetInSegmentsTheNewestKept) {
+  // 256 x 256 frames of noise (Motion-JPEG compresses them little: tens of kB each), a
+  // budget of 8 MiB: segments of 1 MiB are finished, numbered and the oldest deleted.
+  const fs::path dir = fs::temp_directory_path() / ("evar_video_budget_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::uintmax_t budget = 8u << 20;
+  std::size_t written = 0;
+  {
+    app::VideoSink sink(dir / "overlay.avi", 30.0, budget);
+    cv::Mat noise(256, 256, CV_8UC3);
+    cv::RNG rng(7);
+    for (int i = 0; i < 900; ++i) {
+      rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+      overlay::Image image = overlay::Image::filled(256, 256, {0, 0, 0});
+      std::memcpy(image.bgr.data(), noise.data, image.bgr.size());
+      app::ComposedFrame f;
+      f.image = std::make_shared<const overlay::Image>(std::move(image));
+      sink.write(f);
+      ++written;
+    }
+    sink.finish();
+    EXPECT_EQ(sink.frames(), written);
+    ASSERT_GT(sink.segments_deleted(), 0u);  // the run needs more than the budget
+    const auto kept = sink.segments();
+    ASSERT_FALSE(kept.empty());
+    // Numbered in order, the oldest gone: the first kept is not -0001, the numbers follow on.
+    EXPECT_EQ(kept.front().filename().string(),
+              "overlay-" + std::string(4 - std::to_string(sink.segments_deleted() + 1).size(), '0') +
+                  std::to_string(sink.segments_deleted() + 1) + ".avi");
+    EXPECT_EQ(kept.back().filename().string().substr(0, 8), "overlay-");
+  }
+  std::uintmax_t on_disk = 0;
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) {
+    on_disk += e.file_size();
+    ++files;
+  }
+  EXPECT_LE(on_disk, budget + (2u << 20));  // the finished segments within budget, the current one beside them
+  EXPECT_GE(files, 2u);
+  EXPECT_TRUE(fs::exists(dir / "overlay.avi"));  // the newest frames, under the name asked for
+  EXPECT_FALSE(fs::exists(dir / "overlay-0001.avi"));
   fs::remove_all(dir);
 }
