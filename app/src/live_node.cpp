@@ -281,7 +281,7 @@ void LiveNode::compose_loop() {
           compositor.compose({f->width, f->height, f->stride_bytes, bits, f->pixels.data()},
                              out.P_ct ? &*out.P_ct : nullptr, model->roadmap, mode, out.status));
       out.roadmap = compositor.last_roadmap();
-      if (compositor.last_layer_error() != layer_error) {
+      if (out.P_ct && compositor.last_layer_error() != layer_error) {  // frames without geometry ask for none
         if (!compositor.last_layer_error().empty())
           log().warn("roadmap layer not drawn: {}; frames go on without the roadmap", compositor.last_layer_error());
         else
@@ -315,9 +315,12 @@ void LiveNode::analysis_loop() {
   ViewPairSelector selector(options_.adaptation.reconstruction.min_separation_deg, options_.pairs);
   while (std::optional<Analysis> a = analysis_.take()) {
     if (adapting_.load()) {
+      // Held, not dropped: it may be the last frame of a short run of fluoroscopy. Once the
+      // adaptation is done, the newest frame is analysed, this one or one that came since.
+      adapting_.wait(true);
+      if (std::optional<Analysis> newer = analysis_.try_take()) a = std::move(newer);
       std::lock_guard lock(stats_mutex_);
       ++stats_.analysis_paused;
-      continue;
     }
     if (retry_pair_.exchange(false)) selector.retry();
     const auto analysis_start = Clock::now();
@@ -349,7 +352,10 @@ void LiveNode::adaptation_loop() {
     adapting_.store(true);
     struct Done {
       std::atomic<bool>& flag;
-      ~Done() { flag.store(false); }
+      ~Done() {
+        flag.store(false);
+        flag.notify_all();
+      }
     } done{adapting_};
     try {
       // Warm-started from the model on screen (only this thread publishes).

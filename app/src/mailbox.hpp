@@ -107,6 +107,14 @@ class LatestSlot {
     item_.reset();
     return item;
   }
+  /// The item if there is one, without waiting (nullopt when empty or closed).
+  std::optional<T> try_take() {
+    std::lock_guard lock(m_);
+    if (closed_ || !item_) return std::nullopt;
+    std::optional<T> item = std::move(item_);
+    item_.reset();
+    return item;
+  }
   void close() {
     {
       std::lock_guard lock(m_);

@@ -8,19 +8,48 @@
 namespace evar::app {
 
 VideoSink::VideoSink(std::filesystem::path path, double fps, std::uintmax_t max_bytes)
-    : path_(std::move(path)), fps_(fps), max_bytes_(max_bytes),
-      segment_bytes_(max_bytes == 0 ? 0 : std::max<std::uintmax_t>(max_bytes / 8, 1u << 20)) {}
+    : path_(std::move(path)), current_(path_), fps_(fps), max_bytes_(max_bytes),
+      segment_bytes_(max_bytes == 0 ? 0 : std::max<std::uintmax_t>(max_bytes / 8, 1u << 20)) {
+  if (segment_bytes_ == 0) return;
+  // Segments an earlier run left in the same directory count against the budget (oldest
+  // first, deleted first) and the numbering goes on after them, so none is overwritten.
+  std::error_code ec;
+  std::vector<std::pair<int, std::filesystem::path>> earlier;
+  const std::string stem = path_.stem().string() + "-", ext = path_.extension().string();
+  for (const auto& e : std::filesystem::directory_iterator(path_.parent_path().empty() ? "." : path_.parent_path(), ec)) {
+    const std::string name = e.path().filename().string();
+    if (name.size() != stem.size() + 4 + ext.size() || name.compare(0, stem.size(), stem) != 0 ||
+        name.compare(stem.size() + 4, ext.size(), ext) != 0)
+      continue;
+    const std::string digits = name.substr(stem.size(), 4);
+    if (!std::all_of(digits.begin(), digits.end(), [](char c) { return c >= '0' && c <= '9'; })) continue;
+    earlier.emplace_back(std::stoi(digits), e.path());
+  }
+  std::sort(earlier.begin(), earlier.end());
+  for (const auto& [number, file] : earlier) {
+    const std::uintmax_t bytes = std::filesystem::file_size(file, ec);
+    finished_.push_back({file, ec ? 0 : bytes});
+    finished_bytes_ += finished_.back().bytes;
+    next_number_ = number + 1;
+  }
+}
+
+std::filesystem::path VideoSink::numbered(int number) const {
+  char digits[16];
+  std::snprintf(digits, sizeof digits, "-%04d", number);
+  return path_.parent_path() / (path_.stem().string() + digits + path_.extension().string());
+}
 
 void VideoSink::write(const ComposedFrame& frame) {
   // A full segment is finished when the next frame comes, so `path` always holds the newest.
   if (segment_full_) finish_segment();
-  if (!writer_) writer_ = std::make_unique<overlay::VideoFileWriter>(path_, fps_, frame.image->width, frame.image->height);
+  if (!writer_) writer_ = std::make_unique<overlay::VideoFileWriter>(current_, fps_, frame.image->width, frame.image->height);
   writer_->write(*frame.image);
   ++frames_;
   // The file's size, every 30 frames: a stat per second of video is plenty.
   if (segment_bytes_ > 0 && ++frames_in_segment_ % 30 == 0) {
     std::error_code ec;
-    const std::uintmax_t bytes = std::filesystem::file_size(path_, ec);
+    const std::uintmax_t bytes = std::filesystem::file_size(current_, ec);
     segment_full_ = !ec && bytes >= segment_bytes_;
   }
 }
@@ -30,22 +59,37 @@ void VideoSink::finish_segment() {
   writer_->close();
   writer_.reset();
   frames_in_segment_ = 0;
-  char number[16];
-  std::snprintf(number, sizeof number, "-%04d", next_number_++);
-  const std::filesystem::path done = path_.parent_path() / (path_.stem().string() + number + path_.extension().string());
-  std::filesystem::rename(path_, done);  // throws naming both paths: the sink reports it
+  std::string problem;
+  std::filesystem::path done = current_;
+  if (current_ == path_) {
+    std::error_code ec;
+    std::filesystem::rename(path_, numbered(next_number_), ec);
+    if (ec) {
+      // Kept under its name; later segments go to numbered files so it is never reopened
+      // (and truncated) as the current one.
+      problem = "cannot rename " + path_.string() + " to " + numbered(next_number_).string() + ": " + ec.message();
+      current_ = numbered(++next_number_);
+    } else {
+      done = numbered(next_number_++);
+    }
+  } else {
+    current_ = numbered(++next_number_);
+  }
   std::error_code ec;
   const std::uintmax_t bytes = std::filesystem::file_size(done, ec);
   finished_.push_back({done, ec ? 0 : bytes});
   finished_bytes_ += finished_.back().bytes;
   while (!finished_.empty() && finished_bytes_ + segment_bytes_ > max_bytes_) {
     std::filesystem::remove(finished_.front().path, ec);
-    if (ec) throw std::runtime_error("video: cannot delete " + finished_.front().path.string() + " to stay within " +
-                                     std::to_string(max_bytes_ >> 20) + " MiB: " + ec.message());
+    if (ec && problem.empty())  // said once; the entry is dropped so the budget goes on with the rest
+      problem = "cannot delete " + finished_.front().path.string() + " to stay within " +
+                std::to_string(max_bytes_ >> 20) + " MiB: " + ec.message();
+    else if (!ec)
+      ++deleted_;
     finished_bytes_ -= finished_.front().bytes;
     finished_.pop_front();
-    ++deleted_;
   }
+  if (!problem.empty()) throw std::runtime_error("video: " + problem);
 }
 
 std::vector<std::filesystem::path> VideoSink::segments() const {

@@ -23,7 +23,8 @@ namespace evar::app {
 /// with `max_bytes` the video is cut into segments of an eighth of it (at least 1 MiB): the
 /// one being written is `path`, finished ones are renamed <stem>-0001<ext>, -0002, ... in
 /// order, and the oldest are deleted while the finished ones and a segment to come would
-/// exceed `max_bytes`. 0 = one file, no limit.
+/// exceed `max_bytes`; segments an earlier run left beside it count too, and numbering goes
+/// on after them. 0 = one file, no limit.
 class VideoSink final : public OutputSink {
  public:
   VideoSink(std::filesystem::path path, double fps, std::uintmax_t max_bytes = 0);
@@ -41,8 +42,9 @@ class VideoSink final : public OutputSink {
     std::uintmax_t bytes;
   };
   void finish_segment();
+  std::filesystem::path numbered(int number) const;
 
-  std::filesystem::path path_;
+  std::filesystem::path path_, current_;  // asked for; being written (path_ unless a rename failed)
   double fps_;
   std::uintmax_t max_bytes_, segment_bytes_;
   std::unique_ptr<overlay::VideoFileWriter> writer_;

@@ -195,7 +195,7 @@ int run_node(const RunCommand& cmd) {
                   {"dropped_input", s.dropped_input}, {"dropped_output", s.dropped_output},
                   {"lost_by_source", s.frames_lost_by_source}, {"wrong_size", s.frames_wrong_size},
                   {"stale_geometry", s.stale_geometry_frames}, {"c_arm_moving", s.moving_frames}}},
-      {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped}, {"paused_while_adapting", s.analysis_paused}, {"candidates", s.candidates},
+      {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped}, {"waited_for_adaptation", s.analysis_paused}, {"candidates", s.candidates},
                     {"pairs", s.pairs}, {"pairs_superseded", s.pairs_superseded}}},
       {"adaptation", {{"models", s.adaptations}, {"failures", s.adaptation_failures}, {"last_failure", s.last_failure},
                       {"ready_after_second_view_ms", to_json(s.adaptation_ms)}}},
@@ -255,7 +255,7 @@ int run_node(const RunCommand& cmd) {
              s.frames_in, seconds, s.frames_composited, s.frames_with_roadmap, s.dropped_input + s.dropped_output,
              s.latency_ms.p50, s.latency_ms.p99, s.adaptations, s.adaptation_failures);
   if (video)
-    log().info("video: {} ({} frames){}", (cmd.out / cmd.video).string(), video->frames(),
+    log().info("video: {} ({} frames written in all){}", (cmd.out / cmd.video).string(), video->frames(),
                video->segments().empty() && !video->segments_deleted()
                    ? std::string()
                    : fmt::format(", the earlier ones in {} finished segment(s) beside it{}", video->segments().size(),

@@ -66,7 +66,8 @@ Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> fill_reducing_orde
   if (full.rows() >= kNestedDissectionFromUnknowns) {
     Eigen::MetisOrdering<int> metis;
     metis(full, perm);
-    return perm;
+    if (perm.size() == full.rows()) return perm;  // else METIS failed (it says so on stderr): AMD
+
   }
 #endif
   Eigen::AMDOrdering<int> amd;

@@ -8,6 +8,7 @@
 
 #include <cstring>
 #include <filesystem>
+#include <fstream>
 #include <memory>
 #include <string>
 
@@ -106,6 +107,10 @@ TEST(VideoSink, KeepsTheVideoWithinItsBudgetInSegmentsTheNewestKept) {
   fs::remove_all(dir);
   fs::create_directories(dir);
   const std::uintmax_t budget = 8u << 20;
+  // An earlier run's segments in the same directory: counted, deleted first, never overwritten.
+  for (const char* old : {"overlay-0003.avi", "overlay-0007.avi"}) {
+    std::ofstream(dir / old) << "an earlier run";
+  }
   std::size_t written = 0;
   {
     app::VideoSink sink(dir / "overlay.avi", 30.0, budget);
@@ -122,14 +127,16 @@ TEST(VideoSink, KeepsTheVideoWithinItsBudgetInSegmentsTheNewestKept) {
     }
     sink.finish();
     EXPECT_EQ(sink.frames(), written);
-    ASSERT_GT(sink.segments_deleted(), 0u);  // the run needs more than the budget
+    ASSERT_GT(sink.segments_deleted(), 2u);  // the run needs more than the budget
     const auto kept = sink.segments();
     ASSERT_FALSE(kept.empty());
-    // Numbered in order, the oldest gone: the first kept is not -0001, the numbers follow on.
-    EXPECT_EQ(kept.front().filename().string(),
-              "overlay-" + std::string(4 - std::to_string(sink.segments_deleted() + 1).size(), '0') +
-                  std::to_string(sink.segments_deleted() + 1) + ".avi");
-    EXPECT_EQ(kept.back().filename().string().substr(0, 8), "overlay-");
+    // This run's segments are numbered on from the earlier run's (from 0008), in order, and the
+    // oldest went first: what is kept is the newest run of consecutive numbers, ending with the
+    // segment before the current file.
+    std::vector<int> numbers;
+    for (const auto& p : kept) numbers.push_back(std::stoi(p.filename().string().substr(8, 4)));
+    for (std::size_t i = 1; i < numbers.size(); ++i) EXPECT_EQ(numbers[i], numbers[i - 1] + 1);
+    EXPECT_EQ(numbers.front(), 8 + static_cast<int>(sink.segments_deleted()) - 2);
   }
   std::uintmax_t on_disk = 0;
   std::size_t files = 0;
@@ -140,6 +147,8 @@ TEST(VideoSink, KeepsTheVideoWithinItsBudgetInSegmentsTheNewestKept) {
   EXPECT_LE(on_disk, budget + (2u << 20));  // the finished segments within budget, the current one beside them
   EXPECT_GE(files, 2u);
   EXPECT_TRUE(fs::exists(dir / "overlay.avi"));  // the newest frames, under the name asked for
-  EXPECT_FALSE(fs::exists(dir / "overlay-0001.avi"));
+  EXPECT_FALSE(fs::exists(dir / "overlay-0003.avi"));
+  EXPECT_FALSE(fs::exists(dir / "overlay-0007.avi"));
+  EXPECT_FALSE(fs::exists(dir / "overlay-0008.avi"));
   fs::remove_all(dir);
 }

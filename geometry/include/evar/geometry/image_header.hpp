@@ -13,7 +13,7 @@ struct ImageHeader {
 };
 
 /// Largest side accepted (the largest detector node.json describes) and largest pixel
-/// count (a 16-bit image of it is 512 MiB).
+/// count (a single-channel 16-bit image of it is 512 MiB; four channels, 2 GiB).
 inline constexpr std::int64_t kMaxImageSidePx = 16384;
 inline constexpr std::int64_t kMaxImagePixels = kMaxImageSidePx * kMaxImageSidePx;
 
