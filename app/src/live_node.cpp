@@ -320,7 +320,7 @@ void LiveNode::analysis_loop() {
       adapting_.wait(true);
       if (std::optional<Analysis> newer = analysis_.try_take()) a = std::move(newer);
       std::lock_guard lock(stats_mutex_);
-      ++stats_.analysis_paused;
+      ++stats_.analysis_waited;
     }
     if (retry_pair_.exchange(false)) selector.retry();
     const auto analysis_start = Clock::now();

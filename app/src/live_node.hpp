@@ -100,7 +100,7 @@ struct NodeStatistics {
   std::uint64_t dropped_input = 0, dropped_output = 0, frames_lost_by_source = 0;
   std::uint64_t frames_wrong_size = 0;
   std::uint64_t analysed = 0, analysis_skipped = 0, candidates = 0, pairs = 0, pairs_superseded = 0;
-  std::uint64_t analysis_paused = 0;  ///< frames whose analysis waited for an adaptation to finish
+  std::uint64_t analysis_waited = 0;  ///< frames whose analysis waited for an adaptation to finish
   std::uint64_t adaptations = 0, adaptation_failures = 0;
   std::uint64_t video_stalls = 0, stale_geometry_frames = 0, moving_frames = 0, sink_errors = 0;
   Percentiles latency_ms;            ///< frame arrival → composited, over the last kLatencyWindow frames

@@ -4,9 +4,11 @@
 
 #include <algorithm>
 #include <cstdio>
+#include <filesystem>
 #include <map>
 #include <sstream>
 #include <thread>
+#include <vector>
 
 #include "commands.hpp"
 #include "evar/geometry/carm_projection.hpp"
@@ -26,6 +28,12 @@ namespace evar::app {
 namespace {
 
 nlohmann::json to_json(const Percentiles& p) { return {{"p50", p.p50}, {"p99", p.p99}, {"max", p.max}, {"n", p.n}}; }
+
+nlohmann::json to_json(const std::vector<std::filesystem::path>& files) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const auto& f : files) a.push_back(f.string());
+  return a;
+}
 
 // Frames per second of a session: the median interval between frames.
 double session_fps(const sim::Session& s) {
@@ -195,7 +203,8 @@ int run_node(const RunCommand& cmd) {
                   {"dropped_input", s.dropped_input}, {"dropped_output", s.dropped_output},
                   {"lost_by_source", s.frames_lost_by_source}, {"wrong_size", s.frames_wrong_size},
                   {"stale_geometry", s.stale_geometry_frames}, {"c_arm_moving", s.moving_frames}}},
-      {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped}, {"waited_for_adaptation", s.analysis_paused}, {"candidates", s.candidates},
+      {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped},
+                    {"waited_for_adaptation", s.analysis_waited}, {"candidates", s.candidates},
                     {"pairs", s.pairs}, {"pairs_superseded", s.pairs_superseded}}},
       {"adaptation", {{"models", s.adaptations}, {"failures", s.adaptation_failures}, {"last_failure", s.last_failure},
                       {"ready_after_second_view_ms", to_json(s.adaptation_ms)}}},
@@ -204,18 +213,9 @@ int run_node(const RunCommand& cmd) {
       {"sink_errors", s.sink_errors},
       {"outputs", {{"video", video ? (cmd.out / cmd.video).string() : ""},
                    {"video_frames", video ? video->frames() : 0},
-                   {"video_segments", [&] {
-                      nlohmann::json a = nlohmann::json::array();
-                      if (video)
-                        for (const auto& p : video->segments()) a.push_back(p.string());
-                      return a;
-                    }()},
+                   {"video_segments", to_json(video ? video->segments() : std::vector<std::filesystem::path>{})},
                    {"video_segments_deleted_for_budget", video ? video->segments_deleted() : 0},
-                   {"snapshots", [&] {
-                      nlohmann::json a = nlohmann::json::array();
-                      for (const auto& p : snapshots->kept()) a.push_back(p.string());
-                      return a;
-                    }()},
+                   {"snapshots", to_json(snapshots->kept())},
                    {"snapshots_deleted_for_budget", snapshots->deleted()},
                    {"igtl_port", igtl ? igtl->port() : 0},
                    {"igtl_messages", igtl ? igtl->statistics().messages_sent : 0}}}};
@@ -254,15 +254,12 @@ int run_node(const RunCommand& cmd) {
              "{} model(s), {} failed",
              s.frames_in, seconds, s.frames_composited, s.frames_with_roadmap, s.dropped_input + s.dropped_output,
              s.latency_ms.p50, s.latency_ms.p99, s.adaptations, s.adaptation_failures);
-  if (video)
-    log().info("video: {} ({} frames written in all){}", (cmd.out / cmd.video).string(), video->frames(),
-               video->segments().empty() && !video->segments_deleted()
-                   ? std::string()
-                   : fmt::format(", the earlier ones in {} finished segment(s) beside it{}", video->segments().size(),
-                                 video->segments_deleted()
-                                     ? fmt::format("; {} older segment(s) deleted for the {} MiB budget",
-                                                   video->segments_deleted(), cmd.video_budget_mb)
-                                     : std::string()));
+  if (video) {
+    log().info("video: {} ({} frames written in all)", (cmd.out / cmd.video).string(), video->frames());
+    if (!video->segments().empty() || video->segments_deleted())
+      log().info("video: {} earlier segment(s) beside it, {} older one(s) deleted for the {} MiB budget",
+                 video->segments().size(), video->segments_deleted(), cmd.video_budget_mb);
+  }
   log().info("snapshots: {} in {} ({:.1f} MiB){}", snapshots->kept().size(), (cmd.out / "snapshots").string(),
              static_cast<double>(snapshots->bytes()) / (1 << 20),
              snapshots->deleted() ? "; " + std::to_string(snapshots->deleted()) + " older model pictures deleted for the " +
