@@ -190,10 +190,16 @@ void LiveNode::compose_loop() {
   overlay::FrameCompositor compositor(options_.compositor);
   auto last_frame = Clock::now();
   bool any_frame = false, stalled = false;
+  // The last frame shown, kept to be shown again, marked as held, while the video is gone:
+  // the monitor must not go on showing a frozen picture as if it were live, and the window
+  // must go on answering keys.
+  std::optional<acquisition::Frame> last_shown;
+  Clock::time_point last_held;
   double last_latency_ms = 0.0;
   std::string layer_error;  // said once in the log; the frames say it themselves
   for (;;) {
     std::optional<acquisition::Frame> f = input_.pop(std::chrono::milliseconds(100));
+    std::optional<double> held_s;  // set: f is the last frame shown again, this long after it came
     if (!f) {
       if (input_.closed()) break;
       if (any_frame && !stalled && Clock::now() - last_frame > options_.video_stall) {
@@ -204,14 +210,18 @@ void LiveNode::compose_loop() {
         }
         set_alert("video-stall", "no video for " + std::to_string(options_.video_stall.count()) + " ms", false);
       }
-      continue;
+      if (!stalled || !last_shown || Clock::now() - last_held < options_.held_frame_interval) continue;
+      last_held = Clock::now();
+      held_s = ms_between(last_frame, last_held) / 1000.0;
+      f = *last_shown;
+    } else {
+      if (stalled) {
+        clear_alert("video-stall");
+        stalled = false;
+      }
+      any_frame = true;
+      last_frame = Clock::now();
     }
-    if (stalled) {
-      clear_alert("video-stall");
-      stalled = false;
-    }
-    any_frame = true;
-    last_frame = Clock::now();
 
     const bool size_ok = f->width == options_.detector.cols && f->height == options_.detector.rows;
     if (!size_ok)
@@ -254,9 +264,11 @@ void LiveNode::compose_loop() {
     {
       std::lock_guard lock(stats_mutex_);
       failed = !stats_.last_failure.empty();
-      stats_.frames_wrong_size += size_ok ? 0 : 1;
-      stats_.stale_geometry_frames += g && g->stale ? 1 : 0;
-      stats_.moving_frames += g && g->moving ? 1 : 0;
+      if (!held_s) {
+        stats_.frames_wrong_size += size_ok ? 0 : 1;
+        stats_.stale_geometry_frames += g && g->stale ? 1 : 0;
+        stats_.moving_frames += g && g->moving ? 1 : 0;
+      }
     }
     if (!model->adapted) {
       lines.push_back("model: preoperative (undeformed), waiting for two views of the device");
@@ -273,6 +285,12 @@ void LiveNode::compose_loop() {
     lines.push_back(line);
     ComposedFrame out;
     out.status = {std::move(lines), current_alerts()};
+    if (held_s) {
+      // First and in the alert colour; its changing age is not an alert of its own (no log).
+      out.status.alerts.insert(out.status.alerts.begin(),
+                               fmt::format("LAST IMAGE HELD: no video for {:.0f} s", std::floor(*held_s)));
+      out.held = true;
+    }
     out.P_ct = view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
     out.mm_per_px = view ? mm_at_isocenter_per_px(view->view) : 0.0;
     try {
@@ -294,10 +312,13 @@ void LiveNode::compose_loop() {
     }
     out.sequence = f->sequence;
     out.device_time_ns = f->device_time_ns;
-    out.latency_ms = ms_between(f->host_arrival, Clock::now());
     out.model = model;
-    last_latency_ms = out.latency_ms;
-    {
+    if (held_s) {
+      std::lock_guard lock(stats_mutex_);
+      ++stats_.frames_held;
+    } else {
+      out.latency_ms = ms_between(f->host_arrival, Clock::now());
+      last_latency_ms = out.latency_ms;
       std::lock_guard lock(stats_mutex_);
       ++stats_.frames_composited;
       stats_.frames_with_roadmap += out.roadmap != overlay::RoadmapShown::None ? 1 : 0;
@@ -306,8 +327,16 @@ void LiveNode::compose_loop() {
     }
     if (options_.backpressure) output_.push_wait(std::move(out));
     else output_.push(std::move(out));
-    // Shown first, then handed on: the frame moves to the analysis, no copy.
-    if (analyse) analysis_.put(Analysis{std::move(*f), *view});
+    if (held_s) continue;
+    // Shown first, then handed on: the frame moves to the analysis (a copy is kept to be
+    // held; assigning into the kept one reuses its buffer).
+    if (analyse) {
+      if (last_shown) *last_shown = *f;
+      else last_shown = *f;
+      analysis_.put(Analysis{std::move(*f), *view});
+    } else {
+      last_shown = std::move(f);
+    }
   }
 }
 

@@ -48,6 +48,9 @@ struct NodeOptions {
   overlay::RoadmapMode mode = overlay::RoadmapMode::Both;
   acquisition::GeometryTimelineOptions timeline;
   std::chrono::milliseconds video_stall{1000};  ///< no frame for this long: "no video"
+  /// While there is no video the last frame is shown again this often, marked "LAST IMAGE
+  /// HELD" (ComposedFrame::held), so the screen says so and the window answers keys.
+  std::chrono::milliseconds held_frame_interval{250};
   std::chrono::milliseconds alert_hold{5000};   ///< a failed adaptation stays on screen this long
   std::size_t input_queue = 4, output_queue = 8;
   /// Make the source wait when the input queue is full instead of dropping the oldest frame:
@@ -75,6 +78,9 @@ struct ComposedFrame {
   double mm_per_px = 0.0;                         ///< at the isocenter, with P_ct
   std::shared_ptr<const PublishedModel> model;
   overlay::StatusBlock status;                    ///< the text drawn on the frame: state lines and alerts
+  /// The last frame shown again while there is no video (NodeOptions::held_frame_interval):
+  /// for the screen and Slicer, not a new picture (the video file and snapshots skip it).
+  bool held = false;
 };
 
 /// Where composited frames go: a window, a video file, snapshots, OpenIGTLink. Called on
@@ -99,6 +105,7 @@ struct NodeStatistics {
   std::uint64_t frames_in = 0, frames_composited = 0, frames_with_roadmap = 0;
   std::uint64_t dropped_input = 0, dropped_output = 0, frames_lost_by_source = 0;
   std::uint64_t frames_wrong_size = 0;
+  std::uint64_t frames_held = 0;     ///< the last frame shown again while there was no video (not in frames_composited)
   std::uint64_t analysed = 0, analysis_skipped = 0, candidates = 0, pairs = 0, pairs_superseded = 0;
   std::uint64_t analysis_waited = 0;  ///< frames whose analysis waited for an adaptation to finish
   std::uint64_t adaptations = 0, adaptation_failures = 0;

@@ -41,6 +41,7 @@ std::filesystem::path VideoSink::numbered(int number) const {
 }
 
 void VideoSink::write(const ComposedFrame& frame) {
+  if (frame.held) return;  // the file keeps the video's own timing; the gap is in the log
   // A full segment is finished when the next frame comes, so `path` always holds the newest.
   if (segment_full_) finish_segment();
   if (!writer_) writer_ = std::make_unique<overlay::VideoFileWriter>(current_, fps_, frame.image->width, frame.image->height);
@@ -143,6 +144,7 @@ std::vector<std::filesystem::path> SnapshotSink::kept() const {
 }
 
 void SnapshotSink::write(const ComposedFrame& frame) {
+  if (frame.held) return;  // pictures of the video, not of the screen's placeholder
   const std::uint64_t version = frame.model ? frame.model->version : 0;
   if (previous_ && version != previous_version_) {
     save(*previous_, "model-" + std::to_string(version) + "-before.png", false);

@@ -202,6 +202,7 @@ int run_node(const RunCommand& cmd) {
       {"frames", {{"in", s.frames_in}, {"composited", s.frames_composited}, {"with_roadmap", s.frames_with_roadmap},
                   {"dropped_input", s.dropped_input}, {"dropped_output", s.dropped_output},
                   {"lost_by_source", s.frames_lost_by_source}, {"wrong_size", s.frames_wrong_size},
+                  {"held_while_no_video", s.frames_held},
                   {"stale_geometry", s.stale_geometry_frames}, {"c_arm_moving", s.moving_frames}}},
       {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped},
                     {"waited_for_adaptation", s.analysis_waited}, {"candidates", s.candidates},

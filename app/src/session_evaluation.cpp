@@ -126,7 +126,7 @@ EvaluationSink::EvaluationSink(const sim::Session& session, const geometry::Scen
     : session_(session), errors_(scene.landmarks, ostia_of(session)) {}
 
 void EvaluationSink::write(const ComposedFrame& e) {
-  if (!e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) return;
+  if (e.held || !e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) return;
   const sim::FrameRecord& record = session_.frames[(e.sequence - 1) % session_.frames.size()];
   std::lock_guard lock(mutex_);
   if (errors_.add(record.frame, *e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks)) ++frames_;

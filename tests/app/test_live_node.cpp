@@ -131,11 +131,13 @@ class StatusRecorder final : public app::OutputSink {
   struct Shown {
     std::uint64_t version = 0;
     bool adapted = false;
+    bool held = false;
+    std::uint64_t sequence = 0;
     overlay::StatusBlock status;
   };
   std::string name() const override { return "status recorder"; }
   void write(const app::ComposedFrame& f) override {
-    frames.push_back({f.model ? f.model->version : 0, f.model && f.model->adapted, f.status});
+    frames.push_back({f.model ? f.model->version : 0, f.model && f.model->adapted, f.held, f.sequence, f.status});
   }
   std::vector<Shown> frames;  // read after the node stopped
 };
@@ -244,18 +246,44 @@ class SilentCArm final : public acquisition::CArmGeometrySource {
 TEST_F(LiveNodeReplay, ASilentCArmLinkAndAStalledVideoAreReportedWhileFramesAreShown) {
   app::NodeOptions o = options();
   o.video_stall = std::chrono::milliseconds(300);
-  app::LiveNode node(*scene_, o, {});
+  o.held_frame_interval = std::chrono::milliseconds(200);
+  auto recorder = std::make_unique<StatusRecorder>();
+  StatusRecorder* shown = recorder.get();
+  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  sinks.push_back(std::move(recorder));
+  app::LiveNode node(*scene_, o, std::move(sinks));
   SilentCArm carm(sim::to_carm_state(session().carm.front(), 0));
   sim::SessionReplay replay(session(), {8.0, 1});
   node.start(replay.frames(), carm);
   ASSERT_TRUE(replay.wait(std::chrono::seconds(60)));
   // The replay is over: no more frames, which the node must notice.
-  std::this_thread::sleep_for(std::chrono::milliseconds(900));
-  const app::NodeStatistics s = node.statistics();
+  std::this_thread::sleep_for(std::chrono::milliseconds(1500));
   node.stop();
+  const app::NodeStatistics s = node.statistics();
   EXPECT_GT(s.frames_composited, session().frames.size() / 2);
   EXPECT_GT(s.stale_geometry_frames, session().frames.size() / 2);
   EXPECT_EQ(s.video_stalls, 1u);
+
+  // While there is no video the screen is not left frozen: the last frame comes again,
+  // marked held and saying so first among the alerts, until the node stops. From the stall
+  // (300 ms) to the end (1500 ms) at one every 200 ms that is up to 6, at least 3 however
+  // slow the build (a held frame is only composed, never analysed).
+  ASSERT_FALSE(shown->frames.empty());
+  const auto first_held = std::find_if(shown->frames.begin(), shown->frames.end(), [](const auto& f) { return f.held; });
+  ASSERT_NE(first_held, shown->frames.end()) << "no frame was held";
+  const std::uint64_t last_sequence = std::prev(first_held)->sequence;
+  for (auto it = first_held; it != shown->frames.end(); ++it) {
+    ASSERT_TRUE(it->held) << "a frame after the video stopped that is not the held one";
+    EXPECT_EQ(it->sequence, last_sequence) << "held frames show the last frame that came";
+    ASSERT_FALSE(it->status.alerts.empty());
+    EXPECT_NE(it->status.alerts.front().find("LAST IMAGE HELD: no video for"), std::string::npos) << it->status.alerts.front();
+    EXPECT_TRUE(any_contains(it->status.alerts, "no video for 300 ms"));
+  }
+  const auto held = static_cast<std::uint64_t>(shown->frames.end() - first_held);
+  EXPECT_EQ(s.frames_held, held);
+  EXPECT_GE(held, 3u);
+  EXPECT_LE(held, 7u);
+  EXPECT_EQ(s.frames_composited + s.frames_held, shown->frames.size());
 }
 
 TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView) {

@@ -1,0 +1,232 @@
+// Fault injection on the live node over the real transports: a simulated session played as
+// a GigE Vision camera on 127.0.0.1 and a C-arm link on a pseudo-terminal, received by the
+// node through its real Aravis and termios sources. Mid-run the camera is switched off and
+// on again, then the C-arm adapter hangs up and comes back. Throughout, the node keeps
+// running and keeps its adapted model; the screen says what is wrong while it lasts (and,
+// without video, shows the last image marked as held); the log says it once and says when
+// it is resolved; and the node recovers by itself.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <spdlog/sinks/ostream_sink.h>
+
+#include <algorithm>
+#include <filesystem>
+#include <mutex>
+#include <sstream>
+
+#include "evar/acquisition/gige_camera_source.hpp"
+#include "evar/acquisition/serial_carm_source.hpp"
+#include "evar/sim/gige_frame_server.hpp"
+#include "evar/sim/serial_carm_server.hpp"
+#include "evar/sim/session_generator.hpp"
+#include "evar/sim/session_replay.hpp"
+#include "live_node.hpp"
+#include "logging.hpp"
+#include "support/stream_log.hpp"
+
+namespace {
+
+using namespace evar;
+using namespace std::chrono_literals;
+namespace fs = std::filesystem;
+
+// What the screen showed, frame by frame, readable while the node runs.
+class ScreenLog final : public app::OutputSink {
+ public:
+  struct Shown {
+    std::uint64_t version = 0;
+    bool held = false;
+    bool roadmap = false;
+    overlay::StatusBlock status;
+  };
+  std::string name() const override { return "screen log"; }
+  void write(const app::ComposedFrame& f) override {
+    log.record([&] {
+      frames.push_back({f.model ? f.model->version : 0, f.held, f.roadmap != overlay::RoadmapShown::None, f.status});
+    });
+  }
+  static bool alert(const Shown& f, const std::string& text) {
+    return std::any_of(f.status.alerts.begin(), f.status.alerts.end(),
+                       [&](const std::string& a) { return a.find(text) != std::string::npos; });
+  }
+  /// Waits until a frame from `from` on satisfies `what`; its index, or frames.size() after `limit`.
+  std::size_t wait_for(std::size_t from, const std::function<bool(const Shown&)>& what, std::chrono::seconds limit) {
+    std::size_t found = 0;
+    const bool ok = log.wait(
+        [&] {
+          for (std::size_t i = from; i < frames.size(); ++i)
+            if (what(frames[i])) return found = i, true;
+          return false;
+        },
+        limit);
+    std::lock_guard lock(log.mutex);
+    return ok ? found : frames.size();
+  }
+  std::size_t size() {
+    std::lock_guard lock(log.mutex);
+    return frames.size();
+  }
+
+  test::StreamLog log;  // its mutex guards frames
+  std::vector<Shown> frames;
+};
+
+std::size_t count_of(const std::string& text, const std::string& what) {
+  std::size_t n = 0;
+  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
+  return n;
+}
+
+}  // namespace
+
+TEST(NodeOverTransports, KeepsItsModelThroughACameraOutageAndASerialHangupAndSaysSoOnce) {
+  const fs::path dir = fs::path(testing::TempDir()) / ("evar_node_transports_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  sim::SessionPlan plan;
+  plan.seed = 1;
+  plan.detector_px = 512;
+  plan.pixel_spacing_mm = 0.6;
+  const sim::GeneratedSession generated = sim::generate_session(plan, dir / "session");
+  const sim::Session& session = generated.session;
+  const geometry::Scene scene = geometry::load_scene(dir / "session" / session.scene);
+
+  // The transports' far ends, switched off and on by the test; the replay feeds whichever
+  // is on.
+  const std::string serial = "EVARNODE" + std::to_string(::getpid() % 100000);
+  const std::string link = (dir / "ttyCARM").string();
+  std::mutex ends;
+  auto camera = std::make_unique<sim::GigEFrameServer>(serial);
+  auto carm_link = std::make_unique<sim::SerialCArmServer>(link);
+  std::optional<acquisition::CArmState> in_force;  // sent again to a link that comes back
+  sim::SessionReplay replay(session, {1.0, 0});
+  replay.carm().start(
+      [&](const acquisition::CArmState& s) {
+        std::lock_guard lock(ends);
+        in_force = s;
+        if (carm_link) carm_link->send(s);
+      },
+      nullptr);
+  replay.frames().start(
+      [&](const acquisition::Frame& f) {
+        std::lock_guard lock(ends);
+        if (camera) camera->show(f);
+      },
+      nullptr);
+
+  // The node's side, as `evarnode run` makes it.
+  acquisition::GigECameraOptions go;
+  go.camera = serial;
+  go.region = acquisition::Region{0, 0, plan.detector_px, plan.detector_px};
+  go.frame_rate_hz = plan.fluoro_fps;
+  go.reconnect_interval = 200ms;
+  acquisition::GigECameraSource frames(go);
+  acquisition::SerialLinkOptions so;
+  so.path = link;
+  so.stale_after = 60s;  // the session's link reports changes only
+  acquisition::SerialCArmSource carm(so);
+
+  std::ostringstream log_text;
+  auto log_sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log_text);
+  app::log().sinks().push_back(log_sink);
+  auto screen_sink = std::make_unique<ScreenLog>();
+  ScreenLog& screen = *screen_sink;
+  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  sinks.push_back(std::move(screen_sink));
+  app::NodeOptions o;
+  o.detector = session.detector;
+  o.registration = session.ct_to_carm;
+  o.timeline.stale_after = 60s;  // as above
+  app::LiveNode node(scene, o, std::move(sinks));
+  node.start(frames, carm);
+
+  // 1. The node adapts its model from the session's views.
+  const auto adapted = [](const ScreenLog::Shown& f) { return f.version >= 1 && !f.held; };
+  std::size_t at = screen.wait_for(0, adapted, 120s);
+  ASSERT_LT(at, screen.size()) << "no adapted model within 2 min: " << node.statistics().last_failure;
+
+  // 2. The camera is switched off mid-stream: the screen holds the last image, says so
+  //    and keeps the adapted model; then the camera comes back.
+  {
+    std::lock_guard lock(ends);
+    camera.reset();
+  }
+  const std::size_t outage = screen.size();
+  const auto held_and_said = [](const ScreenLog::Shown& f) {
+    return f.held && ScreenLog::alert(f, "LAST IMAGE HELD") && ScreenLog::alert(f, "video disconnected");
+  };
+  at = screen.wait_for(outage, held_and_said, 60s);
+  ASSERT_LT(at, screen.size()) << "no held frame said the video was lost";
+  {
+    std::lock_guard lock(ends);
+    camera = std::make_unique<sim::GigEFrameServer>(serial);
+  }
+  const auto live_again = [](const ScreenLog::Shown& f) {
+    return !f.held && f.roadmap && !ScreenLog::alert(f, "video") && !ScreenLog::alert(f, "LAST IMAGE HELD");
+  };
+  const std::size_t back = screen.wait_for(at, live_again, 60s);
+  ASSERT_LT(back, screen.size()) << "the video did not come back on its own";
+
+  // 3. The C-arm adapter hangs up (the pty's far end closes) and comes back on the same
+  //    link; the state in force is sent again, as an adapter does when it starts.
+  {
+    std::lock_guard lock(ends);
+    carm_link.reset();
+  }
+  const std::size_t hangup = screen.wait_for(
+      back, [](const ScreenLog::Shown& f) { return ScreenLog::alert(f, "C-arm link disconnected"); }, 30s);
+  ASSERT_LT(hangup, screen.size()) << "no frame said the C-arm link was lost";
+  {
+    std::lock_guard lock(ends);
+    carm_link = std::make_unique<sim::SerialCArmServer>(link);
+    if (in_force) carm_link->send(*in_force);
+  }
+  const std::size_t relinked = screen.wait_for(
+      hangup, [](const ScreenLog::Shown& f) { return !f.held && !ScreenLog::alert(f, "C-arm link"); }, 30s);
+  ASSERT_LT(relinked, screen.size()) << "the C-arm link did not come back on its own";
+  // A few more seconds of the session over the restored link.
+  const std::size_t restored = screen.size();
+  const std::size_t later = screen.wait_for(restored + 30, [](const auto&) { return true; }, 30s);
+  ASSERT_LT(later, screen.size()) << "the frames stopped after the link came back";
+
+  node.stop();
+  replay.frames().stop();
+  replay.carm().stop();
+  app::log().sinks().pop_back();
+  const app::NodeStatistics s = node.statistics();
+  const std::string text = log_text.str();
+
+  // The adapted model was never given up: every frame from the first adapted one on shows
+  // an adapted model, through both faults.
+  std::size_t first_adapted = 0;
+  while (screen.frames[first_adapted].version == 0) ++first_adapted;
+  for (std::size_t i = first_adapted; i < screen.frames.size(); ++i)
+    ASSERT_GE(screen.frames[i].version, 1u) << "frame " << i << " went back to the preoperative model";
+  // The outage: held frames came only while there was no video, every one said so, and
+  // the log has the loss once (not once per held frame) and its resolution.
+  std::size_t held = 0;
+  for (std::size_t i = 0; i < screen.frames.size(); ++i) {
+    if (!screen.frames[i].held) continue;
+    ++held;
+    EXPECT_GE(i, outage) << "a held frame before the camera went away";
+    EXPECT_LT(i, back) << "a held frame after the video came back";
+    EXPECT_TRUE(ScreenLog::alert(screen.frames[i], "LAST IMAGE HELD")) << "frame " << i;
+  }
+  EXPECT_GE(held, 2u);
+  EXPECT_EQ(s.frames_held, held);
+  EXPECT_EQ(s.video_stalls, 1u);
+  EXPECT_EQ(frames.gige_statistics().outages, 1u);
+  EXPECT_EQ(count_of(text, "] video disconnected"), 1u) << text;
+  EXPECT_EQ(count_of(text, "] no video for"), 1u) << text;
+  EXPECT_EQ(count_of(text, "] C-arm link disconnected"), 1u) << text;
+  // Resolved after it was said (the alert may have moved on to "connecting" meanwhile).
+  const auto resolved_after = [&](const std::string& said, const std::string& resolved) {
+    const auto at = text.find(said);
+    return at != std::string::npos && text.find(resolved, at) != std::string::npos;
+  };
+  EXPECT_TRUE(resolved_after("] video disconnected", "resolved: video")) << text;
+  EXPECT_TRUE(resolved_after("] no video for", "resolved: no video for")) << text;
+  EXPECT_TRUE(resolved_after("] C-arm link disconnected", "resolved: C-arm link")) << text;
+  EXPECT_GE(carm.statistics().connections, 2u);
+  fs::remove_all(dir);
+}
