@@ -13,6 +13,7 @@ packages=(
   libdcmtk-dev
   libaravis-dev aravis-tools
   libusb-1.0-0-dev umockdev libumockdev-dev
+  xvfb libx11-dev libxtst-dev
   libgtest-dev libgmock-dev libbenchmark-dev
   systemd
 )

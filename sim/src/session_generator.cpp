@@ -85,9 +85,21 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
     c.moving = moving;
     s.carm.push_back(c);
   };
+  // A C-arm interface streams its state at a steady rate, not only when something changes:
+  // between the changes the state in force is sent again every 1/carm_rate_hz, so a
+  // receiver can tell a silent link from a still C-arm.
+  const auto period = static_cast<std::int64_t>(std::llround(1e9 / plan.carm_rate_hz));
+  const auto hold = [&](const ViewPose& p, bool fluoro, std::int64_t until) {
+    const std::int64_t end = until;
+    for (std::int64_t next = t + period; next < end; next += period) {
+      t = next;
+      sample(p, fluoro, false);
+    }
+    t = end;
+  };
   const auto run = [&](const ViewPose& p, const std::string& source, double fps, double seconds) {
     sample(p, true, false);
-    const std::size_t in_force = s.carm.size() - 1;
+    const std::size_t in_force = s.carm.size() - 1;  // the rendering's key: one pose per run
     const auto n = static_cast<int>(std::lround(fps * seconds));
     for (int k = 0; k < n; ++k) {
       const std::int64_t tk = t + static_cast<std::int64_t>(std::llround(k * 1e9 / fps));
@@ -95,7 +107,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
       const double contrast = source == "dsa" ? std::clamp((since - 0.5) / 0.5, 0.0, 1.0) : 0.0;
       frames.push_back({tk, in_force, source, contrast});
     }
-    t += static_cast<std::int64_t>(std::llround(n * 1e9 / fps));
+    hold(p, true, t + static_cast<std::int64_t>(std::llround(n * 1e9 / fps)));
     sample(p, false, false);  // beam off
   };
   const auto move = [&](const ViewPose& a, const ViewPose& b) {
@@ -110,14 +122,14 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
                        a.table_mm + f * (b.table_mm - a.table_mm)};
       sample(k == steps ? b : p, false, k < steps);
     }
-    t += kSecond / 4;  // the operator waits for the arm to settle
+    hold(b, false, t + kSecond / 4);  // the operator waits for the arm to settle
   };
   run(poses[0], "fluoro", plan.fluoro_fps, plan.fluoro_seconds);
   move(poses[0], poses[1]);
   run(poses[1], "fluoro", plan.fluoro_fps, plan.fluoro_seconds);
   move(poses[1], poses[2]);
   run(poses[2], "fluoro", plan.fluoro_fps, plan.fluoro_seconds);
-  t += kSecond;
+  hold(poses[2], false, t + kSecond);
   run(poses[2], "dsa", plan.dsa_fps, plan.dsa_seconds);
 
   // Render: the noise-free image once per (view, contrast), a detector readout per frame.

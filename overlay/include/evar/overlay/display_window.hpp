@@ -1,5 +1,6 @@
 #pragma once
-// The bedside monitor: a window (fullscreen if asked) showing the composited frames, with
+// The bedside monitor: a window (fullscreen if asked) showing the composited frames alone
+// (no toolbar), opened at the frames' size, with
 // keys: m cycles the roadmap mode, f toggles fullscreen, s asks for a snapshot, q or Esc
 // asks to stop. All calls from one thread (the GUI toolkit's rule).
 #include <memory>
@@ -27,6 +28,7 @@ class DisplayWindow {
  private:
   std::string title_;
   bool fullscreen_;
+  int shown_width_ = 0, shown_height_ = 0;  // the size the window was given
 };
 
 }  // namespace evar::overlay

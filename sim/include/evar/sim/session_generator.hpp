@@ -24,7 +24,7 @@ struct SessionPlan {
   double dsa_fps = 4.0;
   double dsa_seconds = 3.0;         ///< mask (first 0.5 s), then the bolus
   double rotation_deg_per_s = 20.0; ///< C-arm speed between views
-  double carm_rate_hz = 10.0;       ///< geometry samples while moving (and at every change)
+  double carm_rate_hz = 10.0;       ///< geometry samples, moving or still (and at every change)
   int aorta_vertices = 7500, iliac_vertices = 3500;
   XRayOptions xray;
 };
