@@ -210,6 +210,17 @@ int run_cli(const std::vector<std::string>& args) {
                  "also send the C-arm states over a pseudo-terminal in the C-arm link protocol\n"
                  "(docs/CARM_LINK_PROTOCOL.md); PATH becomes a link to its serial device");
 
+  ExportCommand export_cmd;
+  auto* ex = app.add_subcommand(
+      "export",
+      "Write a recorded session's frames as a PLUS toolkit sequence metafile (.seq.mha) for 3D\n"
+      "Slicer: drag it into Slicer (or File > Add Data) and its Sequences module plays it, with\n"
+      "each frame's timestamp and the C-arm angulation, SID and SOD in force as frame fields\n"
+      "(docs/SESSION_FORMAT.md). 16-bit grey levels as recorded; about 2 MB per 1024 x 1024 frame.");
+  ex->add_option("session", export_cmd.session, "session directory")->required();
+  ex->add_option("--out", export_cmd.out, "the sequence file to write (name it *.seq.mha)")->required();
+  ex->add_flag("!--no-progress", export_cmd.progress, "no progress bar");
+
   DevicesCommand devices;
   auto* dv = app.add_subcommand(
       "devices",
@@ -332,6 +343,7 @@ int run_cli(const std::vector<std::string>& args) {
     if (sp->parsed()) return run_sim_patient(sim_patient);
     if (ss->parsed()) return run_sim_session(sim_session);
     if (rp->parsed()) return run_replay(replay);
+    if (ex->parsed()) return run_export(export_cmd);
     if (dv->parsed()) return run_devices(devices);
     if (rd->parsed()) return run_record(record);
     if (ev->parsed()) return run_eval(eval);

@@ -69,6 +69,12 @@ struct ReplayCommand {
 };
 int run_replay(const ReplayCommand& cmd);
 
+struct ExportCommand {
+  std::filesystem::path session, out;
+  bool progress = true;
+};
+int run_export(const ExportCommand& cmd);
+
 struct DevicesCommand {
   bool json = false;
   std::string usb;  ///< VID:PID[:SERIAL]: only the matching USB devices

@@ -5,6 +5,7 @@
 #include <cstdio>
 #include <cmath>
 #include <fstream>
+#include <functional>
 #include <sstream>
 #include <stdexcept>
 
@@ -348,21 +349,16 @@ const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns) {
   return after == session.carm.begin() ? &session.carm.front() : &*(after - 1);
 }
 
-void export_plus_sequence(const Session& session, const std::filesystem::path& mha) {
+void export_plus_sequence(const Session& session, const std::filesystem::path& mha,
+                          const std::function<void(std::size_t, std::size_t)>& progress) {
   if (session.frames.empty()) throw std::invalid_argument("export_plus_sequence: the session has no frames");
-  std::vector<cv::Mat> images;
-  for (std::size_t i = 0; i < session.frames.size(); ++i) {
-    images.push_back(read_session_frame(session, i));
-    if (images.back().size() != images.front().size())
-      throw InputError((session.directory / "frames" / session.frames[i].file).string() + ": " +
-                       std::to_string(images.back().cols) + " x " + std::to_string(images.back().rows) +
-                       " differs from the first frame's size; a sequence metafile needs one size");
-  }
-  const int W = images.front().cols, H = images.front().rows;
+  // The frames are streamed one at a time (an hour's recording does not fit in memory);
+  // read_session_frame refuses any frame that is not the detector's size.
+  const int W = session.detector.cols, H = session.detector.rows;
   std::ostringstream h;
   h << "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\nCompressedData = False\n"
     << "Kinds = domain domain list\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nDimSize = " << W << " " << H << " "
-    << images.size() << "\nOffset = 0 0 0\nCenterOfRotation = 0 0 0\nAnatomicalOrientation = RAI\n"
+    << session.frames.size() << "\nOffset = 0 0 0\nCenterOfRotation = 0 0 0\nAnatomicalOrientation = RAI\n"
     << "ElementSpacing = 1 1 1\nElementType = MET_USHORT\nUltrasoundImageOrientation = MFA\n";
   const std::int64_t t0 = session.frames.front().timestamp_ns;
   char name[32];
@@ -382,16 +378,35 @@ void export_plus_sequence(const Session& session, const std::filesystem::path& m
     }
   }
   h << "ElementDataFile = LOCAL\n";
-  std::ofstream out(mha, std::ios::binary);
-  out << h.str();
-  for (const auto& image : images)
-    for (int r = 0; r < H; ++r)
-      for (int c = 0; c < W; ++c) {
-        const std::uint16_t v = image.at<std::uint16_t>(r, c);
-        const char bytes[2] = {static_cast<char>(v & 0xff), static_cast<char>(v >> 8)};  // little endian
-        out.write(bytes, 2);
+
+  // Written beside the target and renamed over it: a failure leaves no partial sequence.
+  std::filesystem::path partial = mha;
+  partial += ".partial";
+  try {
+    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
+    if (!out) throw std::runtime_error(partial.string() + ": cannot create");
+    out << h.str();
+    std::vector<char> row(static_cast<std::size_t>(W) * 2);
+    for (std::size_t i = 0; i < session.frames.size(); ++i) {
+      const cv::Mat image = read_session_frame(session, i);
+      for (int r = 0; r < H; ++r) {
+        const auto* px = image.ptr<std::uint16_t>(r);
+        for (int c = 0; c < W; ++c) {  // little endian, whatever the host
+          row[2 * static_cast<std::size_t>(c)] = static_cast<char>(px[c] & 0xff);
+          row[2 * static_cast<std::size_t>(c) + 1] = static_cast<char>(px[c] >> 8);
+        }
+        out.write(row.data(), static_cast<std::streamsize>(row.size()));
       }
-  if (!out) throw std::runtime_error(mha.string() + ": cannot write");
+      if (progress) progress(i + 1, session.frames.size());
+    }
+    out.close();
+    if (!out) throw std::runtime_error(partial.string() + ": cannot write (disk full?)");
+    std::filesystem::rename(partial, mha);
+  } catch (...) {
+    std::error_code ignored;
+    std::filesystem::remove(partial, ignored);
+    throw;
+  }
 }
 
 }  // namespace evar::sim

@@ -479,6 +479,35 @@ TEST_F(Cli, SimSessionThenReplayDeliversEveryFrameInItsViews) {
   EXPECT_EQ(r["error"], "");
 }
 
+TEST_F(Cli, ExportWritesASlicerSequenceOfEveryFrameAndNothingWhenAFrameDoesNotFit) {
+  const auto out = scratch("export");
+  ASSERT_EQ(evarnode({"sim", "session", "--seed", "2", "--out", (out / "s").string(), "--detector-px", "64",
+                      "--fluoro-seconds", "0.2", "--no-progress"}).code, 0);
+  const auto r = evarnode({"export", (out / "s").string(), "--out", (out / "run.seq.mha").string(), "--no-progress"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("wrote " + (out / "run.seq.mha").string() + ": 21 frames of 64 x 64"), std::string::npos) << r.err;
+  // 9 fluoroscopy and 12 DSA frames, each 64 x 64 x 2 bytes after the header.
+  std::ifstream in(out / "run.seq.mha", std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  const auto data = bytes.find("ElementDataFile = LOCAL\n");
+  ASSERT_NE(data, std::string::npos);
+  EXPECT_NE(bytes.find("DimSize = 64 64 21\n"), std::string::npos);
+  EXPECT_EQ(bytes.size() - data - std::string("ElementDataFile = LOCAL\n").size(), 21u * 64u * 64u * 2u);
+  EXPECT_NE(bytes.find("Seq_Frame0020_Source = dsa\n"), std::string::npos);
+
+  // A frame of another size: refused by name, and no sequence (nor a partial one) is left.
+  cv::imwrite((out / "s" / "frames" / "000005.png").string(), cv::Mat(32, 64, CV_16UC1, cv::Scalar(100)));
+  const auto bad = evarnode({"export", (out / "s").string(), "--out", (out / "bad.seq.mha").string(), "--no-progress"});
+  EXPECT_EQ(bad.code, 1);
+  EXPECT_NE(bad.err.find("000005.png: 64 x 32 pixels, but the detector is 64 x 64"), std::string::npos) << bad.err;
+  EXPECT_FALSE(fs::exists(out / "bad.seq.mha"));
+  EXPECT_FALSE(fs::exists(out / "bad.seq.mha.partial"));
+  // A name Slicer would not recognise is written, with a warning saying so.
+  const auto plain = evarnode({"export", (out / "s").string(), "--out", (out / "run.mha").string(), "--no-progress"});
+  EXPECT_EQ(plain.code, 1);  // the bad frame is still there
+  EXPECT_NE(plain.err.find("recognises sequence metafiles by the name *.seq.mha"), std::string::npos) << plain.err;
+}
+
 TEST_F(Cli, ReplayOfACorruptSessionNamesTheFileAndLine) {
   const auto out = scratch("replay_corrupt");
   ASSERT_EQ(evarnode({"sim", "session", "--seed", "2", "--out", out.string(), "--detector-px", "64", "--fluoro-seconds", "0.1",

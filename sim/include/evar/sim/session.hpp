@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
+#include <functional>
 #include <optional>
 #include <string>
 #include <vector>
@@ -110,7 +111,10 @@ const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns);
 /// whose third axis is time) that 3D Slicer's Sequences module loads: per frame its
 /// Timestamp (seconds from the first frame), FrameNumber, ImageStatus, and the C-arm
 /// geometry in force then (PrimaryAngleDeg, SecondaryAngleDeg, SidMm, SodMm, CArmMoving) as
-/// custom frame fields. All frames must share one size. Name it *.seq.mha for Slicer.
-void export_plus_sequence(const Session& session, const std::filesystem::path& mha);
+/// custom frame fields. A frame not of the detector's size is an InputError naming it. The
+/// frames are streamed, one in memory at a time, and the file appears
+/// only when complete. Name it *.seq.mha for Slicer. `progress(done, total)` after each frame.
+void export_plus_sequence(const Session& session, const std::filesystem::path& mha,
+                          const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 }  // namespace evar::sim

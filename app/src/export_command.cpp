@@ -1,0 +1,29 @@
+// `evarnode export`: a recorded session as a PLUS sequence metafile for 3D Slicer.
+#include <filesystem>
+
+#include "commands.hpp"
+#include "evar/geometry/input_error.hpp"
+#include "evar/sim/session.hpp"
+#include "logging.hpp"
+#include "progress_bar.hpp"
+
+namespace evar::app {
+
+int run_export(const ExportCommand& cmd) {
+  const sim::Session session = sim::read_session(cmd.session);
+  if (session.frames.empty()) throw geometry::InputError(cmd.session.string() + ": the session has no frames");
+  const std::string name = cmd.out.filename().string();
+  if (name.size() < 8 || name.compare(name.size() - 8, 8, ".seq.mha") != 0)
+    log().warn("{}: Slicer's Sequences module recognises sequence metafiles by the name *.seq.mha", cmd.out.string());
+  ProgressBar bar("frames", cmd.progress);
+  sim::export_plus_sequence(session, cmd.out, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
+  bar.finish();
+  std::error_code ec;
+  const auto bytes = std::filesystem::file_size(cmd.out, ec);
+  log().info("wrote {}: {} frames of {} x {} ({:.0f} MB); in 3D Slicer: File > Add Data, then the Sequences module",
+             cmd.out.string(), session.frames.size(), session.detector.cols, session.detector.rows,
+             ec ? 0.0 : static_cast<double>(bytes) / 1e6);
+  return 0;
+}
+
+}  // namespace evar::app
