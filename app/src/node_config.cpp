@@ -55,6 +55,7 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
         else if (k == "v4l2_format") s.v4l2_format = text(v, path, field);
         else if (k == "width") s.width = static_cast<int>(number_field(path, v, field, 16, 16384, "px"));
         else if (k == "height") s.height = static_cast<int>(number_field(path, v, field, 16, 16384, "px"));
+        else if (k == "fps") s.fps = number_field(path, v, field, 0.1, 1000, "frames per second");
         else if (k == "packet_socket") {
           if (!v.is_boolean()) bad_field(path, field, "expected true or false");
           s.packet_socket = v.get<bool>();

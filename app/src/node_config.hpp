@@ -6,7 +6,7 @@
 //   "format": "evarnode-node", "version": 1,
 //   "scene": "patient/scene.json", "registration": "registration.json",
 //   "detector": {"cols": 1024, "rows": 1024, "row_spacing_mm": 0.3, "col_spacing_mm": 0.3},
-//   "frames": {"camera": "", "pixel_format": "mono16", "packet_socket": false}   or   {"v4l2": "/dev/video0", "v4l2_format": "Y16"},
+//   "frames": {"camera": "", "pixel_format": "mono16", "packet_socket": false, "fps": 30}   or   {"v4l2": "/dev/video0", "v4l2_format": "Y16"},
 //   "carm": "serial:/dev/ttyUSB0,baud=115200",
 //   "fps": 30,
 //   "device_diameter_mm": 0.89, "min_contrast": 0.25, "min_separation_deg": 20,

@@ -80,7 +80,8 @@ int run_node(const RunCommand& cmd) {
     scene_path = *config->scene;
     options.registration = geometry::read_registration(*config->registration);
     options.detector = *config->detector;
-    fps = config->fps.value_or(30.0);
+    // The video file runs at the rate asked for, else at the rate asked of the source.
+    fps = config->fps.value_or(config->frames->fps.value_or(30.0));
   }
   if (config) {
     options.candidate.device_diameter_mm = config->device_diameter_mm;

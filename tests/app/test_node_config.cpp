@@ -40,6 +40,17 @@ TEST(NodeConfig, ThePacketSocketIsOptIn) {
   fs::remove(write_config("{}"));
 }
 
+TEST(NodeConfig, TheSourceFrameRateIsAskedForOnlyWhenGiven) {
+  const auto given = evar::app::read_node_config(write_config(R"({"camera": "", "fps": 30})"));
+  ASSERT_TRUE(given.frames && given.frames->fps);
+  EXPECT_EQ(*given.frames->fps, 30.0);
+  EXPECT_FALSE(given.fps);  // the video file's rate follows it (run_command.cpp)
+  const auto free_running = evar::app::read_node_config(write_config(R"({"camera": ""})"));
+  EXPECT_FALSE(free_running.frames->fps);
+  EXPECT_THAT(error_of(R"({"fps": 0})"), HasSubstr("frames.fps"));
+  fs::remove(write_config("{}"));
+}
+
 TEST(NodeConfig, BadFrameSettingsAreNamed) {
   EXPECT_THAT(error_of(R"({"packet_socket": "yes"})"), HasSubstr(".json: frames.packet_socket: expected true or false"));
   EXPECT_THAT(error_of(R"({"packet_sockets": true})"), HasSubstr("frames.packet_sockets: unknown setting"));
