@@ -22,6 +22,7 @@
 #include <igtlImageMessage.h>
 #include <igtlPointMessage.h>
 #include <igtlPolyDataMessage.h>
+#include <igtlStatusMessage.h>
 
 namespace evar::overlay {
 
@@ -71,7 +72,36 @@ struct Client {
   Fd fd;
   std::deque<Pending> backlog;
   std::size_t backlog_bytes = 0;
+  std::vector<std::uint8_t> in;  // bytes of requests not yet whole
 };
+
+// OpenIGTLink's header: version (2), type (12), device name (20), timestamp (8), body size
+// (8), CRC (8), big-endian.
+constexpr std::size_t kHeaderBytes = 58;
+// A request has an empty body; a client that announces more than this is not speaking
+// OpenIGTLink to us (or is hostile), and is let go rather than buffered.
+constexpr std::uint64_t kMaxBodyBytes = 1u << 20;
+
+std::string header_text(const std::uint8_t* p, std::size_t n) {
+  std::size_t len = 0;
+  while (len < n && p[len] != 0) ++len;
+  return std::string(reinterpret_cast<const char*>(p), len);
+}
+
+struct Retained {
+  std::string type;  // POLYDATA or POINT
+  Bytes bytes;
+};
+
+Bytes status_message(const std::string& name, int code, const std::string& text) {
+  igtl::StatusMessage::Pointer msg = igtl::StatusMessage::New();
+  msg->SetDeviceName(device(name).c_str());
+  msg->SetCode(code);
+  msg->SetSubCode(0);
+  msg->SetErrorName(code == igtl::StatusMessage::STATUS_OK ? "" : "not found");
+  msg->SetStatusString(text.c_str());
+  return packed(msg.GetPointer());
+}
 
 }  // namespace
 
@@ -83,7 +113,8 @@ struct IgtlServer::Impl {
   std::atomic<bool> stop{false};
   mutable std::mutex m;
   std::vector<std::unique_ptr<Client>> clients;
-  std::map<std::string, Bytes> retained;  // device name → latest mesh / points
+  std::map<std::string, Retained> retained;  // device name → latest mesh / points
+  Bytes latest_image;  // the last image packed (only while a client is connected)
   IgtlServerStatistics stats;
 
   void notify() {
@@ -116,6 +147,55 @@ struct IgtlServer::Impl {
       for (auto& c : clients) enqueue(*c, bytes, image);
     }
     notify();
+  }
+
+  // Answers the requests whole in the client's input; false when the client must go (a
+  // body larger than any request has). GET_IMAGE, GET_POLYDATA, GET_POINT: the latest
+  // message of that type under the device name asked for, or all of them when the name is
+  // none of ours (the stock clients ask as "Client"); GET_STATUS: the node's status. What
+  // is not there is answered with a STATUS saying so; anything else is read and let go.
+  bool answer(Client& c) {
+    std::size_t at = 0;
+    while (c.in.size() - at >= kHeaderBytes) {
+      const std::uint8_t* h = c.in.data() + at;
+      std::uint64_t body = 0;
+      for (int i = 0; i < 8; ++i) body = (body << 8) | h[42 + i];
+      if (body > kMaxBodyBytes) {
+        ++stats.clients_dropped_for_garbage;
+        return false;
+      }
+      if (c.in.size() - at < kHeaderBytes + body) break;
+      const std::string type = header_text(h + 2, 12), name = header_text(h + 14, 20);
+      at += kHeaderBytes + static_cast<std::size_t>(body);
+      if (type.rfind("GET_", 0) != 0) {
+        ++stats.requests_ignored;
+        continue;
+      }
+      const std::string wanted = type.substr(4);
+      std::vector<Bytes> reply;
+      if (wanted == "STATUS") {
+        reply.push_back(status_message(name.empty() ? "evarnode" : name, igtl::StatusMessage::STATUS_OK, "evarnode running"));
+      } else if (wanted == "IMAGE") {
+        if (latest_image) reply.push_back(latest_image);
+      } else if (wanted == "POLYDATA" || wanted == "POINT") {
+        const auto it = retained.find(name);
+        if (it != retained.end() && it->second.type == wanted) {
+          reply.push_back(it->second.bytes);
+        } else {
+          for (const auto& [n, r] : retained)
+            if (r.type == wanted) reply.push_back(r.bytes);
+        }
+      } else {
+        ++stats.requests_ignored;
+        continue;
+      }
+      if (reply.empty())
+        reply.push_back(status_message(name, igtl::StatusMessage::STATUS_NOT_FOUND, "no " + wanted + " to send yet"));
+      for (const Bytes& b : reply) enqueue(c, b, false);
+      ++stats.requests_answered;
+    }
+    c.in.erase(c.in.begin(), c.in.begin() + static_cast<std::ptrdiff_t>(at));
+    return true;
   }
 
   // Writes what the socket takes now; false when the client is gone.
@@ -158,9 +238,12 @@ struct IgtlServer::Impl {
         const short ev = fds[i + 2].revents;
         Client& c = *clients[i];
         if (ev & POLLIN) {
-          // Requests (GET_*, STT_*) are not served; their bytes are read and let go.
           const ssize_t n = ::recv(c.fd.get(), sink, sizeof sink, MSG_DONTWAIT);
           if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) gone[i] = true;
+          if (n > 0) {
+            c.in.insert(c.in.end(), sink, sink + n);
+            if (!answer(c)) gone[i] = true;
+          }
         }
         if (ev & (POLLERR | POLLHUP | POLLNVAL)) gone[i] = true;
         if (!gone[i] && (ev & POLLOUT) && !flush(c)) gone[i] = true;
@@ -175,7 +258,7 @@ struct IgtlServer::Impl {
           } else {
             auto c = std::make_unique<Client>();
             c->fd = std::move(fd);
-            for (const auto& [name, bytes] : retained) enqueue(*c, bytes, false);
+            for (const auto& [name, r] : retained) enqueue(*c, r.bytes, false);
             clients.push_back(std::move(c));
             ++stats.clients_ever;
           }
@@ -246,7 +329,12 @@ void IgtlServer::send_image(const std::string& name, const Image& bgr, double mm
     rgb[i + 1] = bgr.bgr[i + 1];
     rgb[i + 2] = bgr.bgr[i];
   }
-  impl_->broadcast(packed(msg.GetPointer()), true);
+  const Bytes bytes = packed(msg.GetPointer());
+  {
+    std::lock_guard lock(impl_->m);
+    impl_->latest_image = bytes;
+  }
+  impl_->broadcast(bytes, true);
 }
 
 void IgtlServer::send_mesh(const std::string& name, const geometry::TriangleMesh& mesh) {
@@ -266,7 +354,7 @@ void IgtlServer::send_mesh(const std::string& name, const geometry::TriangleMesh
   const Bytes bytes = packed(msg.GetPointer());
   {
     std::lock_guard lock(impl_->m);
-    impl_->retained[device(name)] = bytes;
+    impl_->retained[device(name)] = {"POLYDATA", bytes};
   }
   impl_->broadcast(bytes, false);
 }
@@ -287,7 +375,7 @@ void IgtlServer::send_points(const std::string& name, const std::vector<geometry
   const Bytes bytes = packed(msg.GetPointer());
   {
     std::lock_guard lock(impl_->m);
-    impl_->retained[device(name)] = bytes;
+    impl_->retained[device(name)] = {"POINT", bytes};
   }
   impl_->broadcast(bytes, false);
 }
