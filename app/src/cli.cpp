@@ -51,6 +51,12 @@ int run_cli(const std::vector<std::string>& args) {
                 "length scale of the weak tether to the registered pose; 0 = off (handles only, as in the paper)")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  d->add_option("--proxy-edge-mm", deform.proxy_edge_mm,
+                "a vessel mesh whose median edge is under 3/4 of this is solved on a coarser proxy with edges\n"
+                "of about this length, and its own vertices follow (finely meshed CT in the time and with the\n"
+                "result of the paper's resolution); 0 = every mesh solved as it is")
+      ->check(CLI::NonNegativeNumber)
+      ->capture_default_str();
   d->add_flag("!--no-coarse-rotations", deform.coarse_rotations,
               "plain local/global on the iliacs too, without turning their rotations by the coarse space "
               "(for comparison; docs/DEFORMATION.md)");

@@ -24,6 +24,7 @@ nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& out
           {"output", output},
           {"vertices", r.vertices},
           {"faces", r.faces},
+          {"proxy_vertices", r.proxy_vertices},
           {"device_points", r.device_points},
           {"control_points", r.control_points},
           {"bound_vertices", r.bound_vertices},
@@ -66,6 +67,7 @@ int run_deform(const DeformCommand& cmd) {
   options.containment_rounds = cmd.containment_rounds;
   options.tether_length_mm = cmd.tether_mm;
   options.arap.coarse_rotations = cmd.coarse_rotations;
+  options.proxy_edge_mm = cmd.proxy_edge_mm;
   deform::SceneDeformation result;
   try {
     result = deform::deform_scene(scene, device, options);
@@ -107,6 +109,7 @@ int run_deform(const DeformCommand& cmd) {
                            {"tolerance_mm", cmd.tolerance_mm},
                            {"tether_mm", cmd.tether_mm},
                            {"coarse_rotations", cmd.coarse_rotations},
+                           {"proxy_edge_mm", cmd.proxy_edge_mm},
                            {"vessels", nlohmann::json::array()},
                            {"landmarks", nlohmann::json::array()}};
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
@@ -120,6 +123,8 @@ int run_deform(const DeformCommand& cmd) {
                r.name, r.role, r.control_points, r.constrained_vertices, r.iterations, r.rounds,
                r.max_displacement_mm, r.timings.total_ms,
                r.erased_faces > 0 ? fmt::format(", {} faces erased", r.erased_faces) : "");
+    if (r.proxy_vertices > 0)
+      log().info("{:<12} solved on a proxy of {} vertices (its {} follow it)", r.name, r.proxy_vertices, r.vertices);
     if (!r.converged) log().warn("{}: ARAP stopped at the iteration cap before reaching {} mm", r.name, cmd.tolerance_mm);
   }
   geometry::Markup landmarks{"Fiducial", "landmarks", result.landmarks};

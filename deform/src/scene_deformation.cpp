@@ -252,9 +252,36 @@ void check_device(const geometry::Polyline& device) {
 
 }  // namespace
 
-SceneDeformer::SceneDeformer(const geometry::Scene& scene, DeformOptions options)
-    : scene_(scene), options_(std::move(options)) {
+namespace {
+
+// The scene with a proxy in place of every mesh that needs one (null when none does); a
+// mesh whose proxy cannot be made is solved as it is.
+std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double edge_mm,
+                                         std::vector<std::optional<MeshProxy>>& proxies) {
+  proxies.assign(scene.vessels.size(), std::nullopt);
+  std::unique_ptr<geometry::Scene> working;
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    if (!needs_proxy(scene.vessels[i].mesh.mesh, edge_mm)) continue;
+    try {
+      proxies[i] = make_proxy(scene.vessels[i].mesh.mesh, edge_mm);
+    } catch (const std::runtime_error&) {
+      continue;
+    }
+    if (!working) working = std::make_unique<geometry::Scene>(scene);
+    working->vessels[i].mesh.mesh = proxies[i]->coarse;
+  }
+  return working;
+}
+
+}  // namespace
+
+SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions options)
+    : original_(original),
+      options_(std::move(options)),
+      working_(proxied(original, options_.proxy_edge_mm, proxies_)),
+      scene_(working_ ? *working_ : original) {
   const auto t0 = Clock::now();
+  const geometry::Scene& scene = scene_;
   options_.control.device_thickness_mm = scene.device_thickness_mm;
   if (!(options_.coarse_knot_spacing_mm >= 0.0) || !std::isfinite(options_.coarse_knot_spacing_mm))
     throw std::invalid_argument("deform options: coarse_knot_spacing_mm must be 0 (none) or a positive length");
@@ -303,6 +330,60 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
 }
 
 SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const SceneDeformation* previous) const {
+  if (!working_) return solve(device, previous);
+  const auto t_total = Clock::now();
+  // The previous frame as the proxies saw it.
+  std::optional<SceneDeformation> seen;
+  if (previous) {
+    if (previous->vessels.size() != original_.vessels.size() || previous->proxy_solutions.size() != original_.vessels.size() ||
+        previous->reports.size() != original_.vessels.size())
+      throw std::invalid_argument("deform: the previous frame's deformation is of another scene");
+    seen.emplace();
+    seen->reports = previous->reports;
+    seen->vessels.resize(previous->vessels.size());
+    for (std::size_t i = 0; i < previous->vessels.size(); ++i)
+      seen->vessels[i].mesh.V = proxies_[i] ? previous->proxy_solutions[i] : previous->vessels[i].mesh.V;
+  }
+  SceneDeformation out = solve(device, seen ? &*seen : nullptr);
+  // The fine meshes follow their proxies; a fine vertex is erased with the proxy vertices
+  // around it (by its barycentric weights).
+  out.proxy_solutions.resize(out.vessels.size());
+  for (std::size_t i = 0; i < out.vessels.size(); ++i) {
+    if (!proxies_[i]) continue;
+    const MeshProxy& proxy = *proxies_[i];
+    const geometry::TriangleMesh& fine = original_.vessels[i].mesh.mesh;
+    DeformedVessel& dv = out.vessels[i];
+    VesselReport& r = out.reports[i];
+    out.proxy_solutions[i] = dv.mesh.V;
+    DeformedVessel followed;
+    followed.mesh.V = follow_proxy(proxy, dv.mesh.V);
+    followed.erased.assign(static_cast<std::size_t>(fine.V.rows()), 0);
+    for (std::size_t k = 0; k < proxy.bindings.size(); ++k) {
+      const ProxyBinding& b = proxy.bindings[k];
+      double weight = 0.0;
+      for (int j = 0; j < 3; ++j) weight += b.barycentric[j] * dv.erased[static_cast<std::size_t>(proxy.coarse.F(b.face, j))];
+      followed.erased[k] = weight >= 0.5 ? 1 : 0;
+    }
+    geometry::Faces F(fine.F.rows(), 3);
+    int kept = 0;
+    for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
+      if (!followed.erased[static_cast<std::size_t>(fine.F(f, 0))] && !followed.erased[static_cast<std::size_t>(fine.F(f, 1))] &&
+          !followed.erased[static_cast<std::size_t>(fine.F(f, 2))])
+        F.row(kept++) = fine.F.row(f);
+    followed.mesh.F = F.topRows(kept);
+    r.proxy_vertices = r.vertices;
+    r.vertices = static_cast<int>(fine.V.rows());
+    r.faces = static_cast<int>(fine.F.rows());
+    r.erased_faces = static_cast<int>(fine.F.rows()) - kept;
+    r.erased_vertices = static_cast<int>(std::count(followed.erased.begin(), followed.erased.end(), 1));
+    r.max_displacement_mm = (followed.mesh.V - fine.V).rowwise().norm().maxCoeff();
+    dv = std::move(followed);
+  }
+  out.total_ms = ms_since(t_total);
+  return out;
+}
+
+SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const SceneDeformation* previous) const {
   const auto t_total = Clock::now();
   check_device(device);
   if (previous) {

@@ -13,12 +13,14 @@
 //   5. landmarks move with the surface they sit on.
 #include <Eigen/Core>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
 #include "evar/deform/arap_solver.hpp"
 #include "evar/deform/control_points.hpp"
 #include "evar/deform/landmark_binding.hpp"
+#include "evar/deform/mesh_proxy.hpp"
 #include "evar/deform/skeleton.hpp"
 #include "evar/geometry/scene.hpp"
 
@@ -48,6 +50,12 @@ struct DeformOptions {
   /// fixed point instead of 12). The aorta is not given one: its iterations converge in
   /// 6-9 without, and with one they cost more (docs/DEFORMATION.md).
   double coarse_knot_spacing_mm = 20.0;
+  /// A vessel mesh whose median edge is under 3/4 of this (mm) is solved on a coarser
+  /// proxy with edges of about this length, and the fine mesh follows it (mesh_proxy.hpp):
+  /// on a fine mesh ARAP's membrane crumples and the cost grows as n^1.3, while the
+  /// result at the paper's resolution (its 7,500-vertex aorta has edges of about 1.4 mm)
+  /// does not depend on how finely CT was meshed. 0 = every mesh is solved as it is.
+  double proxy_edge_mm = 1.4;
 };
 
 struct StageTimings {
@@ -59,6 +67,7 @@ struct VesselReport {
   std::string kind;
   std::string role;              ///< "deformed", "carries the device", "follows the aorta", "unchanged"
   int vertices = 0, faces = 0;
+  int proxy_vertices = 0;        ///< the proxy it was solved on (0: solved on its own mesh)
   int device_points = 0;         ///< device samples that lie within this vessel's reach
   int control_points = 0;        ///< handles from the device
   int bound_vertices = 0;        ///< iliac top vertices bound to the aorta
@@ -87,6 +96,9 @@ struct SceneDeformation {
   std::vector<VesselReport> reports;
   std::string device_iliac;                       ///< empty if the device reaches no iliac
   double total_ms = 0.0;
+  /// Per vessel, the proxy's solved vertices (no rows for a vessel solved on its own
+  /// mesh): the next frame of a live sequence starts from them.
+  std::vector<geometry::Vertices> proxy_solutions;
 };
 
 /// The scene with everything that does not depend on the device precomputed per vessel
@@ -114,12 +126,20 @@ class SceneDeformer {
   /// stopping rule's distance to it.
   SceneDeformation deform(const geometry::Polyline& device, const SceneDeformation* previous = nullptr) const;
   double precompute_ms() const { return precompute_ms_; }
+  /// The vessel's proxy (null when it is solved on its own mesh).
+  const MeshProxy* proxy(std::size_t vessel) const { return proxies_[vessel] ? &*proxies_[vessel] : nullptr; }
 
   struct VesselModel;  ///< opaque per-vessel precomputation
 
  private:
-  const geometry::Scene& scene_;
+  /// The stages on the working scene (proxies in place of fine meshes).
+  SceneDeformation solve(const geometry::Polyline& device, const SceneDeformation* previous) const;
+
+  const geometry::Scene& original_;
   DeformOptions options_;
+  std::vector<std::optional<MeshProxy>> proxies_;  ///< per vessel
+  std::unique_ptr<geometry::Scene> working_;       ///< the scene with the proxies (null: none)
+  const geometry::Scene& scene_;                   ///< *working_ or original_
   std::vector<std::unique_ptr<VesselModel>> models_;
   /// Per landmark: the vessel whose surface it sits on and its binding there (scene-only).
   std::vector<std::pair<std::size_t, SurfaceBinding>> landmark_bindings_;

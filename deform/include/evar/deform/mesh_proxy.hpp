@@ -1,0 +1,43 @@
+#pragma once
+// A coarser stand-in for a vessel mesh much finer than the deformation needs. ARAP's
+// membrane energy on a fine mesh has crumpled low-energy states that a coarse one cannot
+// reach, and the cost grows faster than the vertex count (docs/DEFORMATION.md); so such a
+// vessel is solved on a proxy of about the paper's resolution and the fine mesh follows
+// it: each fine vertex is bound to the proxy's nearest triangle (barycentric weights plus
+// its offset in that triangle's frame) and re-evaluated on the deformed proxy.
+#include <vector>
+
+#include <Eigen/Core>
+
+#include "evar/geometry/triangle_mesh.hpp"
+
+namespace evar::deform {
+
+/// A fine vertex on the proxy: its closest point there (face, barycentric weights) and
+/// what remains, in that face's own frame (first edge, normal × edge, normal), so the
+/// vertex turns with the face and an unmoved or rigidly moved proxy gives it back exactly.
+struct ProxyBinding {
+  int face = -1;
+  Eigen::Vector3d barycentric = Eigen::Vector3d::Zero();
+  Eigen::Vector3d offset_in_face = Eigen::Vector3d::Zero();  ///< mm
+};
+
+struct MeshProxy {
+  geometry::TriangleMesh coarse;          ///< closed if the fine mesh is; vertices are a subset of the fine ones
+  std::vector<ProxyBinding> bindings;     ///< per fine vertex, on `coarse`
+  double largest_offset_mm = 0.0;         ///< of any fine vertex from the proxy surface
+};
+
+/// Whether a mesh is solved on a proxy with edges of about `proxy_edge_mm`: when its
+/// median edge is under 3/4 of that (never when `proxy_edge_mm` is 0).
+bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm);
+
+/// Quadric edge collapse (meshoptimizer) to about area / (√3/2 · edge²) vertices, keeping
+/// the topology; then every fine vertex bound to it. std::runtime_error when the result is
+/// not a valid mesh (the caller then solves the fine mesh itself).
+MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm);
+
+/// The fine mesh's vertices for the proxy's vertices V (same order as proxy.coarse.V).
+geometry::Vertices follow_proxy(const MeshProxy& proxy, const geometry::Vertices& V);
+
+}  // namespace evar::deform
