@@ -19,6 +19,7 @@ EVAR_TARGETS=evarnode "$root/scripts/build.sh" -DEVAR_BUILD_TESTS=OFF -DEVAR_BUI
 bin=${EVAR_BUILD_DIR:-$root/build}/app/evarnode
 mkdir -p "$out"
 refused=()
+failed=()
 for seed in $(seq "$first" "$last"); do
   dir=$out/seed-$seed
   if [ ! -f "$dir/patient/scene.json" ]; then
@@ -28,14 +29,19 @@ for seed in $(seq "$first" "$last"); do
       continue
     fi
   fi
-  "$bin" deform --scene "$dir/patient/scene.json" --device "$dir/patient/device.mrk.json" --out "$dir/deformed" \
-    --no-preview >> "$dir.log" 2>&1
-  echo "seed $seed: deformed" >&2
+  if "$bin" deform --scene "$dir/patient/scene.json" --device "$dir/patient/device.mrk.json" --out "$dir/deformed" \
+    --no-preview >> "$dir.log" 2>&1; then
+    echo "seed $seed: deformed" >&2
+  else
+    failed+=("$seed")
+    rm -rf "$dir/deformed"
+    echo "seed $seed: deform FAILED (see $dir.log)" >&2
+  fi
 done
 
-python3 - "$out" "$first" "$last" "${refused[*]:-}" <<'EOF'
+python3 - "$out" "$first" "$last" "${refused[*]:-}" "${failed[*]:-}" <<'EOF'
 import json, math, os, statistics, sys
-out, first, last, refused = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4].split()
+out, first, last, refused, failed = sys.argv[1], int(sys.argv[2]), int(sys.argv[3]), sys.argv[4].split(), sys.argv[5].split()
 
 def points(path):
     m = json.load(open(path))["markups"][0]
@@ -62,7 +68,8 @@ for seed in range(first, last + 1):
     cases.append(case)
 
 order = ["internal iliac ostium of the carrier iliac", "internal iliac ostium of the other iliac", "renal ostia"]
-lines = [f"Seeds {first}-{last} ({len(cases)} made; refused: {', '.join(refused) or 'none'}), default options, "
+lines = [f"Seeds {first}-{last} ({len(cases)} deformed; refused by the generator: {', '.join(refused) or 'none'}; "
+         f"deform failed: {', '.join(failed) or 'none'}), default options, "
          "3D distance (mm) of each landmark to its true position, before (preoperative) and after `deform`:", "",
          "| landmark | n | mean before | mean after | median after | better / worse (by more than 0.5 mm) | worst after |",
          "| --- | --- | --- | --- | --- | --- | --- |"]
@@ -78,8 +85,9 @@ for g in order:
                   "median_after_mm": statistics.median(a), "better": better, "worse": worse}
     lines.append(f"| {g} | {len(r)} | {statistics.mean(b):.2f} | **{statistics.mean(a):.2f}** | {statistics.median(a):.2f} | "
                  f"{better} / {worse} | {worst[1]:.2f} (seed {worst[2]}, before {worst[0]:.2f}) |")
-json.dump({"seeds": [first, last], "refused": refused, "summary": summary, "cases": cases},
+json.dump({"seeds": [first, last], "refused": refused, "failed": failed, "summary": summary, "cases": cases},
           open(os.path.join(out, "deform_eval.json"), "w"), indent=1)
 open(os.path.join(out, "deform_eval.md"), "w").write("\n".join(lines) + "\n")
 print("\n".join(lines))
 EOF
+[ ${#failed[@]} -eq 0 ] || { echo "deform-eval.sh: deform failed for seed(s) ${failed[*]}" >&2; exit 1; }

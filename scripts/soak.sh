@@ -54,6 +54,7 @@ case "$transport" in
     "$bin" replay "$session" --loop 0 --no-progress --serve-gige "$camera" --serve-carm "$out/ttyCARM" \
       > "$out/replay.log" 2>&1 &
     server=$!
+    trap 'kill ${pid:-} "$server" 2>/dev/null || true' INT TERM EXIT
     python3 - "$session" "$out/node.json" "$camera" "$out/ttyCARM" <<'EOF'
 import json, os, sys
 session, node, camera, link = sys.argv[1:]
@@ -70,7 +71,7 @@ EOF
     ;;
   *) echo "soak.sh: SOAK_TRANSPORT must be replay or gige" >&2; exit 2 ;;
 esac
-trap 'kill "$pid" ${server:+"$server"} 2>/dev/null || true' INT TERM EXIT
+trap 'kill "$pid" ${server:+"$server"} 2>/dev/null || true' INT TERM EXIT  # now the node too
 start=$(date +%s)
 echo "seconds,rss_kib,fds,threads,snapshots_kib" > "$out/samples.csv"
 while kill -0 "$pid" 2>/dev/null; do

@@ -190,15 +190,26 @@ void LiveNode::compose_loop() {
   overlay::FrameCompositor compositor(options_.compositor);
   auto last_frame = Clock::now();
   bool any_frame = false, stalled = false;
-  // The last frame shown, kept to be shown again, marked as held, while the video is gone:
-  // the monitor must not go on showing a frozen picture as if it were live, and the window
-  // must go on answering keys.
-  std::optional<acquisition::Frame> last_shown;
+  // The last frame shown, with the geometry it was shown with, kept to be shown again,
+  // marked as held, while the video is gone: the monitor must not go on showing a frozen
+  // picture as if it were live, and the window must go on answering keys.
+  struct Shown {
+    acquisition::Frame frame;
+    std::optional<acquisition::FrameGeometry> geometry;
+    std::optional<FrameView> view;
+    bool size_ok = false;
+  };
+  std::optional<Shown> last_shown;
   Clock::time_point last_held;
   double last_latency_ms = 0.0;
   std::string layer_error;  // said once in the log; the frames say it themselves
   for (;;) {
-    std::optional<acquisition::Frame> f = input_.pop(std::chrono::milliseconds(100));
+    // While stalled, wake in time for the next held frame.
+    auto wait = std::chrono::milliseconds(100);
+    if (stalled)
+      wait = std::clamp(std::chrono::duration_cast<std::chrono::milliseconds>(options_.held_frame_interval - (Clock::now() - last_held)),
+                        std::chrono::milliseconds(1), wait);
+    std::optional<acquisition::Frame> f = input_.pop(wait);
     std::optional<double> held_s;  // set: f is the last frame shown again, this long after it came
     if (!f) {
       if (input_.closed()) break;
@@ -213,7 +224,7 @@ void LiveNode::compose_loop() {
       if (!stalled || !last_shown || Clock::now() - last_held < options_.held_frame_interval) continue;
       last_held = Clock::now();
       held_s = ms_between(last_frame, last_held) / 1000.0;
-      f = *last_shown;
+      f = last_shown->frame;
     } else {
       if (stalled) {
         clear_alert("video-stall");
@@ -223,34 +234,45 @@ void LiveNode::compose_loop() {
       last_frame = Clock::now();
     }
 
-    const bool size_ok = f->width == options_.detector.cols && f->height == options_.detector.rows;
-    if (!size_ok)
-      set_alert("frame-size",
-                "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the detector's " +
-                    std::to_string(options_.detector.cols) + " x " + std::to_string(options_.detector.rows) +
-                    ": no roadmap",
-                true);
+    // A held frame is shown with the geometry it was first shown with, and changes no
+    // alert: the C-arm history may have moved on past its time.
+    bool size_ok = false;
     std::optional<acquisition::FrameGeometry> g;
-    {
-      std::lock_guard lock(timeline_mutex_);
-      g = timeline_.at(f->device_time_on_host);
-    }
     std::optional<FrameView> view;
-    std::vector<std::string> lines;
-    char line[160];
-    if (!g) {
-      set_alert("geometry", "no C-arm geometry yet: roadmap hidden", false);
+    if (held_s) {
+      size_ok = last_shown->size_ok;
+      g = last_shown->geometry;
+      view = last_shown->view;
     } else {
-      // The alert names the condition; its changing age goes into the status line.
-      if (g->stale) set_alert("geometry", "C-arm geometry stale: roadmap at the last known position", false);
-      else clear_alert("geometry");
-      if (!g->moving && size_ok) {
-        try {
-          view = frame_view(options_.detector, options_.registration, g->state);
-        } catch (const std::invalid_argument& e) {
-          set_alert("geometry-unusable", std::string("C-arm geometry unusable: ") + e.what(), true);
+      size_ok = f->width == options_.detector.cols && f->height == options_.detector.rows;
+      if (!size_ok)
+        set_alert("frame-size",
+                  "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the detector's " +
+                      std::to_string(options_.detector.cols) + " x " + std::to_string(options_.detector.rows) +
+                      ": no roadmap",
+                  true);
+      {
+        std::lock_guard lock(timeline_mutex_);
+        g = timeline_.at(f->device_time_on_host);
+      }
+      if (!g) {
+        set_alert("geometry", "no C-arm geometry yet: roadmap hidden", false);
+      } else {
+        // The alert names the condition; its changing age goes into the status line.
+        if (g->stale) set_alert("geometry", "C-arm geometry stale: roadmap at the last known position", false);
+        else clear_alert("geometry");
+        if (!g->moving && size_ok) {
+          try {
+            view = frame_view(options_.detector, options_.registration, g->state);
+          } catch (const std::invalid_argument& e) {
+            set_alert("geometry-unusable", std::string("C-arm geometry unusable: ") + e.what(), true);
+          }
         }
       }
+    }
+    std::vector<std::string> lines;
+    char line[160];
+    if (g) {
       std::string state = fmt::format("{}  SID {:.0f} mm", angulation_text(g->state.primary_deg, g->state.secondary_deg),
                                       g->state.sid_mm);
       if (!g->state.fluoro_on) state += "  beam off";
@@ -330,12 +352,15 @@ void LiveNode::compose_loop() {
     if (held_s) continue;
     // Shown first, then handed on: the frame moves to the analysis (a copy is kept to be
     // held; assigning into the kept one reuses its buffer).
+    if (!last_shown) last_shown.emplace();
+    last_shown->geometry = g;
+    last_shown->view = view;
+    last_shown->size_ok = size_ok;
     if (analyse) {
-      if (last_shown) *last_shown = *f;
-      else last_shown = *f;
+      last_shown->frame = *f;
       analysis_.put(Analysis{std::move(*f), *view});
     } else {
-      last_shown = std::move(f);
+      last_shown->frame = std::move(*f);
     }
   }
 }

@@ -144,7 +144,12 @@ std::vector<std::filesystem::path> SnapshotSink::kept() const {
 }
 
 void SnapshotSink::write(const ComposedFrame& frame) {
-  if (frame.held) return;  // pictures of the video, not of the screen's placeholder
+  if (frame.held) {
+    // Model pictures are of the video; a snapshot asked for now is of what the screen
+    // shows, the held frame saying so.
+    if (requested_.exchange(false)) save(*frame.image, "snapshot-held-" + std::to_string(frame.sequence) + ".png", true);
+    return;
+  }
   const std::uint64_t version = frame.model ? frame.model->version : 0;
   if (previous_ && version != previous_version_) {
     save(*previous_, "model-" + std::to_string(version) + "-before.png", false);

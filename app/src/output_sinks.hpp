@@ -58,7 +58,8 @@ class VideoSink final : public OutputSink {
 
 /// PNG pictures in a directory: at every model change the last frame before it
 /// (model-N-before.png) and the first frame drawn with it (model-N-after.png); and the next
-/// frame after request() (snapshot-SEQUENCE.png). A node that runs for days would fill its
+/// frame after request() (snapshot-SEQUENCE.png; snapshot-held-SEQUENCE.png while the last
+/// frame is held for want of video). Held frames make no model pictures. A node that runs for days would fill its
 /// disk with model-change pictures, so they are kept within `max_bytes` (0 = no limit):
 /// past it the oldest go first. Requested snapshots are never deleted.
 class SnapshotSink final : public OutputSink {

@@ -46,6 +46,7 @@ WindowKey DisplayWindow::show(const Image& frame) {
     case 27: return WindowKey::Quit;
     case 'f':
       fullscreen_ = !fullscreen_;
+      shown_width_ = shown_height_ = 0;  // back from fullscreen: the frame's size again
       cv::setWindowProperty(title_, cv::WND_PROP_FULLSCREEN, fullscreen_ ? cv::WINDOW_FULLSCREEN : cv::WINDOW_NORMAL);
       return WindowKey::None;
     default: return WindowKey::None;

@@ -73,14 +73,16 @@ struct Client {
   std::deque<Pending> backlog;
   std::size_t backlog_bytes = 0;
   std::vector<std::uint8_t> in;  // bytes of requests not yet whole
+  std::uint64_t skip = 0;        // body bytes still to come of a message that is not a request
 };
 
 // OpenIGTLink's header: version (2), type (12), device name (20), timestamp (8), body size
 // (8), CRC (8), big-endian.
 constexpr std::size_t kHeaderBytes = 58;
-// A request has an empty body; a client that announces more than this is not speaking
-// OpenIGTLink to us (or is hostile), and is let go rather than buffered.
-constexpr std::uint64_t kMaxBodyBytes = 1u << 20;
+// A request has an empty body; a client that announces more than this for a GET_ is not
+// speaking OpenIGTLink to us (or is hostile), and is let go rather than buffered. Other
+// messages' bodies (a client may push data) are read and let go as they stream in.
+constexpr std::uint64_t kMaxRequestBodyBytes = 1u << 20;
 
 std::string header_text(const std::uint8_t* p, std::size_t n) {
   std::size_t len = 0;
@@ -150,33 +152,45 @@ struct IgtlServer::Impl {
   }
 
   // Answers the requests whole in the client's input; false when the client must go (a
-  // body larger than any request has). GET_IMAGE, GET_POLYDATA, GET_POINT: the latest
-  // message of that type under the device name asked for, or all of them when the name is
-  // none of ours (the stock clients ask as "Client"); GET_STATUS: the node's status. What
-  // is not there is answered with a STATUS saying so; anything else is read and let go.
+  // request announcing a body larger than any request has). GET_IMAGE, GET_POLYDATA,
+  // GET_POINT: the latest message of that type under the device name asked for, or all of
+  // them when the name is none of ours (the stock clients ask as "Client"); GET_STATUS:
+  // the node's status. What is not there is answered with a STATUS saying so; anything
+  // else is read and let go.
   bool answer(Client& c) {
     std::size_t at = 0;
-    while (c.in.size() - at >= kHeaderBytes) {
+    for (;;) {
+      if (c.skip > 0) {
+        const std::size_t drop = static_cast<std::size_t>(std::min<std::uint64_t>(c.skip, c.in.size() - at));
+        at += drop;
+        c.skip -= drop;
+        if (c.skip > 0) break;
+      }
+      if (c.in.size() - at < kHeaderBytes) break;
       const std::uint8_t* h = c.in.data() + at;
       std::uint64_t body = 0;
       for (int i = 0; i < 8; ++i) body = (body << 8) | h[42 + i];
-      if (body > kMaxBodyBytes) {
+      const std::string type = header_text(h + 2, 12), name = header_text(h + 14, 20);
+      if (type.rfind("GET_", 0) != 0) {
+        ++stats.requests_ignored;
+        at += kHeaderBytes;
+        c.skip = body;
+        continue;
+      }
+      if (body > kMaxRequestBodyBytes) {
         ++stats.clients_dropped_for_garbage;
         return false;
       }
       if (c.in.size() - at < kHeaderBytes + body) break;
-      const std::string type = header_text(h + 2, 12), name = header_text(h + 14, 20);
       at += kHeaderBytes + static_cast<std::size_t>(body);
-      if (type.rfind("GET_", 0) != 0) {
-        ++stats.requests_ignored;
-        continue;
-      }
       const std::string wanted = type.substr(4);
       std::vector<Bytes> reply;
+      bool image = false;
       if (wanted == "STATUS") {
         reply.push_back(status_message(name.empty() ? "evarnode" : name, igtl::StatusMessage::STATUS_OK, "evarnode running"));
       } else if (wanted == "IMAGE") {
         if (latest_image) reply.push_back(latest_image);
+        image = true;  // may be dropped like any image for a client that does not read
       } else if (wanted == "POLYDATA" || wanted == "POINT") {
         const auto it = retained.find(name);
         if (it != retained.end() && it->second.type == wanted) {
@@ -189,9 +203,11 @@ struct IgtlServer::Impl {
         ++stats.requests_ignored;
         continue;
       }
-      if (reply.empty())
+      if (reply.empty()) {
         reply.push_back(status_message(name, igtl::StatusMessage::STATUS_NOT_FOUND, "no " + wanted + " to send yet"));
-      for (const Bytes& b : reply) enqueue(c, b, false);
+        image = false;
+      }
+      for (const Bytes& b : reply) enqueue(c, b, image);
       ++stats.requests_answered;
     }
     c.in.erase(c.in.begin(), c.in.begin() + static_cast<std::ptrdiff_t>(at));
@@ -223,8 +239,14 @@ struct IgtlServer::Impl {
       fds.push_back({wake.get(), POLLIN, 0});
       {
         std::lock_guard lock(m);
+        // A client whose backlog is full is not read until it has taken some: requests it
+        // sends meanwhile wait in its socket, and TCP slows it down, instead of answers
+        // piling up here without bound.
         for (auto& c : clients)
-          fds.push_back({c->fd.get(), static_cast<short>(POLLIN | (c->backlog.empty() ? 0 : POLLOUT)), 0});
+          fds.push_back({c->fd.get(),
+                         static_cast<short>((c->backlog_bytes < options.backlog_bytes ? POLLIN : 0) |
+                                            (c->backlog.empty() ? 0 : POLLOUT)),
+                         0});
       }
       if (::poll(fds.data(), fds.size(), 200) < 0 && errno != EINTR) break;
       if (fds[1].revents & POLLIN) {
@@ -250,6 +272,7 @@ struct IgtlServer::Impl {
       }
       for (std::size_t i = clients.size(); i-- > 0;)
         if (gone[i]) clients.erase(clients.begin() + static_cast<std::ptrdiff_t>(i));
+      if (clients.empty()) latest_image.reset();  // images are packed only while someone listens
       if (fds[0].revents & POLLIN) {
         Fd fd(::accept4(listener.get(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC));
         if (fd.get() >= 0) {

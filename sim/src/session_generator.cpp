@@ -27,7 +27,7 @@ struct ViewPose {
 GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem::path& dir,
                                   const std::function<void(std::size_t, std::size_t)>& progress) {
   if (plan.detector_px < 16 || !(plan.pixel_spacing_mm > 0.0) || !(plan.fluoro_fps > 0.0) || !(plan.dsa_fps > 0.0) ||
-      !(plan.fluoro_seconds > 0.0) || !(plan.dsa_seconds > 0.5) || !(plan.rotation_deg_per_s > 0.0) || !(plan.carm_rate_hz > 0.0) ||
+      !(plan.fluoro_seconds > 0.0) || !(plan.dsa_seconds > 0.5) || !(plan.rotation_deg_per_s > 0.0) || !(plan.carm_rate_hz > 0.0) || !(plan.carm_rate_hz <= 1000.0) ||
       !(plan.sod_mm > 0.0 && plan.sod_mm < plan.sid_mm))
     throw std::invalid_argument("generate_session: implausible plan (sizes, rates and durations must be positive, SOD < SID)");
   const auto start = std::chrono::steady_clock::now();

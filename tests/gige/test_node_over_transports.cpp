@@ -148,11 +148,16 @@ TEST(NodeOverTransports, KeepsItsModelThroughACameraOutageAndASerialHangupAndSay
     camera.reset();
   }
   const std::size_t outage = screen.size();
+  // The source's alert moves from stalled to disconnected to connecting while it looks
+  // for the camera; held frames come every 250 ms and may see any of them.
   const auto held_and_said = [](const ScreenLog::Shown& f) {
-    return f.held && ScreenLog::alert(f, "LAST IMAGE HELD") && ScreenLog::alert(f, "video disconnected");
+    return f.held && ScreenLog::alert(f, "LAST IMAGE HELD") &&
+           (ScreenLog::alert(f, "video disconnected") || ScreenLog::alert(f, "video connecting") ||
+            ScreenLog::alert(f, "video stalled"));
   };
   at = screen.wait_for(outage, held_and_said, 60s);
   ASSERT_LT(at, screen.size()) << "no held frame said the video was lost";
+  EXPECT_TRUE(ScreenLog::alert(screen.frames[at], "no video for")) << "the stall itself is an alert too";
   {
     std::lock_guard lock(ends);
     camera = std::make_unique<sim::GigEFrameServer>(serial);

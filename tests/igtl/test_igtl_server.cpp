@@ -245,6 +245,36 @@ TEST(IgtlServer, AClientSpeakingGarbageIsLetGoAndTheOthersAreServed) {
   EXPECT_EQ(server.statistics().clients, 1u);
 }
 
+TEST(IgtlServer, AClientPushingDataIsReadPastNotDisconnected) {
+  overlay::IgtlServer server({"127.0.0.1", 0, 8, 64u << 20});
+  RawClient c(server.port());
+  ASSERT_TRUE(wait_for_clients(server, 1));
+  c.send("IMAGE", "slicer_volume", 3u << 20, 3u << 20);  // 3 MiB pushed at us: read past
+  c.send("GET_STATUS", "");
+  EXPECT_EQ(c.receive().type, "STATUS");
+  EXPECT_EQ(server.statistics().clients_dropped_for_garbage, 0u);
+  EXPECT_EQ(server.statistics().requests_ignored, 1u);
+}
+
+// A client that asks and asks without reading: once its backlog is full its requests wait
+// unread in its socket, so the answers queued for it stay bounded.
+TEST(IgtlServer, AClientThatAsksWithoutReadingCannotMakeTheServerGrow) {
+  overlay::IgtlServer server({"127.0.0.1", 0, 8, 4u << 20});
+  geometry::TriangleMesh big;  // about 0.6 MB as POLYDATA
+  big.V = geometry::Vertices::Random(20000, 3);
+  big.F.resize(20000, 3);
+  for (int f = 0; f < 20000; ++f) big.F.row(f) << f, (f + 1) % 20000, (f + 2) % 20000;
+  server.send_mesh("aorta", big);
+  RawClient c(server.port());
+  ASSERT_TRUE(wait_for_clients(server, 1));
+  for (int i = 0; i < 2000; ++i) c.send("GET_POLYDATA", "aorta");
+  std::this_thread::sleep_for(std::chrono::milliseconds(500));
+  // 4 MiB of backlog and the kernel's socket buffers hold a few dozen answers at most;
+  // without the bound all 2000 (1.2 GB) would be queued.
+  EXPECT_LT(server.statistics().requests_answered, 100u);
+  EXPECT_GT(server.statistics().requests_answered, 0u);
+}
+
 TEST(IgtlServer, BindsLoopbackAndSaysWhyItCannotListen) {
   overlay::IgtlServer first({"127.0.0.1", 0, 8, 1u << 20});
   try {

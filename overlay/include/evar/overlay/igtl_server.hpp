@@ -8,7 +8,8 @@
 // rather than stalling the node. The latest meshes and landmarks are kept and sent to every
 // client that connects later. Clients may also ask: GET_IMAGE, GET_POLYDATA, GET_POINT and
 // GET_STATUS are answered with the latest message (a STATUS "not found" when there is
-// none). Bound to loopback unless told otherwise.
+// none); while a client's backlog is full its requests wait unread. Bound to loopback
+// unless told otherwise.
 #include <cstddef>
 #include <cstdint>
 #include <memory>
@@ -33,7 +34,7 @@ struct IgtlServerStatistics {
   std::uint64_t messages_sent = 0, images_dropped = 0, clients_refused = 0;
   std::uint64_t requests_answered = 0;           ///< GET_IMAGE, GET_POLYDATA, GET_POINT, GET_STATUS
   std::uint64_t requests_ignored = 0;            ///< other messages a client sent (read and let go)
-  std::uint64_t clients_dropped_for_garbage = 0; ///< announced a body larger than any request
+  std::uint64_t clients_dropped_for_garbage = 0; ///< a GET_ announcing a body larger than any request has
 };
 
 class IgtlServer {
