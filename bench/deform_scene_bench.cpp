@@ -6,7 +6,9 @@
 //                       weights, terms, tether, assembly, ordering per vessel) + deform();
 //   BM_DeformWarm       warm: the SceneDeformer is built once outside the timing; each
 //                       iteration is one deform(device) (control points, numeric
-//                       factorization, iterations, binding, erasure, landmarks);
+//                       factorization, iterations, binding, erasure, landmarks); at 30k
+//                       and 120k the vessels are solved on proxies (mesh_proxy.hpp);
+//   BM_DeformWarmOwnMesh the same with every mesh solved as it is, for comparison;
 //   BM_DeformFixedPoint warm deform at a given tolerance against a tightly converged
 //                       reference (tolerance 1e-6 mm): distance per vessel and time;
 //   BM_DeformSequence   a moving device, frame after frame, each frame started from
@@ -103,14 +105,17 @@ struct Warm {
   std::unique_ptr<deform::SceneDeformer> deformer;
   double construct_ms = 0.0;
 };
-const Warm& warm_deformer(int aorta_vertices, deform::CholeskyBackend backend, double tolerance_mm) {
-  static std::map<std::tuple<int, int, double>, std::unique_ptr<Warm>> cache;
-  auto& slot = cache[{aorta_vertices, static_cast<int>(backend), tolerance_mm}];
+// `proxy_edge_mm` < 0: the default (fine meshes solved on proxies); 0: every mesh as it is.
+const Warm& warm_deformer(int aorta_vertices, deform::CholeskyBackend backend, double tolerance_mm,
+                          double proxy_edge_mm = -1.0) {
+  static std::map<std::tuple<int, int, double, double>, std::unique_ptr<Warm>> cache;
+  auto& slot = cache[{aorta_vertices, static_cast<int>(backend), tolerance_mm, proxy_edge_mm}];
   if (!slot) {
     const auto& sp = bench::example_scene(aorta_vertices);
     deform::DeformOptions opt;
     opt.arap.backend = backend;
     opt.arap.tolerance_mm = tolerance_mm;  // everything else default (at most 500 iterations)
+    if (proxy_edge_mm >= 0.0) opt.proxy_edge_mm = proxy_edge_mm;
     slot = std::make_unique<Warm>();
     slot->deformer = std::make_unique<deform::SceneDeformer>(sp.scene, opt);
     slot->construct_ms = slot->deformer->precompute_ms();
@@ -150,6 +155,16 @@ void BM_DeformWarm(benchmark::State& state, int aorta_vertices, int backend_arg)
   time_warm_deform(state, *w.deformer, sp.example.device, sums, [](const deform::SceneDeformation&) {});
   state.counters["precompute_ms"] = w.construct_ms;  // the SceneDeformer constructor (once)
   state.SetLabel(bench::backend_label(backend) + ", warm");
+}
+
+// The same with every mesh solved as it is (no proxy for fine meshes), for comparison.
+void BM_DeformWarmOwnMesh(benchmark::State& state, int aorta_vertices) {
+  const auto& sp = bench::example_scene(aorta_vertices);
+  const auto& w = warm_deformer(aorta_vertices, deform::CholeskyBackend::EigenLDLT, deform::ArapOptions{}.tolerance_mm, 0.0);
+  std::map<std::string, double> sums;
+  time_warm_deform(state, *w.deformer, sp.example.device, sums, [](const deform::SceneDeformation&) {});
+  state.counters["precompute_ms"] = w.construct_ms;
+  state.SetLabel("eigen, warm, every mesh solved as it is");
 }
 
 // --- distance to the fixed point (warm) -----------------------------------------------
@@ -253,6 +268,8 @@ BENCHMARK_CAPTURE(BM_DeformWarm, 30000/eigen, 30000, 0)->Iterations(3)->UseManua
 BENCHMARK_CAPTURE(BM_DeformWarm, 30000/cholmod, 30000, 1)->Iterations(3)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformWarm, 120000/eigen, 120000, 0)->Iterations(2)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformWarm, 120000/cholmod, 120000, 1)->Iterations(2)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DeformWarmOwnMesh, 30000, 30000)->Iterations(3)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DeformWarmOwnMesh, 120000, 120000)->Iterations(2)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformFixedPoint, 7500/default_0.01, 0.01)->Iterations(10)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformFixedPoint, 7500/tolerance_0.005, 5e-3)->Iterations(10)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformFixedPoint, 7500/tolerance_0.002, 2e-3)->Iterations(10)->UseManualTime()->Unit(benchmark::kMillisecond);

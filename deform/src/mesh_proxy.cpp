@@ -100,64 +100,89 @@ bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm) {
   return proxy_edge_mm > 0.0 && geometry::median_edge_length(mesh) < 0.75 * proxy_edge_mm;
 }
 
+namespace {
+
+// Quadric edge collapse of `fine` to about `target_vertices`, as a compact mesh whose
+// vertices are fine ones; std::runtime_error when the result is not a valid mesh (closed
+// when the fine mesh is).
+geometry::TriangleMesh simplify(const geometry::TriangleMesh& fine, const std::vector<float>& positions,
+                                const std::vector<unsigned>& indices, double target_vertices) {
+  const auto n = static_cast<std::size_t>(fine.V.rows());
+  std::vector<unsigned> simplified(indices.size());
+  // A closed surface has about two triangles per vertex. The error bound is loose (5 % of
+  // the mesh's extent): the vertex count is what we ask for, and the fine vertices'
+  // distance to the result is measured by the caller.
+  const std::size_t count = meshopt_simplify(simplified.data(), indices.data(), indices.size(), positions.data(), n,
+                                             3 * sizeof(float), static_cast<std::size_t>(6.0 * target_vertices), 0.05f,
+                                             0, nullptr);
+  simplified.resize(count);
+  // Where the simplifier pinches a thin part it can leave the same triangle twice, back to
+  // back: a fin of no volume whose edge is shared by four faces. Both copies go, which
+  // leaves the surface closed and every edge shared by two faces (checked below).
+  std::map<std::array<unsigned, 3>, int> seen;
+  const auto sorted = [&](std::size_t t) {
+    std::array<unsigned, 3> k{simplified[3 * t], simplified[3 * t + 1], simplified[3 * t + 2]};
+    std::sort(k.begin(), k.end());
+    return k;
+  };
+  for (std::size_t t = 0; t < count / 3; ++t) ++seen[sorted(t)];
+  std::vector<unsigned> faces;
+  faces.reserve(count);
+  for (std::size_t t = 0; t < count / 3; ++t)
+    if (seen[sorted(t)] == 1)
+      faces.insert(faces.end(), simplified.begin() + static_cast<std::ptrdiff_t>(3 * t),
+                   simplified.begin() + static_cast<std::ptrdiff_t>(3 * t + 3));
+
+  geometry::TriangleMesh coarse;
+  std::vector<int> remap(n, -1);
+  int kept = 0;
+  for (const unsigned i : faces)
+    if (remap[i] < 0) remap[i] = kept++;
+  coarse.V.resize(kept, 3);
+  for (std::size_t i = 0; i < n; ++i)
+    if (remap[i] >= 0) coarse.V.row(remap[i]) = fine.V.row(static_cast<Eigen::Index>(i));
+  coarse.F.resize(static_cast<Eigen::Index>(faces.size() / 3), 3);
+  for (std::size_t t = 0; t < faces.size() / 3; ++t)
+    for (int k = 0; k < 3; ++k) coarse.F(static_cast<Eigen::Index>(t), k) = remap[faces[3 * t + static_cast<std::size_t>(k)]];
+  try {
+    geometry::validate_mesh(coarse, "the proxy");
+  } catch (const std::exception& e) {
+    throw std::runtime_error(std::string("mesh proxy: ") + e.what());
+  }
+  if (geometry::is_closed(fine) && !geometry::is_closed(coarse))
+    throw std::runtime_error("mesh proxy: the simplified mesh is not closed");
+  return coarse;
+}
+
+}  // namespace
+
 MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   if (!(edge_mm > 0.0)) throw std::invalid_argument("mesh proxy: the edge length must be positive");
   const auto n = static_cast<std::size_t>(fine.V.rows());
   std::vector<float> positions(3 * n);
   for (std::size_t i = 0; i < n; ++i)
     for (int k = 0; k < 3; ++k) positions[3 * i + static_cast<std::size_t>(k)] = static_cast<float>(fine.V(static_cast<Eigen::Index>(i), k));
-  std::vector<unsigned> indices(static_cast<std::size_t>(fine.F.size())), simplified(indices.size());
+  std::vector<unsigned> indices(static_cast<std::size_t>(fine.F.size()));
   for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
     for (int k = 0; k < 3; ++k) indices[static_cast<std::size_t>(3 * f + k)] = static_cast<unsigned>(fine.F(f, k));
-  // An equilateral triangulation with edges e has √3/2 e² of area per vertex, and a closed
-  // surface about two triangles per vertex.
+  // An equilateral triangulation with edges e has √3/2 e² of area per vertex.
   const double target_vertices = surface_area(fine) / (std::sqrt(3.0) / 2.0 * edge_mm * edge_mm);
-  const auto target_indices = static_cast<std::size_t>(6.0 * target_vertices);
-  // The error bound is loose (5 % of the mesh's extent): the vertex count is what we ask
-  // for, and the fine vertices' distance to the result is measured below.
-  const std::size_t count = meshopt_simplify(simplified.data(), indices.data(), indices.size(), positions.data(), n,
-                                             3 * sizeof(float), target_indices, 0.05f, 0, nullptr);
-  simplified.resize(count);
-  // Where the simplifier pinches a thin part it can leave the same triangle twice, back to
-  // back: a fin of no volume whose edge is shared by four faces. Both copies go, which
-  // leaves the surface closed and every edge shared by two faces (checked below).
-  {
-    std::map<std::array<unsigned, 3>, int> seen;
-    const auto sorted = [&](std::size_t t) {
-      std::array<unsigned, 3> k{simplified[3 * t], simplified[3 * t + 1], simplified[3 * t + 2]};
-      std::sort(k.begin(), k.end());
-      return k;
-    };
-    for (std::size_t t = 0; t < simplified.size() / 3; ++t) ++seen[sorted(t)];
-    std::vector<unsigned> kept_faces;
-    kept_faces.reserve(simplified.size());
-    for (std::size_t t = 0; t < simplified.size() / 3; ++t)
-      if (seen[sorted(t)] == 1) kept_faces.insert(kept_faces.end(), simplified.begin() + static_cast<std::ptrdiff_t>(3 * t),
-                                                  simplified.begin() + static_cast<std::ptrdiff_t>(3 * t + 3));
-    simplified = std::move(kept_faces);
-  }
-  const std::size_t kept_indices = simplified.size();
-
+  // Now and then the collapses pinch two sheets together along an edge (four faces, not a
+  // fin); a slightly different target collapses other edges and usually avoids it.
   MeshProxy proxy;
-  std::vector<int> remap(n, -1);
-  int kept = 0;
-  for (const unsigned i : simplified)
-    if (remap[i] < 0) remap[i] = kept++;
-  proxy.coarse.V.resize(kept, 3);
-  for (std::size_t i = 0; i < n; ++i)
-    if (remap[i] >= 0) proxy.coarse.V.row(remap[i]) = fine.V.row(static_cast<Eigen::Index>(i));
-  proxy.coarse.F.resize(static_cast<Eigen::Index>(kept_indices / 3), 3);
-  for (std::size_t t = 0; t < kept_indices / 3; ++t)
-    for (int k = 0; k < 3; ++k) proxy.coarse.F(static_cast<Eigen::Index>(t), k) = remap[simplified[3 * t + static_cast<std::size_t>(k)]];
-  try {
-    geometry::validate_mesh(proxy.coarse, "the proxy");
-  } catch (const std::exception& e) {
-    throw std::runtime_error(std::string("mesh proxy: ") + e.what());
+  std::string why;
+  for (const double factor : {1.0, 0.95, 1.05, 0.9, 1.1}) {
+    try {
+      proxy.coarse = simplify(fine, positions, indices, factor * target_vertices);
+      why.clear();
+      break;
+    } catch (const std::runtime_error& e) {
+      why = e.what();
+    }
   }
-  if (geometry::is_closed(fine) && !geometry::is_closed(proxy.coarse))
-    throw std::runtime_error("mesh proxy: the simplified mesh is not closed");
+  if (!why.empty()) throw std::runtime_error(why + " (at five targets around " + std::to_string(std::lround(target_vertices)) + " vertices)");
 
-  const TriangleGrid grid(proxy.coarse, 2.0 * geometry::median_edge_length(proxy.coarse));
+  const TriangleGrid grid(proxy.coarse, geometry::median_edge_length(proxy.coarse));
   proxy.bindings.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p = fine.V.row(static_cast<Eigen::Index>(i)).transpose();

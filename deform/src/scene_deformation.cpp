@@ -257,7 +257,8 @@ namespace {
 // The scene with a proxy in place of every mesh that needs one (null when none does); a
 // mesh whose proxy cannot be made is solved as it is.
 std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double edge_mm,
-                                         std::vector<std::optional<MeshProxy>>& proxies) {
+                                         std::vector<std::optional<MeshProxy>>& proxies, double& ms) {
+  const auto t0 = Clock::now();
   proxies.assign(scene.vessels.size(), std::nullopt);
   std::unique_ptr<geometry::Scene> working;
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
@@ -270,6 +271,7 @@ std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double ed
     if (!working) working = std::make_unique<geometry::Scene>(scene);
     working->vessels[i].mesh.mesh = proxies[i]->coarse;
   }
+  ms = ms_since(t0);
   return working;
 }
 
@@ -278,7 +280,7 @@ std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double ed
 SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions options)
     : original_(original),
       options_(std::move(options)),
-      working_(proxied(original, options_.proxy_edge_mm, proxies_)),
+      working_(proxied(original, options_.proxy_edge_mm, proxies_, proxy_ms_)),
       scene_(working_ ? *working_ : original) {
   const auto t0 = Clock::now();
   const geometry::Scene& scene = scene_;
@@ -317,7 +319,7 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
                                  std::to_string(kMaxLandmarkDistanceMm) + " mm expected)");
     landmark_bindings_.emplace_back(best, binding);
   }
-  precompute_ms_ = ms_since(t0);
+  precompute_ms_ = proxy_ms_ + ms_since(t0);
 }
 
 SceneDeformer::~SceneDeformer() = default;

@@ -138,6 +138,7 @@ class SceneDeformer {
   const geometry::Scene& original_;
   DeformOptions options_;
   std::vector<std::optional<MeshProxy>> proxies_;  ///< per vessel
+  double proxy_ms_ = 0.0;                          ///< making them (part of precompute_ms_)
   std::unique_ptr<geometry::Scene> working_;       ///< the scene with the proxies (null: none)
   const geometry::Scene& scene_;                   ///< *working_ or original_
   std::vector<std::unique_ptr<VesselModel>> models_;
