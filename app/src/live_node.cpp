@@ -204,9 +204,9 @@ void LiveNode::compose_loop() {
   double last_latency_ms = 0.0;
   std::string layer_error;  // said once in the log; the frames say it themselves
   for (;;) {
-    // While stalled, wake in time for the next held frame.
+    // While stalled with a frame to hold, wake in time for the next held frame.
     auto wait = std::chrono::milliseconds(100);
-    if (stalled)
+    if (stalled && last_shown)
       wait = std::clamp(std::chrono::duration_cast<std::chrono::milliseconds>(options_.held_frame_interval - (Clock::now() - last_held)),
                         std::chrono::milliseconds(1), wait);
     std::optional<acquisition::Frame> f = input_.pop(wait);
