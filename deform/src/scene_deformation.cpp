@@ -254,6 +254,21 @@ void check_device(const geometry::Polyline& device) {
 
 namespace {
 
+// Keeps the faces of `faces` that touch no erased vertex of `dv` (vertices keep their
+// order) and reports what went and how far the kept vertices moved from `rest`.
+void apply_erasure(DeformedVessel& dv, const geometry::Faces& faces, const geometry::Vertices& rest, VesselReport& r) {
+  geometry::Faces F(faces.rows(), 3);
+  int kept = 0;
+  for (Eigen::Index f = 0; f < faces.rows(); ++f)
+    if (!dv.erased[static_cast<std::size_t>(faces(f, 0))] && !dv.erased[static_cast<std::size_t>(faces(f, 1))] &&
+        !dv.erased[static_cast<std::size_t>(faces(f, 2))])
+      F.row(kept++) = faces.row(f);
+  dv.mesh.F = F.topRows(kept);
+  r.erased_faces = static_cast<int>(faces.rows()) - kept;
+  r.erased_vertices = static_cast<int>(std::count(dv.erased.begin(), dv.erased.end(), 1));
+  r.max_displacement_mm = (dv.mesh.V - rest).rowwise().norm().maxCoeff();
+}
+
 // The scene with a proxy in place of every mesh that needs one (null when none does); a
 // mesh whose proxy cannot be made is solved as it is.
 std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double edge_mm,
@@ -366,19 +381,10 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
       for (int j = 0; j < 3; ++j) weight += b.barycentric[j] * dv.erased[static_cast<std::size_t>(proxy.coarse.F(b.face, j))];
       followed.erased[k] = weight >= 0.5 ? 1 : 0;
     }
-    geometry::Faces F(fine.F.rows(), 3);
-    int kept = 0;
-    for (Eigen::Index f = 0; f < fine.F.rows(); ++f)
-      if (!followed.erased[static_cast<std::size_t>(fine.F(f, 0))] && !followed.erased[static_cast<std::size_t>(fine.F(f, 1))] &&
-          !followed.erased[static_cast<std::size_t>(fine.F(f, 2))])
-        F.row(kept++) = fine.F.row(f);
-    followed.mesh.F = F.topRows(kept);
+    apply_erasure(followed, fine.F, fine.V, r);
     r.proxy_vertices = r.vertices;
     r.vertices = static_cast<int>(fine.V.rows());
     r.faces = static_cast<int>(fine.F.rows());
-    r.erased_faces = static_cast<int>(fine.F.rows()) - kept;
-    r.erased_vertices = static_cast<int>(std::count(followed.erased.begin(), followed.erased.end(), 1));
-    r.max_displacement_mm = (followed.mesh.V - fine.V).rowwise().norm().maxCoeff();
     dv = std::move(followed);
   }
   out.total_ms = ms_since(t_total);
@@ -527,19 +533,8 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
 
   // Apply erasures: faces touching an erased vertex are removed; vertices keep their order.
   for (std::size_t i = 0; i < out.vessels.size(); ++i) {
-    auto& dv = out.vessels[i];
-    auto& r = out.reports[i];
-    int kept = 0;
-    geometry::Faces F(dv.mesh.F.rows(), 3);
-    for (Eigen::Index f = 0; f < dv.mesh.F.rows(); ++f) {
-      const bool gone = dv.erased[static_cast<std::size_t>(dv.mesh.F(f, 0))] || dv.erased[static_cast<std::size_t>(dv.mesh.F(f, 1))] ||
-                        dv.erased[static_cast<std::size_t>(dv.mesh.F(f, 2))];
-      if (!gone) F.row(kept++) = dv.mesh.F.row(f);
-    }
-    r.erased_faces = static_cast<int>(dv.mesh.F.rows()) - kept;
-    r.erased_vertices = static_cast<int>(std::count(dv.erased.begin(), dv.erased.end(), 1));
-    dv.mesh.F = F.topRows(kept);
-    r.max_displacement_mm = (dv.mesh.V - scene.vessels[i].mesh.mesh.V).rowwise().norm().maxCoeff();
+    const geometry::Faces faces = out.vessels[i].mesh.F;  // a copy: apply_erasure replaces them
+    apply_erasure(out.vessels[i], faces, scene.vessels[i].mesh.mesh.V, out.reports[i]);
   }
 
   // 5. Landmarks follow the surface they were bound to.
