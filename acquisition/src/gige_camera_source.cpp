@@ -5,6 +5,7 @@
 
 #include <algorithm>
 #include <condition_variable>
+#include <cstdio>
 #include <cstring>
 #include <fstream>
 #include <stdexcept>
@@ -71,6 +72,25 @@ ArvPixelFormat to_arv(PixelFormat f) {
 
 std::string str(const char* s) { return s ? s : ""; }
 
+// A GVSP pixel format by its GenICam name, or its code.
+std::string pixel_format_name(ArvPixelFormat f) {
+  switch (f) {
+    case ARV_PIXEL_FORMAT_MONO_8: return "Mono8";
+    case ARV_PIXEL_FORMAT_MONO_10: return "Mono10";
+    case ARV_PIXEL_FORMAT_MONO_12: return "Mono12";
+    case ARV_PIXEL_FORMAT_MONO_16: return "Mono16";
+    case ARV_PIXEL_FORMAT_RGB_8_PACKED: return "RGB8";
+    case ARV_PIXEL_FORMAT_BAYER_RG_8: return "BayerRG8";
+    default: break;
+  }
+  char code[16];
+  std::snprintf(code, sizeof code, "0x%08x", static_cast<unsigned>(f));
+  return std::string("pixel format ") + code;
+}
+
+// What a buffer turned into.
+enum class Outcome { Delivered, Incomplete, Refused };
+
 
 }  // namespace
 
@@ -108,6 +128,8 @@ struct GigECameraSource::Impl {
   gulong control_lost_handler = 0;
   std::uint64_t stream_completed = 0, stream_failed = 0, stream_underruns = 0;  // this connection
   std::optional<std::uint64_t> last_raw_id;
+  int expected_width = 0, expected_height = 0;  // the region the camera was set to
+  std::string refusal;                          // what the last refused frame was, against what was set
   std::uint64_t id_epoch = 0;  // unwraps 16-bit GVSP 1.x block ids (0 is never used)
   std::string streaming_reason;
 
@@ -186,6 +208,9 @@ struct GigECameraSource::Impl {
       packet = static_cast<int>(arv_camera_gv_auto_packet_size(cam, &error));
       check(error, id + ": packet size negotiation");
     }
+    gint rx = 0, ry = 0;
+    arv_camera_get_region(cam, &rx, &ry, &expected_width, &expected_height, &error);
+    check(error, id + ": reading the region");
     const gint payload = arv_camera_get_payload(cam, &error);
     check(error, id + ": payload size");
 
@@ -262,20 +287,32 @@ struct GigECameraSource::Impl {
     camera.reset();
   }
 
-  // One buffer from the stream, turned into a Frame when it is complete.
-  void handle(ArvBuffer* buffer) {
+  // One buffer from the stream, turned into a Frame when it is complete and is what the
+  // camera was set to send. An incomplete frame (packets lost) is counted by the stream's
+  // statistics; its block id is a gap the sequence tracker counts as a drop.
+  Outcome handle(ArvBuffer* buffer) {
     const ArvBufferStatus status = arv_buffer_get_status(buffer);
-    if (status != ARV_BUFFER_STATUS_SUCCESS) return;  // counted by the stream's statistics
+    if (status != ARV_BUFFER_STATUS_SUCCESS) return Outcome::Incomplete;
     Frame f;
     f.host_arrival = Clock::now();
     f.format = options.pixel_format;
     f.width = arv_buffer_get_image_width(buffer);
     f.height = arv_buffer_get_image_height(buffer);
+    const ArvPixelFormat sent = arv_buffer_get_image_pixel_format(buffer);
+    if (sent != to_arv(options.pixel_format) || f.width != expected_width || f.height != expected_height) {
+      // Pixels of another format or size under our label would be a wrong picture.
+      refusal = pixel_format_name(sent) + " " + std::to_string(f.width) + " x " + std::to_string(f.height) +
+                " frames, not the " + to_string(options.pixel_format) + " " + std::to_string(expected_width) + " x " +
+                std::to_string(expected_height) + " it was set to";
+      std::lock_guard lock(mutex);
+      ++stats.refused;
+      return Outcome::Refused;
+    }
     f.stride_bytes = f.width * bytes_per_pixel(f.format);
     size_t size = 0;
     const auto* data = static_cast<const std::uint8_t*>(arv_buffer_get_data(buffer, &size));
     const std::size_t need = static_cast<std::size_t>(f.stride_bytes) * static_cast<std::size_t>(f.height);
-    if (f.width <= 0 || f.height <= 0 || !data || size < need) return;
+    if (f.width <= 0 || f.height <= 0 || !data || size < need) return Outcome::Incomplete;
     f.pixels.assign(data, data + need);
     const std::uint64_t raw = arv_buffer_get_frame_id(buffer);
     // GVSP 1.x block ids are 16 bits and skip 0 when they wrap.
@@ -293,6 +330,7 @@ struct GigECameraSource::Impl {
       f.device_clock = true;
     }
     if (on_frame) on_frame(f);
+    return Outcome::Delivered;
   }
 
   void run() {
@@ -317,24 +355,32 @@ struct GigECameraSource::Impl {
       }
       set_state(StreamState::Connecting, "GigE camera " + stats.camera_id + " open, waiting for the first frame");
       Clock::time_point last_frame = Clock::now(), last_probe = Clock::now();
+      std::optional<Clock::time_point> refusing_since;  // only refused frames since then
       std::string lost;
       bool still_there = false;  // lost the stream, not the camera
       while (!stop && lost.empty()) {
         ArvBuffer* buffer = arv_stream_timeout_pop_buffer(stream.get(), 100'000);  // µs
         if (buffer) {
-          const bool ok = arv_buffer_get_status(buffer) == ARV_BUFFER_STATUS_SUCCESS;
-          if (ok) {
-            last_frame = Clock::now();
-            set_state(StreamState::Streaming, streaming_reason);
-          }
-          handle(buffer);
+          const Outcome outcome = handle(buffer);
           arv_stream_push_buffer(stream.get(), buffer);
+          if (outcome == Outcome::Delivered) {
+            last_frame = Clock::now();
+            refusing_since.reset();
+            set_state(StreamState::Streaming, streaming_reason);
+          } else if (outcome == Outcome::Refused) {
+            if (!refusing_since) refusing_since = Clock::now();
+            set_state(StreamState::Stalled, "GigE camera " + stats.camera_id + " sends " + refusal + ": frames refused");
+          }
         }
         update_stream_counters();
         const auto silent = Clock::now() - last_frame;
         if (control_lost) {
           lost = "control lost (no heartbeat answer)";
-        } else if (silent > options.probe_after && Clock::now() - last_probe > options.probe_after) {
+        } else if (refusing_since && Clock::now() - *refusing_since > options.probe_after) {
+          // It changed its format or region by itself (a reset, another tool): set it up again.
+          lost = "it sends " + refusal + "; setting it up again";
+          still_there = true;
+        } else if (!refusing_since && silent > options.probe_after && Clock::now() - last_probe > options.probe_after) {
           // A camera that stopped sending may be gone. Discovery answers within about a
           // second; a register read of a vanished camera takes Aravis's GVCP retries (~15 s).
           last_probe = Clock::now();

@@ -57,6 +57,7 @@ LiveNode::LiveNode(const geometry::Scene& scene, NodeOptions options, std::vecto
     throw std::invalid_argument("node: the detector needs a size and pixel spacings");
   // Checks the options now rather than on a thread.
   (void)ViewPairSelector(options_.adaptation.reconstruction.min_separation_deg, options_.pairs);
+  (void)acquisition::FrameLossMonitor(options_.frame_loss);
   deformer_ = std::make_unique<deform::SceneDeformer>(scene, options_.deform);
   initial_roadmap_ = std::make_shared<const overlay::RoadmapModel>(roadmap_model(scene, nullptr));
   auto m = std::make_shared<PublishedModel>();
@@ -186,8 +187,36 @@ std::vector<std::string> LiveNode::current_alerts() {
   return out;
 }
 
+void LiveNode::watch_frame_loss(acquisition::FrameLossMonitor& monitor) {
+  acquisition::SequenceStats counts;
+  {
+    std::lock_guard lock(source_mutex_);
+    if (frames_ == nullptr) return;
+    counts = frames_->statistics();
+  }
+  const auto change = monitor.sample(Clock::now(), counts);
+  if (!change) return;
+  if (!change->losing) {
+    clear_alert("video-loss");
+    return;
+  }
+  {
+    std::lock_guard lock(stats_mutex_);
+    ++stats_.frame_loss_alerts;
+  }
+  // The numbers are those that raised it; the text stays while it lasts (said once).
+  set_alert("video-loss",
+            fmt::format("video losing frames: {} of {} lost by the source in {:.1f} s ({:.0f} %); the image is "
+                        "live but jerky (check the camera link)",
+                        change->lost, change->expected, static_cast<double>(change->span.count()) / 1000.0,
+                        100.0 * change->fraction()),
+            false);
+}
+
 void LiveNode::compose_loop() {
   overlay::FrameCompositor compositor(options_.compositor);
+  acquisition::FrameLossMonitor loss_monitor(options_.frame_loss);
+  Clock::time_point last_loss_sample{};
   auto last_frame = Clock::now();
   bool any_frame = false, stalled = false;
   // The last frame shown, with the geometry it was shown with, kept to be shown again,
@@ -210,6 +239,10 @@ void LiveNode::compose_loop() {
       wait = std::clamp(std::chrono::duration_cast<std::chrono::milliseconds>(options_.held_frame_interval - (Clock::now() - last_held)),
                         std::chrono::milliseconds(1), wait);
     std::optional<acquisition::Frame> f = input_.pop(wait);
+    if (Clock::now() - last_loss_sample >= std::chrono::milliseconds(250)) {
+      last_loss_sample = Clock::now();
+      watch_frame_loss(loss_monitor);
+    }
     std::optional<double> held_s;  // set: f is the last frame shown again, this long after it came
     if (!f) {
       if (input_.closed()) break;

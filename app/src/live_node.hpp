@@ -26,6 +26,7 @@
 #include <vector>
 
 #include "evar/acquisition/carm_geometry_source.hpp"
+#include "evar/acquisition/frame_loss_monitor.hpp"
 #include "evar/acquisition/frame_source.hpp"
 #include "evar/acquisition/geometry_timeline.hpp"
 #include "evar/geometry/scene.hpp"
@@ -48,6 +49,9 @@ struct NodeOptions {
   overlay::RoadmapMode mode = overlay::RoadmapMode::Both;
   acquisition::GeometryTimelineOptions timeline;
   std::chrono::milliseconds video_stall{1000};  ///< no frame for this long: "no video"
+  /// The source losing more than this share of its frames (a GigE link dropping packets,
+  /// a grabber dropping buffers) is an alert while it lasts: the image is live but jerky.
+  acquisition::FrameLossOptions frame_loss;
   /// While there is no video the last frame is shown again this often, marked "LAST IMAGE
   /// HELD" (ComposedFrame::held), so the screen says so and the window answers keys.
   std::chrono::milliseconds held_frame_interval{250};
@@ -110,6 +114,7 @@ struct NodeStatistics {
   std::uint64_t analysis_waited = 0;  ///< frames whose analysis waited for an adaptation to finish
   std::uint64_t adaptations = 0, adaptation_failures = 0;
   std::uint64_t video_stalls = 0, stale_geometry_frames = 0, moving_frames = 0, sink_errors = 0;
+  std::uint64_t frame_loss_alerts = 0;  ///< times the source began losing frames (NodeOptions::frame_loss)
   Percentiles latency_ms;            ///< frame arrival → composited, over the last kLatencyWindow frames
   Percentiles adaptation_ms;         ///< second view's frame arrival → model ready, over the last kLatencyWindow adaptations
   std::string last_failure;          ///< the last adaptation failure ("" if none)
@@ -155,6 +160,8 @@ class LiveNode {
   /// hold: the alert clears itself after options_.alert_hold (a passing event); otherwise
   /// it stays until clear_alert (a condition).
   void set_alert(const std::string& key, const std::string& text, bool hold);
+  /// Samples the source's counts (compose thread) and raises or clears the frame-loss alert.
+  void watch_frame_loss(acquisition::FrameLossMonitor& monitor);
   void clear_alert(const std::string& key);
   std::vector<std::string> current_alerts();
 

@@ -212,6 +212,7 @@ int run_node(const RunCommand& cmd) {
                       {"ready_after_second_view_ms", to_json(s.adaptation_ms)}}},
       {"latency_ms", to_json(s.latency_ms)},
       {"video_stalls", s.video_stalls},
+      {"frame_loss_alerts", s.frame_loss_alerts},
       {"sink_errors", s.sink_errors},
       {"outputs", {{"video", video ? (cmd.out / cmd.video).string() : ""},
                    {"video_frames", video ? video->frames() : 0},

@@ -31,6 +31,23 @@ GigEFrameServer::GigEFrameServer(const std::string& serial, const std::string& i
 
 GigEFrameServer::~GigEFrameServer() { g_object_unref(camera_); }  // stops the camera's threads first
 
+void GigEFrameServer::set_packet_loss(double probability) {
+  if (!(probability >= 0.0 && probability <= 1.0))
+    throw std::invalid_argument("GigE frame server: packet loss must be a probability from 0 to 1");
+  g_object_set(camera_, "gvsp-lost-ratio", probability, nullptr);
+}
+
+void GigEFrameServer::switch_pixel_format(acquisition::PixelFormat format) {
+  ArvPixelFormat code = ARV_PIXEL_FORMAT_MONO_16;
+  switch (format) {
+    case acquisition::PixelFormat::Mono8: code = ARV_PIXEL_FORMAT_MONO_8; break;
+    case acquisition::PixelFormat::Mono12: code = ARV_PIXEL_FORMAT_MONO_12; break;
+    case acquisition::PixelFormat::Mono16: code = ARV_PIXEL_FORMAT_MONO_16; break;
+  }
+  arv_fake_camera_write_register(arv_gv_fake_camera_get_fake_camera(camera_), ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT,
+                                 code);
+}
+
 std::string GigEFrameServer::device_id() const { return "Aravis-Fake-" + serial_; }
 
 void GigEFrameServer::show(const acquisition::Frame& frame) {

@@ -56,6 +56,13 @@ class EmbeddedCamera {
     arv_fake_camera_set_fill_pattern(arv_gv_fake_camera_get_fake_camera(cam_), fill, nullptr);
   }
   ~EmbeddedCamera() { g_object_unref(cam_); }
+  // Faults: packets lost on the way (the fake camera never resends them), and a pixel
+  // format switched by the camera itself, as after a reset.
+  void lose_packets(double probability) { g_object_set(cam_, "gvsp-lost-ratio", probability, nullptr); }
+  void switch_pixel_format(ArvPixelFormat format) {
+    arv_fake_camera_write_register(arv_gv_fake_camera_get_fake_camera(cam_), ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT,
+                                   format);
+  }
   EmbeddedCamera(const EmbeddedCamera&) = delete;
   EmbeddedCamera& operator=(const EmbeddedCamera&) = delete;
 
@@ -256,4 +263,88 @@ TEST(GigECameraSource, RecoversFromTheStockFakeCameraBeingKilledAndRestarted) {
   ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= before + 10; }, 60s));
   source.stop();
   EXPECT_EQ(source.gige_statistics().outages, 1u);
+}
+
+// Packets lost on the link: a frame missing one is never delivered (no torn picture), the
+// loss shows in the counters, and when the link is whole again every frame comes through.
+TEST(GigECameraSource, FramesThatLostPacketsAreCountedAndNeverDeliveredTorn) {
+  const std::string serial = unique_serial("EVARPL");
+  EmbeddedCamera camera(serial);
+  acq::GigECameraOptions o;
+  o.camera = serial;
+  o.pixel_format = acq::PixelFormat::Mono16;
+  o.region = acq::Region{0, 0, 512, 256};
+  o.frame_rate_hz = 30.0;
+  Received rx;  // declared first: it outlives the source that calls into it
+  acq::GigECameraSource source(o);
+  start(source, rx);
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 10; }));
+  camera.lose_packets(0.01);  // 1 packet in 100: most frames of ~100 packets lose one
+  const std::uint64_t failed_before = source.gige_statistics().failed;
+  ASSERT_TRUE(rx.wait([&] { return source.gige_statistics().frames.dropped >= 20; }, 30s))
+      << source.gige_statistics().frames.dropped << " dropped";
+  camera.lose_packets(0.0);
+  const std::size_t whole_from = [&] {
+    std::lock_guard lock(rx.mutex);
+    return rx.frames.size();
+  }();
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= whole_from + 60; }, 30s));
+  source.stop();
+  const acq::GigEStatistics st = source.gige_statistics();
+  std::lock_guard lock(rx.mutex);
+  EXPECT_EQ(rx.bad_pixels, 0u) << "a delivered frame was torn";
+  EXPECT_GT(st.failed, failed_before) << "Aravis counts the incomplete frames";
+  EXPECT_EQ(st.refused, 0u);
+  // Every delivered frame carries its own block id: the camera's counter and the
+  // sequence move together across the losses.
+  for (std::size_t i = 1; i < rx.frames.size(); ++i) {
+    const auto& a = rx.frames[i - 1];
+    const auto& b = rx.frames[i];
+    ASSERT_GT(b.sequence, a.sequence) << "frame " << i;
+    EXPECT_EQ(Received::counter(b) - Received::counter(a), b.sequence - a.sequence) << "frame " << i;
+  }
+  // The whole link again: the last 50 frames came one after the other (the first few
+  // after the change may still be in flight with a packet missing).
+  for (std::size_t i = rx.frames.size() - 50; i < rx.frames.size(); ++i)
+    EXPECT_EQ(rx.frames[i].sequence, rx.frames[i - 1].sequence + 1) << "frame " << i;
+}
+
+// The camera switches itself to Mono8 mid-stream. Its frames are refused (never passed on
+// labelled Mono16), the state says what it sends, and the source sets it up again by itself.
+TEST(GigECameraSource, AFormatTheCameraSwitchedToByItselfIsRefusedAndTheCameraSetUpAgain) {
+  const std::string serial = unique_serial("EVARSW");
+  EmbeddedCamera camera(serial);
+  acq::GigECameraOptions o;
+  o.camera = serial;
+  o.pixel_format = acq::PixelFormat::Mono16;
+  o.region = acq::Region{0, 0, 256, 256};
+  o.frame_rate_hz = 30.0;
+  o.reconnect_interval = 200ms;
+  Received rx;  // declared first: it outlives the source that calls into it
+  acq::GigECameraSource source(o);
+  start(source, rx);
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 10; }));
+  camera.switch_pixel_format(ARV_PIXEL_FORMAT_MONO_8);
+  const auto stalled = acq::StreamState::Stalled;
+  ASSERT_TRUE(rx.wait(
+      [&] { return rx.said({"sends Mono8 256 x 256 frames, not the Mono16 256 x 256 it was set to"}, &stalled); },
+      30s));
+  const std::size_t before = [&] {
+    std::lock_guard lock(rx.mutex);
+    return rx.frames.size();
+  }();
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= before + 30; }, 30s)) << "not set up again";
+  source.stop();
+  const acq::GigEStatistics st = source.gige_statistics();
+  std::lock_guard lock(rx.mutex);
+  EXPECT_GT(st.refused, 0u);
+  EXPECT_EQ(st.outages, 1u);
+  EXPECT_EQ(st.connections, 2u);
+  EXPECT_EQ(rx.bad_pixels, 0u);
+  for (const acq::Frame& f : rx.frames) {
+    EXPECT_EQ(f.format, acq::PixelFormat::Mono16);
+    EXPECT_EQ(f.width, 256);
+    EXPECT_EQ(f.height, 256);
+  }
+  EXPECT_TRUE(rx.said({"setting it up again"}));
 }

@@ -1,7 +1,8 @@
 // Fault injection on the live node over the real transports: a simulated session played as
 // a GigE Vision camera on 127.0.0.1 and a C-arm link on a pseudo-terminal, received by the
 // node through its real Aravis and termios sources. Mid-run the camera is switched off and
-// on again, then the C-arm adapter hangs up and comes back. Throughout, the node keeps
+// on again, then its link loses packets for a while, then the camera switches itself to
+// another pixel format, then the C-arm adapter hangs up and comes back. Throughout, the node keeps
 // running and keeps its adapted model; the screen says what is wrong while it lasts (and,
 // without video, shows the last image marked as held); the log says it once and says when
 // it is resolved; and the node recovers by itself.
@@ -11,6 +12,7 @@
 #include <spdlog/sinks/ostream_sink.h>
 
 #include <algorithm>
+#include <cmath>
 #include <filesystem>
 #include <mutex>
 #include <sstream>
@@ -80,7 +82,7 @@ std::size_t count_of(const std::string& text, const std::string& what) {
 
 }  // namespace
 
-TEST(NodeOverTransports, KeepsItsModelThroughACameraOutageAndASerialHangupAndSaysSoOnce) {
+TEST(NodeOverTransports, KeepsItsModelThroughCameraAndLinkFaultsAndSaysEachOnce) {
   const fs::path dir = fs::path(testing::TempDir()) / ("evar_node_transports_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   sim::SessionPlan plan;
@@ -168,7 +170,41 @@ TEST(NodeOverTransports, KeepsItsModelThroughACameraOutageAndASerialHangupAndSay
   const std::size_t back = screen.wait_for(at, live_again, 60s);
   ASSERT_LT(back, screen.size()) << "the video did not come back on its own";
 
-  // 3. The C-arm adapter hangs up (the pty's far end closes) and comes back on the same
+  // 3. The camera's link loses packets: about half the frames lose one and never arrive
+  //    whole. The image stays live; the screen says it is losing frames until the link is
+  //    whole again.
+  const int packet = frames.gige_statistics().packet_size;
+  ASSERT_GT(packet, 100);
+  const double packets_per_frame = std::ceil(2.0 * plan.detector_px * plan.detector_px / (packet - 36));
+  {
+    std::lock_guard lock(ends);
+    camera->set_packet_loss(1.0 - std::pow(0.5, 1.0 / packets_per_frame));
+  }
+  const auto losing = [](const ScreenLog::Shown& f) { return !f.held && ScreenLog::alert(f, "video losing frames"); };
+  const std::size_t lossy = screen.wait_for(back, losing, 30s);
+  ASSERT_LT(lossy, screen.size()) << "no frame said the video was losing frames";
+  {
+    std::lock_guard lock(ends);
+    camera->set_packet_loss(0.0);
+  }
+  const std::size_t whole = screen.wait_for(lossy, live_again, 30s);
+  ASSERT_LT(whole, screen.size()) << "the loss alert did not clear when the link was whole";
+  const std::uint64_t lost_on_link = frames.statistics().dropped;
+
+  // 4. The camera switches itself to Mono8. Its frames are refused, the screen holds the
+  //    last good image and says why, and the node's source sets the camera up again.
+  {
+    std::lock_guard lock(ends);
+    camera->switch_pixel_format(acquisition::PixelFormat::Mono8);
+  }
+  const std::size_t switched = screen.size();
+  const std::size_t refused = screen.wait_for(
+      switched, [](const ScreenLog::Shown& f) { return f.held && ScreenLog::alert(f, "sends Mono8"); }, 30s);
+  ASSERT_LT(refused, screen.size()) << "no held frame said the camera sends Mono8";
+  const std::size_t set_up_again = screen.wait_for(refused, live_again, 30s);
+  ASSERT_LT(set_up_again, screen.size()) << "the source did not set the camera up again";
+
+  // 5. The C-arm adapter hangs up (the pty's far end closes) and comes back on the same
   //    link. The session's C-arm streams its state at 10 Hz, so the node's defaults for
   //    a silent link and stale geometry apply.
   {
@@ -176,7 +212,7 @@ TEST(NodeOverTransports, KeepsItsModelThroughACameraOutageAndASerialHangupAndSay
     carm_link.reset();
   }
   const std::size_t hangup = screen.wait_for(
-      back, [](const ScreenLog::Shown& f) { return ScreenLog::alert(f, "C-arm link disconnected"); }, 30s);
+      set_up_again, [](const ScreenLog::Shown& f) { return ScreenLog::alert(f, "C-arm link disconnected"); }, 30s);
   ASSERT_LT(hangup, screen.size()) << "no frame said the C-arm link was lost";
   {
     std::lock_guard lock(ends);
@@ -207,22 +243,33 @@ TEST(NodeOverTransports, KeepsItsModelThroughACameraOutageAndASerialHangupAndSay
   while (screen.frames[first_adapted].version == 0) ++first_adapted;
   for (std::size_t i = first_adapted; i < screen.frames.size(); ++i)
     ASSERT_GE(screen.frames[i].version, 1u) << "frame " << i << " went back to the preoperative model";
-  // The outage: held frames came only while there was no video, every one said so, and
-  // the log has the loss once (not once per held frame) and its resolution.
+  // The outage and the refused format: held frames came only while there was no video,
+  // every one said so, and the log has each loss once (not once per held frame) and its
+  // resolution.
   std::size_t held = 0;
   for (std::size_t i = 0; i < screen.frames.size(); ++i) {
     if (!screen.frames[i].held) continue;
     ++held;
-    EXPECT_GE(i, outage) << "a held frame before the camera went away";
-    EXPECT_LT(i, back) << "a held frame after the video came back";
+    EXPECT_TRUE((i >= outage && i < back) || (i >= switched && i < set_up_again))
+        << "held frame " << i << " while there was video (outage " << outage << "-" << back << ", format "
+        << switched << "-" << set_up_again << ")";
     EXPECT_TRUE(ScreenLog::alert(screen.frames[i], "LAST IMAGE HELD")) << "frame " << i;
   }
-  EXPECT_GE(held, 2u);
+  EXPECT_GE(held, 4u);
   EXPECT_EQ(s.frames_held, held);
-  EXPECT_EQ(s.video_stalls, 1u);
-  EXPECT_EQ(frames.gige_statistics().outages, 1u);
-  EXPECT_EQ(count_of(text, "] video disconnected"), 1u) << text;
-  EXPECT_EQ(count_of(text, "] no video for"), 1u) << text;
+  EXPECT_EQ(s.video_stalls, 2u);
+  EXPECT_EQ(frames.gige_statistics().outages, 2u) << "the camera switched off, then set up again";
+  EXPECT_GT(frames.gige_statistics().refused, 0u);
+  EXPECT_GT(lost_on_link, 0u) << "the alert was raised on frames the source lost";
+  EXPECT_EQ(s.frame_loss_alerts, 1u);
+  // Frames were lost only to the faults: none while the link was whole (after the loss
+  // alert cleared, the format switch lost none but the refused ones, which are not drops).
+  EXPECT_EQ(frames.statistics().dropped, lost_on_link);
+  EXPECT_EQ(count_of(text, "] video disconnected"), 2u) << text;
+  EXPECT_EQ(count_of(text, "] video losing frames"), 1u) << text;
+  EXPECT_EQ(count_of(text, "] video stalled: GigE camera " + frames.gige_statistics().camera_id + " sends Mono8"), 1u)
+      << text;
+  EXPECT_EQ(count_of(text, "] no video for"), 2u) << text;
   EXPECT_EQ(count_of(text, "] C-arm link disconnected"), 1u) << text;
   // Resolved after it was said (the alert may have moved on to "connecting" meanwhile).
   const auto resolved_after = [&](const std::string& said, const std::string& resolved) {
@@ -230,6 +277,7 @@ TEST(NodeOverTransports, KeepsItsModelThroughACameraOutageAndASerialHangupAndSay
     return at != std::string::npos && text.find(resolved, at) != std::string::npos;
   };
   EXPECT_TRUE(resolved_after("] video disconnected", "resolved: video")) << text;
+  EXPECT_TRUE(resolved_after("] video losing frames", "resolved: video losing frames")) << text;
   EXPECT_TRUE(resolved_after("] no video for", "resolved: no video for")) << text;
   EXPECT_TRUE(resolved_after("] C-arm link disconnected", "resolved: C-arm link")) << text;
   EXPECT_GE(carm.statistics().connections, 2u);

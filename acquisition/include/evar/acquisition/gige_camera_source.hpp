@@ -46,13 +46,18 @@ struct GigECameraOptions {
   /// receives nothing. Otherwise a plain UDP socket, whoever runs the node.
   bool packet_socket = false;
   std::chrono::milliseconds stall_after{500};          ///< no frame for this long → Stalled
-  std::chrono::milliseconds probe_after{1500};         ///< stalled this long → ask the camera if it is there
+  /// Stalled this long → ask the camera if it is there; sending frames of another pixel
+  /// format or size for this long → set the camera up again.
+  std::chrono::milliseconds probe_after{1500};
   std::chrono::milliseconds reconnect_interval{500};
 };
 
 struct GigEStatistics {
   SequenceStats frames;                 ///< from the GVSP block ids, across reconnections
   std::uint64_t completed = 0, failed = 0, underruns = 0;  ///< Aravis stream counters, summed
+  /// Whole frames refused because the camera sent another pixel format or size than it was
+  /// set to (it changed them by itself mid-stream); never delivered under the wrong label.
+  std::uint64_t refused = 0;
   std::uint64_t connections = 0, outages = 0;
   double longest_outage_ms = 0.0;
   std::optional<std::int64_t> clock_offset_ns;  ///< host steady clock − device clock

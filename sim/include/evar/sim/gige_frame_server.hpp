@@ -30,6 +30,14 @@ class GigEFrameServer {
   /// (Mono8 clients get the high byte); a camera region larger than the frame is padded
   /// with zeros, a smaller one shows the frame's top-left corner. Throws for other formats.
   void show(const acquisition::Frame& frame);
+  /// Fault injection: each GVSP packet from now on is lost with this probability (0 to 1),
+  /// as on a bad cable or an overloaded switch. The camera does not resend, so a frame that
+  /// lost a packet is lost. Throws std::invalid_argument outside [0, 1].
+  void set_packet_loss(double probability);
+  /// Fault injection: the camera switches itself to this pixel format mid-stream, as one
+  /// does after a reset, without telling its client. A client that sets it up again
+  /// (writes PixelFormat) switches it back.
+  void switch_pixel_format(acquisition::PixelFormat format);
   /// The id a client opens it by ("Aravis-Fake-<serial>").
   std::string device_id() const;
   std::uint64_t frames_sent() const { return sent_; }
