@@ -24,6 +24,8 @@
 #include <igtlPolyDataMessage.h>
 #include <igtlStatusMessage.h>
 
+#include "igtl_request_reader.hpp"
+
 namespace evar::overlay {
 
 namespace {
@@ -72,23 +74,8 @@ struct Client {
   Fd fd;
   std::deque<Pending> backlog;
   std::size_t backlog_bytes = 0;
-  std::vector<std::uint8_t> in;  // bytes of requests not yet whole
-  std::uint64_t skip = 0;        // body bytes still to come of a message that is not a request
+  IgtlRequestReader requests;
 };
-
-// OpenIGTLink's header: version (2), type (12), device name (20), timestamp (8), body size
-// (8), CRC (8), big-endian.
-constexpr std::size_t kHeaderBytes = 58;
-// A request has an empty body; a client that announces more than this for a GET_ is not
-// speaking OpenIGTLink to us (or is hostile), and is let go rather than buffered. Other
-// messages' bodies (a client may push data) are read and let go as they stream in.
-constexpr std::uint64_t kMaxRequestBodyBytes = 1u << 20;
-
-std::string header_text(const std::uint8_t* p, std::size_t n) {
-  std::size_t len = 0;
-  while (len < n && p[len] != 0) ++len;
-  return std::string(reinterpret_cast<const char*>(p), len);
-}
 
 struct Retained {
   std::string type;  // POLYDATA or POINT
@@ -151,39 +138,22 @@ struct IgtlServer::Impl {
     notify();
   }
 
-  // Answers the requests whole in the client's input; false when the client must go (a
-  // request announcing a body larger than any request has). GET_IMAGE, GET_POLYDATA,
-  // GET_POINT: the latest message of that type under the device name asked for, or all of
-  // them when the name is none of ours (the stock clients ask as "Client"); GET_STATUS:
-  // the node's status. What is not there is answered with a STATUS saying so; anything
-  // else is read and let go.
-  bool answer(Client& c) {
-    std::size_t at = 0;
-    for (;;) {
-      if (c.skip > 0) {
-        const std::size_t drop = static_cast<std::size_t>(std::min<std::uint64_t>(c.skip, c.in.size() - at));
-        at += drop;
-        c.skip -= drop;
-        if (c.skip > 0) break;
-      }
-      if (c.in.size() - at < kHeaderBytes) break;
-      const std::uint8_t* h = c.in.data() + at;
-      std::uint64_t body = 0;
-      for (int i = 0; i < 8; ++i) body = (body << 8) | h[42 + i];
-      const std::string type = header_text(h + 2, 12), name = header_text(h + 14, 20);
-      if (type.rfind("GET_", 0) != 0) {
+  // Answers the requests among the messages a client sent; false when the client must go
+  // (its stream is garbage, see IgtlRequestReader). GET_IMAGE, GET_POLYDATA, GET_POINT: the
+  // latest message of that type under the device name asked for, or all of them when the
+  // name is none of ours (the stock clients ask as "Client"); GET_STATUS: the node's
+  // status. What is not there is answered with a STATUS saying so; anything else is read
+  // and let go.
+  bool answer(Client& c, const std::uint8_t* bytes, std::size_t size) {
+    std::vector<IgtlMessageHeader> messages;
+    const bool ok = c.requests.feed(bytes, size, messages);
+    for (const IgtlMessageHeader& m : messages) {
+      if (!m.request()) {
         ++stats.requests_ignored;
-        at += kHeaderBytes;
-        c.skip = body;
         continue;
       }
-      if (body > kMaxRequestBodyBytes) {
-        ++stats.clients_dropped_for_garbage;
-        return false;
-      }
-      if (c.in.size() - at < kHeaderBytes + body) break;
-      at += kHeaderBytes + static_cast<std::size_t>(body);
-      const std::string wanted = type.substr(4);
+      const std::string wanted = m.type.substr(4);
+      const std::string& name = m.device;
       std::vector<Bytes> reply;
       bool image = false;
       if (wanted == "STATUS") {
@@ -210,8 +180,8 @@ struct IgtlServer::Impl {
       for (const Bytes& b : reply) enqueue(c, b, image);
       ++stats.requests_answered;
     }
-    c.in.erase(c.in.begin(), c.in.begin() + static_cast<std::ptrdiff_t>(at));
-    return true;
+    if (!ok) ++stats.clients_dropped_for_garbage;
+    return ok;
   }
 
   // Writes what the socket takes now; false when the client is gone.
@@ -262,10 +232,7 @@ struct IgtlServer::Impl {
         if (ev & POLLIN) {
           const ssize_t n = ::recv(c.fd.get(), sink, sizeof sink, MSG_DONTWAIT);
           if (n == 0 || (n < 0 && errno != EAGAIN && errno != EWOULDBLOCK && errno != EINTR)) gone[i] = true;
-          if (n > 0) {
-            c.in.insert(c.in.end(), sink, sink + n);
-            if (!answer(c)) gone[i] = true;
-          }
+          if (n > 0 && !answer(c, sink, static_cast<std::size_t>(n))) gone[i] = true;
         }
         if (ev & (POLLERR | POLLHUP | POLLNVAL)) gone[i] = true;
         if (!gone[i] && (ev & POLLOUT) && !flush(c)) gone[i] = true;
