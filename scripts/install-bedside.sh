@@ -2,7 +2,8 @@
 # Installs evarnode as the hardened bedside service (docs/SECURITY.md): the binary, a
 # dedicated system user, the systemd unit, the udev rule for the C-arm adapter, the GigE
 # receive-buffer cap (sysctl) and a starting /etc/evarnode/node.json (kept if present).
-# Idempotent; needs root.
+# Idempotent; needs root. The device choices are kept in /etc/evarnode/bedside.conf, so
+# a re-install (an update) without flags keeps them; --no-... drops one.
 #
 #   sudo scripts/install-bedside.sh [--carm-usb VID:PID] [--grabber-usb VID:PID] [--packet-socket]
 #   scripts/install-bedside.sh --render DIR [--bin PATH] [...]   (writes the files into DIR only)
@@ -11,10 +12,12 @@
 #                 USB-serial converter behind "serial:/dev/evarnode-carm"); lsusb shows it
 # --grabber-usb   a USB frame grabber, to be named /dev/evarnode-grabber
 # --packet-socket grant CAP_NET_RAW for Aravis's packet socket (GigE at high rates)
+# --no-carm-usb, --no-grabber-usb, --no-packet-socket   drop a choice kept from before
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
-render="" bin=/usr/local/bin/evarnode carm="" grabber="" packet_socket=0
-usage() { sed -n '2,13p' "$0" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
+render="" bin=/usr/local/bin/evarnode carm="" grabber="" packet_socket=""
+usage() { sed -n '2,15p' "$0" | sed 's/^# \{0,1\}//'; exit "${1:-0}"; }
+unset_carm=0 unset_grabber=0
 while [ $# -gt 0 ]; do
   case "$1" in
     --render) render=${2:?--render needs a directory}; shift 2 ;;
@@ -22,16 +25,49 @@ while [ $# -gt 0 ]; do
     --carm-usb) carm=${2:?--carm-usb needs VID:PID}; shift 2 ;;
     --grabber-usb) grabber=${2:?--grabber-usb needs VID:PID}; shift 2 ;;
     --packet-socket) packet_socket=1; shift ;;
+    --no-carm-usb) unset_carm=1; shift ;;
+    --no-grabber-usb) unset_grabber=1; shift ;;
+    --no-packet-socket) packet_socket=0; shift ;;
     -h|--help) usage 0 ;;
     *) echo "install-bedside.sh: unknown argument '$1'" >&2; usage 2 >&2 ;;
   esac
 done
+vid_pid='^[0-9a-fA-F]{4}:[0-9a-fA-F]{4}$'
 for id in "$carm" "$grabber"; do
-  if [ -n "$id" ] && ! [[ "$id" =~ ^[0-9a-fA-F]{4}:[0-9a-fA-F]{4}$ ]]; then
+  if [ -n "$id" ] && ! [[ "$id" =~ $vid_pid ]]; then
     echo "install-bedside.sh: '$id' is not VID:PID (four hexadecimal digits each, as lsusb prints)" >&2
     exit 2
   fi
 done
+
+# The choices of the last install: read as data (never sourced), each line checked.
+conf=${render:+$render/bedside.conf}
+conf=${conf:-/etc/evarnode/bedside.conf}
+if [ -f "$conf" ]; then
+  line_no=0
+  while IFS= read -r line || [ -n "$line" ]; do
+    line_no=$((line_no + 1))
+    case "$line" in
+      ''|'#'*) continue ;;
+    esac
+    key=${line%%=*} value=${line#*=}
+    ok=0
+    case "$key" in
+      carm_usb|grabber_usb) [[ -z "$value" || "$value" =~ $vid_pid ]] && ok=1 ;;
+      packet_socket) [[ "$value" =~ ^[01]$ ]] && ok=1 ;;
+    esac
+    if [ "$ok" = 0 ] || [ "$key" = "$line" ]; then
+      echo "install-bedside.sh: $conf line $line_no: '$line' is not carm_usb=VID:PID, grabber_usb=VID:PID or packet_socket=0|1; fix or delete the file" >&2
+      exit 2
+    fi
+    case "$key" in
+      carm_usb) [ -n "$carm" ] || [ "$unset_carm" = 1 ] || { carm=$value; [ -z "$value" ] || echo "evarnode: C-arm adapter $value, kept from $conf"; } ;;
+      grabber_usb) [ -n "$grabber" ] || [ "$unset_grabber" = 1 ] || { grabber=$value; [ -z "$value" ] || echo "evarnode: USB grabber $value, kept from $conf"; } ;;
+      packet_socket) [ -n "$packet_socket" ] || { packet_socket=$value; [ "$value" = 0 ] || echo "evarnode: packet socket, kept from $conf"; } ;;
+    esac
+  done < "$conf"
+fi
+packet_socket=${packet_socket:-0}
 
 # The files, into a staging directory.
 stage=$(mktemp -d)
@@ -56,10 +92,21 @@ cp "$root/scripts/bedside/evarnode-packet-socket.conf" "$stage/packet-socket.con
   fi
 } > "$stage/70-evarnode.rules"
 
+{
+  echo "# The choices of the last scripts/install-bedside.sh; a re-install without flags keeps them."
+  echo "carm_usb=$carm"
+  echo "grabber_usb=$grabber"
+  echo "packet_socket=$packet_socket"
+} > "$stage/bedside.conf"
+
 if [ -n "$render" ]; then
   mkdir -p "$render/evarnode.service.d"
-  cp "$stage/evarnode.service" "$stage/70-evarnode.rules" "$root/scripts/bedside/60-evarnode-gige.conf" "$render/"
-  [ "$packet_socket" = 1 ] && cp "$stage/packet-socket.conf" "$render/evarnode.service.d/"
+  cp "$stage/evarnode.service" "$stage/70-evarnode.rules" "$stage/bedside.conf" "$root/scripts/bedside/60-evarnode-gige.conf" "$render/"
+  if [ "$packet_socket" = 1 ]; then
+    cp "$stage/packet-socket.conf" "$render/evarnode.service.d/"
+  else
+    rm -f "$render/evarnode.service.d/packet-socket.conf"
+  fi
   echo "evarnode: bedside files written to $render"
   exit 0
 fi
@@ -80,8 +127,9 @@ install -D -m 0644 "$root/scripts/bedside/60-evarnode-gige.conf" /etc/sysctl.d/6
 sysctl -q -p /etc/sysctl.d/60-evarnode-gige.conf ||
   echo "evarnode: could not raise net.core.rmem_max here (a container?); it applies from the next boot" >&2
 install -D -m 0644 "$root/docs/SECURITY.md" /usr/local/share/doc/evarnode/SECURITY.md
+install -d -m 0750 -g evarnode /etc/evarnode
+install -m 0644 "$stage/bedside.conf" /etc/evarnode/bedside.conf
 if [ ! -e /etc/evarnode/node.json ]; then
-  install -d -m 0750 -g evarnode /etc/evarnode
   install -m 0640 -g evarnode "$root/scripts/bedside/node.json" /etc/evarnode/node.json
   echo "evarnode: edit /etc/evarnode/node.json (scene, registration, detector, grabber, C-arm link)"
 fi

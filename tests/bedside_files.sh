@@ -29,6 +29,24 @@ bash "$src/scripts/install-bedside.sh" --render "$out/raw" --bin "$bin" --packet
 grep -q '^AmbientCapabilities=CAP_NET_RAW$' "$out/raw/evarnode.service.d/packet-socket.conf" || fail "no CAP_NET_RAW drop-in"
 if grep -q 'idVendor' "$out/raw/70-evarnode.rules"; then fail "a rule for an adapter nobody named"; fi
 
+# A re-install without flags (an update) keeps the choices of the last one; --no-... drops one.
+bash "$src/scripts/install-bedside.sh" --render "$out/again" --bin "$bin" --carm-usb 1D6B:0104 --packet-socket >/dev/null
+bash "$src/scripts/install-bedside.sh" --render "$out/again" --bin "$bin" >"$out/again.txt"
+grep -q 'ATTR{idVendor}=="1d6b", ATTR{idProduct}=="0104"' "$out/again/70-evarnode.rules" ||
+  fail "a re-install without flags lost the C-arm adapter's rule"
+[ -e "$out/again/evarnode.service.d/packet-socket.conf" ] || fail "a re-install without flags lost the packet socket"
+grep -q 'C-arm adapter 1D6B:0104, kept from' "$out/again.txt" || fail "the kept choice was not said: $(cat "$out/again.txt")"
+bash "$src/scripts/install-bedside.sh" --render "$out/again" --bin "$bin" --no-packet-socket --no-carm-usb >/dev/null
+[ ! -e "$out/again/evarnode.service.d/packet-socket.conf" ] || fail "--no-packet-socket left the drop-in"
+if grep -q 'idVendor' "$out/again/70-evarnode.rules"; then fail "--no-carm-usb left the rule"; fi
+# A damaged record is named with its line, never run as shell.
+printf 'carm_usb=1d6b:0104\npacket_socket=$(touch %s/pwned)\n' "$out" > "$out/again/bedside.conf"
+if bash "$src/scripts/install-bedside.sh" --render "$out/again" --bin "$bin" 2>"$out/err.txt"; then
+  fail "a damaged bedside.conf was accepted"
+fi
+[ ! -e "$out/pwned" ] || fail "bedside.conf was run as shell"
+grep -q "bedside.conf line 2: 'packet_socket=\$(touch" "$out/err.txt" || fail "unclear error: $(cat "$out/err.txt")"
+
 if bash "$src/scripts/install-bedside.sh" --render "$out/bad" --carm-usb 1d6b-0104 2>"$out/err.txt"; then
   fail "a malformed VID:PID was accepted"
 fi
