@@ -43,7 +43,8 @@ std::filesystem::path VideoSink::numbered(int number) const {
 void VideoSink::write(const ComposedFrame& frame) {
   if (frame.held) return;  // the file keeps the video's own timing; the gap is in the log
   // A full segment is finished when the next frame comes, so `path` always holds the newest.
-  if (segment_full_) finish_segment();
+  // What the disk refused then is said after this frame is written: no frame is lost to it.
+  const std::string problem = segment_full_ ? finish_segment() : std::string();
   if (!writer_) writer_ = std::make_unique<overlay::VideoFileWriter>(current_, fps_, frame.image->width, frame.image->height);
   writer_->write(*frame.image);
   ++frames_;
@@ -53,9 +54,10 @@ void VideoSink::write(const ComposedFrame& frame) {
     const std::uintmax_t bytes = std::filesystem::file_size(current_, ec);
     segment_full_ = !ec && bytes >= segment_bytes_;
   }
+  if (!problem.empty()) throw std::runtime_error("video: " + problem);
 }
 
-void VideoSink::finish_segment() {
+std::string VideoSink::finish_segment() {
   segment_full_ = false;
   writer_->close();
   writer_.reset();
@@ -90,7 +92,7 @@ void VideoSink::finish_segment() {
     finished_bytes_ -= finished_.front().bytes;
     finished_.pop_front();
   }
-  if (!problem.empty()) throw std::runtime_error("video: " + problem);
+  return problem;
 }
 
 std::vector<std::filesystem::path> VideoSink::segments() const {
@@ -121,6 +123,9 @@ void SnapshotSink::save(const overlay::Image& image, const std::string& file, bo
 void SnapshotSink::keep_within_budget() {
   if (max_bytes_ == 0) return;
   // The newest picture stays even when it alone is over the budget: it is the one just taken.
+  // A picture the disk refuses to delete is said once and no longer counted, so the budget
+  // goes on with the others instead of stopping at it every time.
+  std::string problem;
   for (auto it = pictures_.begin(); bytes_ > max_bytes_ && it != pictures_.end() && std::next(it) != pictures_.end();) {
     if (it->requested) {
       ++it;
@@ -128,12 +133,14 @@ void SnapshotSink::keep_within_budget() {
     }
     std::error_code ec;
     std::filesystem::remove(it->path, ec);
-    if (ec) throw std::runtime_error("snapshots: cannot delete " + it->path.string() + " to stay within " +
-                                     std::to_string(max_bytes_ >> 20) + " MiB: " + ec.message());
+    if (ec && problem.empty())
+      problem = "cannot delete " + it->path.string() + " to stay within " + std::to_string(max_bytes_ >> 20) +
+                " MiB: " + ec.message();
+    if (!ec) ++deleted_;
     bytes_ -= it->bytes;
-    ++deleted_;
     it = pictures_.erase(it);
   }
+  if (!problem.empty()) throw std::runtime_error("snapshots: " + problem);
 }
 
 std::vector<std::filesystem::path> SnapshotSink::kept() const {

@@ -29,6 +29,9 @@ class VideoSink final : public OutputSink {
  public:
   VideoSink(std::filesystem::path path, double fps, std::uintmax_t max_bytes = 0);
   std::string name() const override { return "video " + path_.string(); }
+  /// Throws std::runtime_error naming the file when the disk refuses to rename a finished
+  /// segment (it then stays under its name and the next ones are numbered) or to delete the
+  /// oldest (it is no longer counted); the frame itself is written first.
   void write(const ComposedFrame& frame) override;
   void finish() override;
   std::size_t frames() const { return frames_; }  ///< written, all segments
@@ -41,7 +44,9 @@ class VideoSink final : public OutputSink {
     std::filesystem::path path;
     std::uintmax_t bytes;
   };
-  void finish_segment();
+  /// Closes the current segment and keeps the video within its budget; what the disk
+  /// refused (a rename, a delete), or "".
+  std::string finish_segment();
   std::filesystem::path numbered(int number) const;
 
   std::filesystem::path path_, current_;  // asked for; being written (path_ unless a rename failed)

@@ -61,6 +61,46 @@ TEST(SnapshotSink, AfterIsTheFirstFrameDrawnWithTheNewModel) {
   fs::remove_all(dir);
 }
 
+// The oldest picture cannot be deleted (a folder now stands in its place): said once by
+// name, and the budget goes on with the other pictures instead of stopping at it.
+TEST(SnapshotSink, APictureTheDiskRefusesToDeleteIsSaidOnceAndTheBudgetGoesOn) {
+  const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_refused_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  std::uintmax_t one = 0;
+  {
+    app::SnapshotSink probe(dir / "probe");
+    probe.request();
+    probe.write(frame(1, 0, true));
+    one = probe.bytes();
+  }
+  ASSERT_GT(one, 0u);
+  app::SnapshotSink sink(dir / "run", 4 * one + one / 2);
+  sink.write(frame(20, 0, true));
+  sink.write(frame(21, 1, true));  // model 1: before and after
+  ASSERT_TRUE(fs::is_regular_file(dir / "run" / "model-1-before.png"));
+  fs::remove(dir / "run" / "model-1-before.png");
+  fs::create_directories(dir / "run" / "model-1-before.png" / "in-the-way");
+  std::vector<std::string> said;
+  for (std::uint8_t v = 2; v <= 10; ++v) {
+    try {
+      sink.write(frame(static_cast<std::uint8_t>(20 + v), v, true));
+    } catch (const std::runtime_error& e) {
+      said.push_back(e.what());
+    }
+  }
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_NE(said[0].find("snapshots: cannot delete " + (dir / "run" / "model-1-before.png").string()), std::string::npos)
+      << said[0];
+  // The others were deleted as the budget asked: what is counted fits, and the files beside
+  // the folder are exactly the pictures kept.
+  EXPECT_LE(sink.bytes(), 4 * one + one / 2);
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir / "run")) files += e.is_regular_file() ? 1 : 0;
+  EXPECT_EQ(files, sink.kept().size());
+  EXPECT_EQ(grey_of(dir / "run" / "model-10-after.png"), 30);
+  fs::remove_all(dir);
+}
+
 TEST(SnapshotSink, KeepsModelPicturesWithinItsBudgetAndNeverDeletesARequestedSnapshot) {
   const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_budget_" + std::to_string(::getpid()));
   fs::remove_all(dir);
@@ -97,6 +137,61 @@ TEST(SnapshotSink, KeepsModelPicturesWithinItsBudgetAndNeverDeletesARequestedSna
   EXPECT_FALSE(fs::exists(dir / "run" / "model-18-after.png"));
   EXPECT_EQ(grey_of(dir / "run" / "model-20-before.png"), 39);
   EXPECT_EQ(grey_of(dir / "run" / "model-20-after.png"), 40);
+  fs::remove_all(dir);
+}
+
+// The disk refuses twice: the first finished segment cannot be renamed (a folder is in
+// the way), then it cannot be deleted for the budget (someone put a folder in its place).
+// Each refusal is said once, naming the file; no frame is lost to it; the video goes on in
+// numbered segments and the budget holds for the rest.
+TEST(VideoSink, ARenameOrDeleteTheDiskRefusesIsSaidByNameAndNoFrameIsLost) {
+  const fs::path dir = fs::temp_directory_path() / ("evar_video_refused_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  const std::uintmax_t budget = 4u << 20;  // segments of 1 MiB
+  std::vector<std::string> said;
+  std::size_t written = 0;
+  app::VideoSink sink(dir / "overlay.avi", 30.0, budget);
+  fs::create_directories(dir / "overlay-0001.avi" / "in-the-way");  // the first segment's new name
+  cv::Mat noise(256, 256, CV_8UC3);
+  cv::RNG rng(11);
+  for (int i = 0; i < 900; ++i) {
+    rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+    overlay::Image image = overlay::Image::filled(256, 256, {0, 0, 0});
+    std::memcpy(image.bgr.data(), noise.data, image.bgr.size());
+    app::ComposedFrame f;
+    f.image = std::make_shared<const overlay::Image>(std::move(image));
+    try {
+      sink.write(f);
+    } catch (const std::runtime_error& e) {
+      said.push_back(e.what());
+      if (said.size() == 1) {
+        // The segment kept under its own name is replaced by a folder the sink cannot delete.
+        ASSERT_TRUE(fs::is_regular_file(dir / "overlay.avi"));
+        fs::remove(dir / "overlay.avi");
+        fs::create_directories(dir / "overlay.avi" / "in-the-way");
+      }
+    }
+    ++written;
+  }
+  sink.finish();
+  ASSERT_EQ(said.size(), 2u);
+  EXPECT_NE(said[0].find("video: cannot rename " + (dir / "overlay.avi").string() + " to " +
+                         (dir / "overlay-0001.avi").string()),
+            std::string::npos)
+      << said[0];
+  EXPECT_NE(said[1].find("video: cannot delete " + (dir / "overlay.avi").string() + " to stay within 4 MiB"),
+            std::string::npos)
+      << said[1];
+  EXPECT_EQ(sink.frames(), written) << "a frame was lost to a refusal";
+  // The rest of the video is in numbered segments from 0002 on, within the budget.
+  ASSERT_FALSE(sink.segments().empty());
+  for (const auto& p : sink.segments()) EXPECT_GE(std::stoi(p.filename().string().substr(8, 4)), 2) << p;
+  EXPECT_GT(sink.segments_deleted(), 0u);
+  std::uintmax_t on_disk = 0;
+  for (const auto& e : fs::directory_iterator(dir))
+    if (e.is_regular_file()) on_disk += e.file_size();
+  EXPECT_LE(on_disk, budget + (2u << 20));
   fs::remove_all(dir);
 }
 
