@@ -240,7 +240,8 @@ struct V4l2FrameSource::Impl {
                           " (fields in separate buffers or one after the other); evarnode reads progressive or "
                           "interleaved frames only",
                       EINVAL);
-    if (pix.width == 0 || pix.height == 0 || pix.width > 16384 || pix.height > 16384)
+    if (pix.width == 0 || pix.height == 0 || pix.width > 16384 || pix.height > 16384 ||
+        std::uint64_t{pix.width} * pix.height > std::uint64_t{8192} * 8192)
       throw V4l2Error(options.device + ": the driver set an implausible size " + size_text(static_cast<int>(pix.width), static_cast<int>(pix.height)), EINVAL);
     V4l2Layout layout{pix.pixelformat, static_cast<int>(pix.width), static_cast<int>(pix.height),
                       static_cast<int>(pix.bytesperline), pix.sizeimage};

@@ -2,6 +2,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "evar/geometry/image_header.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/json_fields.hpp"
 
@@ -40,6 +41,9 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
       d.rows = static_cast<int>(number_field(path, value["rows"], "detector.rows", 1, 16384, "px"));
       d.row_spacing_mm = number_field(path, value["row_spacing_mm"], "detector.row_spacing_mm", 1e-3, 10, "mm");
       d.col_spacing_mm = number_field(path, value["col_spacing_mm"], "detector.col_spacing_mm", 1e-3, 10, "mm");
+      if (std::int64_t{d.cols} * d.rows > geometry::kMaxImagePixels)
+        bad_field(path, key, std::to_string(d.cols) + " x " + std::to_string(d.rows) + " pixels; at most " +
+                                 std::to_string(geometry::kMaxImagePixels) + " in all");
       c.detector = d;
     } else if (key == "frames") {
       if (!value.is_object()) bad_field(path, key, "expected an object");

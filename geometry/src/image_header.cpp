@@ -95,7 +95,7 @@ ImageHeader read_image_header(std::string_view bytes, const std::string& source)
   if (h.width > kMaxImageSidePx || h.height > kMaxImageSidePx || h.width * h.height > kMaxImagePixels)
     throw InputError(source + ": the " + h.format + " header declares " + std::to_string(h.width) + " x " +
                      std::to_string(h.height) + " pixels; at most " + std::to_string(kMaxImageSidePx) +
-                     " per side are read");
+                     " per side and " + std::to_string(kMaxImagePixels) + " in all are read");
   return h;
 }
 

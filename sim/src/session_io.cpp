@@ -13,6 +13,7 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "evar/geometry/carm_projection.hpp"
+#include "evar/geometry/image_header.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/image_file.hpp"
 #include "evar/geometry/input_file.hpp"
@@ -146,6 +147,9 @@ Session read_session(const std::filesystem::path& directory) {
       fail(json_path, 0, std::string("detector.") + key + ": expected an integer from 1 to 16384");
   s.detector.cols = det["cols"].get<int>();
   s.detector.rows = det["rows"].get<int>();
+  if (std::int64_t{s.detector.cols} * s.detector.rows > geometry::kMaxImagePixels)
+    fail(json_path, 0, "detector: " + std::to_string(s.detector.cols) + " x " + std::to_string(s.detector.rows) +
+                           " pixels; at most " + std::to_string(geometry::kMaxImagePixels) + " in all");
   s.detector.row_spacing_mm = positive("row_spacing_mm");
   s.detector.col_spacing_mm = positive("col_spacing_mm");
   const auto& streams = field("streams");

@@ -82,3 +82,19 @@ TEST(NodeConfig, TheViewGapIsReadInSecondsAndBoundedWithItsField) {
               HasSubstr("max_view_gap_s"));
   fs::remove(file);
 }
+
+TEST(NodeConfig, ADetectorOfMorePixelsThanAnyImageReadIsRefused) {
+  const fs::path file = fs::temp_directory_path() / ("evar_node_detector_" + std::to_string(::getpid()) + ".json");
+  const auto with = [&](int cols, int rows) {
+    std::ofstream(file) << R"({"format": "evarnode-node", "version": 1, "detector": {"cols": )" << cols
+                        << R"(, "rows": )" << rows << R"(, "row_spacing_mm": 0.2, "col_spacing_mm": 0.2}})";
+    return file;
+  };
+  // Each side within 16384, but 16384 x 16384 is 512 MiB a frame at 16 bits.
+  EXPECT_THAT(evar::test::error_message([&] { evar::app::read_node_config(with(16384, 16384)); }),
+              HasSubstr("detector: 16384 x 16384 pixels; at most 67108864 in all"));
+  const auto wide = evar::app::read_node_config(with(16384, 4096));
+  ASSERT_TRUE(wide.detector);
+  EXPECT_EQ(wide.detector->cols, 16384);
+  fs::remove(file);
+}

@@ -72,6 +72,17 @@ TEST(ImageHeader, ADecompressionBombIsRefusedBeforeDecoding) {
               HasSubstr("bomb.png: the PNG header declares 100000 x 100000"));
 }
 
+TEST(ImageHeader, EachSideAndThePixelsInAllAreBounded) {
+  std::string png = encoded(".png", cv::Mat(8, 8, CV_16UC1, cv::Scalar(0)));
+  put_be32(png, 16, 16384);  // both sides allowed, 2^28 pixels in all are not
+  put_be32(png, 20, 16384);
+  EXPECT_THAT(error_of(png), HasSubstr("declares 16384 x 16384 pixels; at most 16384 per side and 67108864 in all"));
+  put_be32(png, 20, 4096);  // 2^26: the most in all
+  const auto h = read_image_header(png, "f");
+  EXPECT_EQ(h.width, 16384);
+  EXPECT_EQ(h.height, 4096);
+}
+
 TEST(ImageHeader, CutShortMalformedAndOtherFormatsNameTheirProblem) {
   const std::string png = encoded(".png", cv::Mat(4, 4, CV_8UC1, cv::Scalar(0)));
   EXPECT_THAT(error_of(png.substr(0, 18)), HasSubstr("f.img: PNG header, byte 18: the file ends inside the header"));

@@ -169,6 +169,12 @@ TEST(Session, CorruptFilesAreNamedWithTheirLine) {
   fresh();
   replace_in(dir.path / "carm.csv", "timestamp_ns,primary_deg", "timestamp,primary_deg");
   EXPECT_NE(error_reading(dir.path).find("carm.csv:1: header"), std::string::npos) << error_reading(dir.path);
+  fresh();  // each side allowed, 2^28 pixels in all are not
+  replace_in(dir.path / "session.json", "\"cols\": 60", "\"cols\": 16384");
+  replace_in(dir.path / "session.json", "\"rows\": 40", "\"rows\": 16384");
+  EXPECT_NE(error_reading(dir.path).find("session.json: detector: 16384 x 16384 pixels; at most 67108864 in all"),
+            std::string::npos)
+      << error_reading(dir.path);
 }
 
 TEST(Session, TruncatedFilesAreClearErrorsAtEveryLength) {

@@ -12,10 +12,12 @@ struct ImageHeader {
   std::int64_t width = 0, height = 0;  ///< pixels
 };
 
-/// Largest side accepted (the largest detector node.json describes) and largest pixel
-/// count (a single-channel 16-bit image of it is 512 MiB; four channels, 2 GiB).
+/// Largest side accepted (a long, narrow image may have it) and largest pixel count in all:
+/// four times the largest flat-panel detector (about 4k x 4k). A single-channel 16-bit
+/// image of it is 128 MiB, a four-channel one 512 MiB. Detector sizes in node.json and
+/// session.json are held to the same limits.
 inline constexpr std::int64_t kMaxImageSidePx = 16384;
-inline constexpr std::int64_t kMaxImagePixels = kMaxImageSidePx * kMaxImageSidePx;
+inline constexpr std::int64_t kMaxImagePixels = std::int64_t{8192} * 8192;
 
 /// Reads the format and size of a PNG (IHDR), TIFF (the first IFD's ImageWidth and
 /// ImageLength, either byte order) or JPEG (the first start-of-frame segment). Throws
