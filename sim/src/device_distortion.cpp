@@ -293,78 +293,111 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
   const std::size_t ci = static_cast<std::size_t>(carrier - scene.vessels.data());
   DeviceDistortion out;
   out.carrier = carrier->name;
-  double intrusion = 0.0;
-  for (int round = 0; round <= o.max_contact_rounds; ++round) {
-    // Contact: sections the device crosses outside the lumen are pushed toward it, unless
-    // the crossing lies in the other vessel (in the bifurcation the union of aorta and
-    // carrier holds the device).
-    const Polyline now[2] = {moved(ai), moved(ci)};
-    const double now_length[2] = {geometry::arc_lengths(now[0]).back(), geometry::arc_lengths(now[1]).back()};
-    intrusion = 0.0;
-    bool changed = false;
-    for (int side = 0; side < 2; ++side) {
-      const std::size_t vi = side == 0 ? ai : ci, other = side == 0 ? ci : ai;
-      const Polyline& c = now[side];
-      for (std::size_t i = 1; i + 1 < c.size(); ++i) {
-        const std::size_t k = first[vi] + i;
-        if (!beams.pushed[k]) continue;
-        // The section is the preoperative one translated (see SectionSweep): its plane
-        // keeps the preoperative normal.
-        const Eigen::Vector3d t = (beams.rest[k + 1] - beams.rest[k - 1]).normalized();
-        const auto x = device_crossing(scene.device, c[i], t, beams.radius[k] + 15.0);
-        if (!x) continue;
-        const Eigen::Vector3d e = *x - c[i];
-        const double over = e.norm() - (beams.radius[k] - wall);
-        if (over <= 0.0 || inside_tube(now[1 - side], now_length[1 - side], arcs[other], scene.vessels[other].radii_mm, *x, wall)) continue;
-        intrusion = std::max(intrusion, over);
-        if (over <= 0.005) continue;
-        // Aim slightly past the wall so the active set closes from the safe side.
-        const Eigen::Vector3d from = beams.active[k] ? beams.target[k] : Eigen::Vector3d(u.row(static_cast<Eigen::Index>(k)).transpose());
-        beams.target[k] = from + (over + 0.02) * e.normalized();
-        beams.active[k] = 1;
-        changed = true;
+  // The contact works on sections; the check is on the swept meshes. Where they disagree
+  // (a tight bend, whose swept sections overlap), device points can lie outside the
+  // meshes though every section holds the device: the section whose wall is nearest such a
+  // point is then pushed past it, and the contact is solved again. Passes without such a
+  // point change nothing, so most patients never need a second one.
+  constexpr int kMeshPasses = 8;
+  for (int pass = 0;; ++pass) {
+    double intrusion = 0.0;
+    for (int round = 0; round <= o.max_contact_rounds; ++round) {
+      // Contact: sections the device crosses outside the lumen are pushed toward it, unless
+      // the crossing lies in the other vessel (in the bifurcation the union of aorta and
+      // carrier holds the device).
+      const Polyline now[2] = {moved(ai), moved(ci)};
+      const double now_length[2] = {geometry::arc_lengths(now[0]).back(), geometry::arc_lengths(now[1]).back()};
+      intrusion = 0.0;
+      bool changed = false;
+      for (int side = 0; side < 2; ++side) {
+        const std::size_t vi = side == 0 ? ai : ci, other = side == 0 ? ci : ai;
+        const Polyline& c = now[side];
+        for (std::size_t i = 1; i + 1 < c.size(); ++i) {
+          const std::size_t k = first[vi] + i;
+          if (!beams.pushed[k]) continue;
+          // The section is the preoperative one translated (see SectionSweep): its plane
+          // keeps the preoperative normal.
+          const Eigen::Vector3d t = (beams.rest[k + 1] - beams.rest[k - 1]).normalized();
+          const auto x = device_crossing(scene.device, c[i], t, beams.radius[k] + 15.0);
+          if (!x) continue;
+          const Eigen::Vector3d e = *x - c[i];
+          const double over = e.norm() - (beams.radius[k] - wall);
+          if (over <= 0.0 || inside_tube(now[1 - side], now_length[1 - side], arcs[other], scene.vessels[other].radii_mm, *x, wall)) continue;
+          intrusion = std::max(intrusion, over);
+          if (over <= 0.005) continue;
+          // Aim slightly past the wall so the active set closes from the safe side.
+          const Eigen::Vector3d from = beams.active[k] ? beams.target[k] : Eigen::Vector3d(u.row(static_cast<Eigen::Index>(k)).transpose());
+          beams.target[k] = from + (over + 0.02) * e.normalized();
+          beams.active[k] = 1;
+          changed = true;
+        }
       }
+      out.rounds += round > 0 ? 1 : 0;
+      if (!changed) break;
+      if (round == o.max_contact_rounds)
+        throw std::runtime_error("distort_by_device: contact did not converge in " + std::to_string(round) +
+                                 " rounds (intrusion " + std::to_string(intrusion) + " mm)");
+      u = beams.solve();
     }
-    out.rounds = round;
-    if (!changed) break;
-    if (round == o.max_contact_rounds)
-      throw std::runtime_error("distort_by_device: contact did not converge in " + std::to_string(round) +
-                               " rounds (intrusion " + std::to_string(intrusion) + " mm)");
-    u = beams.solve();
-  }
-  out.max_intrusion_mm = intrusion;
+    out.max_intrusion_mm = intrusion;
 
-  for (std::size_t vi = 0; vi < scene.vessels.size(); ++vi) {
-    const ExampleVessel& v = scene.vessels[vi];
-    VesselDistortion vd;
-    vd.name = v.name;
-    vd.centerline = moved(vi);
-    for (std::size_t i = 0; i < vd.centerline.size(); ++i) {
-      vd.max_displacement_mm = std::max(vd.max_displacement_mm, (vd.centerline[i] - v.centerline[i]).norm());
-      vd.contact_sections += beams.active[first[vi] + i];
+    out.vessels.clear();
+    for (std::size_t vi = 0; vi < scene.vessels.size(); ++vi) {
+      const ExampleVessel& v = scene.vessels[vi];
+      VesselDistortion vd;
+      vd.name = v.name;
+      vd.centerline = moved(vi);
+      for (std::size_t i = 0; i < vd.centerline.size(); ++i) {
+        vd.max_displacement_mm = std::max(vd.max_displacement_mm, (vd.centerline[i] - v.centerline[i]).norm());
+        vd.contact_sections += beams.active[first[vi] + i];
+      }
+      vd.mesh = resweep(v.mesh, v.centerline, vd.centerline);
+      out.vessels.push_back(std::move(vd));
     }
-    vd.mesh = resweep(v.mesh, v.centerline, vd.centerline);
-    out.vessels.push_back(std::move(vd));
-  }
 
-  // Check the result on the meshes themselves: every device point inside the union of the
-  // distorted vessels (ray parity) or within Δd of a wall.
-  {
+    // Check the result on the meshes themselves: every device point inside the union of the
+    // distorted vessels (ray parity) or within Δd of a wall.
+    out.device_points_outside = 0;
+    out.worst_outside_mm = 0.0;
+    out.worst_outside_point = 0;
+    bool pushed_more = false;
     std::vector<geometry::RayCaster> casters;
     for (const auto& v : out.vessels) casters.emplace_back(v.mesh, geometry::RayCaster::BuildQuality::Low);
     for (std::size_t k = 0; k < scene.device.size(); ++k) {
       bool inside = false;
       for (const auto& c : casters) inside = inside || c.contains(scene.device[k]);
       if (inside) continue;
-      double gap = std::numeric_limits<double>::infinity();
-      for (const auto& v : out.vessels) gap = std::min(gap, geometry::closest_point_on_mesh(v.mesh, scene.device[k]).distance_mm);
+      geometry::SurfacePoint nearest;
+      std::size_t nearest_vessel = 0;
+      nearest.distance_mm = std::numeric_limits<double>::infinity();
+      for (std::size_t vi = 0; vi < out.vessels.size(); ++vi) {
+        const auto sp = geometry::closest_point_on_mesh(out.vessels[vi].mesh, scene.device[k]);
+        if (sp.distance_mm < nearest.distance_mm) nearest = sp, nearest_vessel = vi;
+      }
+      const double gap = nearest.distance_mm;
       if (gap <= scene.device_thickness_mm) continue;
       ++out.device_points_outside;
       if (gap > out.worst_outside_mm) {
         out.worst_outside_mm = gap;
         out.worst_outside_point = k;
       }
+      // The section that carries that wall point moves toward the device point, past it
+      // by the device's half thickness and the clearance.
+      if (pass == kMeshPasses) continue;
+      const auto proj = geometry::project_onto(out.vessels[nearest_vessel].centerline, nearest.point);
+      const auto& arc = geometry::arc_lengths(out.vessels[nearest_vessel].centerline);
+      const std::size_t i = static_cast<std::size_t>(
+          std::lower_bound(arc.begin(), arc.end(), proj.arc_length_mm) - arc.begin());
+      const std::size_t node = first[nearest_vessel] + std::min(i, arc.size() - 1);
+      if (!beams.pushed[node]) continue;
+      const Eigen::Vector3d from = beams.active[node] ? beams.target[node] : Eigen::Vector3d(u.row(static_cast<Eigen::Index>(node)).transpose());
+      beams.target[node] = from + (gap + wall + 0.02) * (scene.device[k] - nearest.point).normalized();
+      beams.active[node] = 1;
+      pushed_more = true;
     }
+    if (!pushed_more) break;
+    out.mesh_passes = pass + 1;
+    u = beams.solve();
   }
 
   // A landmark moves with the vessel whose wall it sits on (|distance to centerline - radius| least).

@@ -109,7 +109,7 @@ void write_patient(const SyntheticPatient& patient, const std::filesystem::path&
   j["ground_truth"] = {{"directory", "truth"},
                        {"model", "centerline beams on elastic foundation, device contact, rigid re-sweep of sections"},
                        {"carrier", patient.truth.carrier},
-                       {"contact_rounds", patient.truth.rounds},
+                       {"contact_rounds", patient.truth.rounds}, {"mesh_passes", patient.truth.mesh_passes},
                        {"max_intrusion_mm", patient.truth.max_intrusion_mm},
                        {"vessels", vessels}};
   std::ofstream f(dir / "patient.json");

@@ -84,10 +84,10 @@ TEST(SyntheticPatient, SameSeedSameBytes) {
 }
 
 // The property the whole evaluation rests on: the device the truth was made for lies in
-// the distorted lumen, while it leaves the preoperative one.
-// The property the whole evaluation rests on: the device the truth was made for lies in
-// the distorted lumen (checked here independently of make_patient's own check). Seeds
-// whose truth the model cannot resolve must be refused with the seed named, and be rare.
+// the distorted lumen (checked here independently of make_patient's own check). Where the
+// section model and the swept meshes disagree, the sections whose walls miss the device
+// are pushed in extra passes (seed 7 at the default resolution: test_cli.cpp); a seed the
+// model still could not resolve would be refused with the seed named.
 TEST(SyntheticPatient, TruthHoldsTheDeviceOrTheSeedIsRefused) {
   int made = 0, refused = 0;
   for (std::uint64_t seed = 1; seed <= 16; ++seed) {
@@ -127,7 +127,7 @@ TEST(SyntheticPatient, TruthHoldsTheDeviceOrTheSeedIsRefused) {
     for (std::size_t k = 0; k < scene.landmarks.size(); ++k)
       EXPECT_EQ(patient.truth.landmarks[k].label, scene.landmarks[k].label);
   }
-  EXPECT_GE(made, 14) << refused << " of 16 seeds refused";
+  EXPECT_EQ(made, 16) << refused << " of 16 seeds refused";
 }
 
 TEST(SyntheticPatient, DrawnAnatomyStaysInItsRanges) {

@@ -43,7 +43,10 @@ struct DeviceDistortion {
   std::vector<VesselDistortion> vessels;          ///< same order as the scene's vessels
   std::vector<geometry::ControlPoint> landmarks;  ///< same labels and order, moved
   std::string carrier;                            ///< the iliac the device runs in
-  int rounds = 0;                                 ///< contact rounds used
+  int rounds = 0;                                 ///< contact rounds used (all passes)
+  /// Extra passes that pushed sections whose swept walls missed device points (a tight
+  /// bend, where sections and meshes disagree); 0 for most patients.
+  int mesh_passes = 0;
   /// Largest remaining intrusion (mm) of the device surface plus clearance into a wall,
   /// measured on the section model; <= 0.01 when the contact problem converged.
   double max_intrusion_mm = 0.0;
