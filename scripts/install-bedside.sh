@@ -32,6 +32,15 @@ while [ $# -gt 0 ]; do
     *) echo "install-bedside.sh: unknown argument '$1'" >&2; usage 2 >&2 ;;
   esac
 done
+if [ -n "$carm" ] && [ "$unset_carm" = 1 ]; then
+  echo "install-bedside.sh: --carm-usb and --no-carm-usb contradict each other" >&2; exit 2
+fi
+if [ -n "$grabber" ] && [ "$unset_grabber" = 1 ]; then
+  echo "install-bedside.sh: --grabber-usb and --no-grabber-usb contradict each other" >&2; exit 2
+fi
+if [ -z "$render" ] && [ "$(id -u)" -ne 0 ]; then
+  echo "install-bedside.sh: run as root (sudo), or use --render DIR" >&2; exit 1
+fi
 vid_pid='^[0-9a-fA-F]{4}:[0-9a-fA-F]{4}$'
 for id in "$carm" "$grabber"; do
   if [ -n "$id" ] && ! [[ "$id" =~ $vid_pid ]]; then
@@ -44,13 +53,22 @@ done
 conf=${render:+$render/bedside.conf}
 conf=${conf:-/etc/evarnode/bedside.conf}
 if [ -f "$conf" ]; then
-  line_no=0
+  line_no=0 seen=" "
   while IFS= read -r line || [ -n "$line" ]; do
     line_no=$((line_no + 1))
+    if [[ "$line" == *$'\r' ]]; then
+      echo "install-bedside.sh: $conf line $line_no: a CRLF line ending (Windows); save it with Unix line endings" >&2
+      exit 2
+    fi
     case "$line" in
       ''|'#'*) continue ;;
     esac
     key=${line%%=*} value=${line#*=}
+    if [[ "$seen" == *" $key "* ]]; then
+      echo "install-bedside.sh: $conf line $line_no: $key is given twice; keep one" >&2
+      exit 2
+    fi
+    seen+="$key "
     ok=0
     case "$key" in
       carm_usb|grabber_usb) [[ -z "$value" || "$value" =~ $vid_pid ]] && ok=1 ;;
@@ -111,7 +129,6 @@ if [ -n "$render" ]; then
   exit 0
 fi
 
-[ "$(id -u)" -eq 0 ] || { echo "install-bedside.sh: run as root (sudo), or use --render DIR" >&2; exit 1; }
 EVAR_BUILD_DIR=${EVAR_BUILD_DIR:-$root/build} "$root/scripts/build.sh"
 install -D -m 0755 "${EVAR_BUILD_DIR:-$root/build}/app/evarnode" "$bin"
 getent group evarnode >/dev/null || addgroup --system evarnode

@@ -46,6 +46,16 @@ if bash "$src/scripts/install-bedside.sh" --render "$out/again" --bin "$bin" 2>"
 fi
 [ ! -e "$out/pwned" ] || fail "bedside.conf was run as shell"
 grep -q "bedside.conf line 2: 'packet_socket=\$(touch" "$out/err.txt" || fail "unclear error: $(cat "$out/err.txt")"
+printf 'carm_usb=1d6b:0104\ncarm_usb=aaaa:bbbb\n' > "$out/again/bedside.conf"
+if bash "$src/scripts/install-bedside.sh" --render "$out/again" --bin "$bin" 2>"$out/err.txt"; then fail "a key given twice was accepted"; fi
+grep -q "bedside.conf line 2: carm_usb is given twice" "$out/err.txt" || fail "unclear error: $(cat "$out/err.txt")"
+printf 'carm_usb=1d6b:0104\r\n' > "$out/again/bedside.conf"
+if bash "$src/scripts/install-bedside.sh" --render "$out/again" --bin "$bin" 2>"$out/err.txt"; then fail "a CRLF line was accepted"; fi
+grep -q "bedside.conf line 1: a CRLF line ending" "$out/err.txt" || fail "unclear error: $(cat "$out/err.txt")"
+if bash "$src/scripts/install-bedside.sh" --render "$out/again" --carm-usb 1d6b:0104 --no-carm-usb 2>"$out/err.txt"; then
+  fail "contradicting flags were accepted"
+fi
+grep -q "contradict each other" "$out/err.txt" || fail "unclear error: $(cat "$out/err.txt")"
 
 if bash "$src/scripts/install-bedside.sh" --render "$out/bad" --carm-usb 1d6b-0104 2>"$out/err.txt"; then
   fail "a malformed VID:PID was accepted"

@@ -31,7 +31,7 @@ std::optional<FrameLossMonitor::Change> FrameLossMonitor::sample(Clock::time_poi
     c.losing = true;
     return c;
   }
-  if (!whole_window || (c.expected > 0 && c.fraction() > options_.clear_fraction)) return std::nullopt;
+  if (!whole_window || c.expected == 0 || c.fraction() > options_.clear_fraction) return std::nullopt;
   losing_ = false;
   c.losing = false;
   return c;

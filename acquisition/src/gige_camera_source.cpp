@@ -130,6 +130,7 @@ struct GigECameraSource::Impl {
   std::optional<std::uint64_t> last_raw_id;
   int expected_width = 0, expected_height = 0;  // the region the camera was set to
   std::string refusal;                          // what the last refused frame was, against what was set
+  bool refused_since_delivery = false;          // refused frames came after the last delivered one
   std::uint64_t id_epoch = 0;  // unwraps 16-bit GVSP 1.x block ids (0 is never used)
   std::string streaming_reason;
 
@@ -239,6 +240,7 @@ struct GigECameraSource::Impl {
     check(error, id + ": starting acquisition");
 
     last_raw_id.reset();
+    refused_since_delivery = false;
     id_epoch = 0;
     std::lock_guard lock(mutex);
     stats.camera_id = id;
@@ -306,6 +308,7 @@ struct GigECameraSource::Impl {
                 std::to_string(expected_height) + " it was set to";
       std::lock_guard lock(mutex);
       ++stats.refused;
+      refused_since_delivery = true;
       return Outcome::Refused;
     }
     f.stride_bytes = f.width * bytes_per_pixel(f.format);
@@ -324,11 +327,18 @@ struct GigECameraSource::Impl {
         std::chrono::duration_cast<std::chrono::nanoseconds>(f.host_arrival.time_since_epoch()).count();
     {
       std::lock_guard lock(mutex);
+      // Refused frames are not drops: the count starts afresh after them (keeping its totals).
+      if (refused_since_delivery) {
+        earlier_epochs = totals_locked();
+        tracker.reset();
+        refused_since_delivery = false;
+      }
       tracker.observe(f.sequence);
       clock.add(f.device_time_ns, host_ns);
       f.device_time_on_host = Clock::time_point(std::chrono::nanoseconds(clock.to_host_ns(f.device_time_ns)));
       f.device_clock = true;
     }
+    set_state(StreamState::Streaming, streaming_reason);  // before the frame, which is live
     if (on_frame) on_frame(f);
     return Outcome::Delivered;
   }
@@ -355,7 +365,9 @@ struct GigECameraSource::Impl {
       }
       set_state(StreamState::Connecting, "GigE camera " + stats.camera_id + " open, waiting for the first frame");
       Clock::time_point last_frame = Clock::now(), last_probe = Clock::now();
-      std::optional<Clock::time_point> refusing_since;  // only refused frames since then
+      bool refusing = false;  // only refused frames since refusing_since
+      Clock::time_point refusing_since{};
+      Clock::time_point last_refused{};
       std::string lost;
       bool still_there = false;  // lost the stream, not the camera
       while (!stop && lost.empty()) {
@@ -365,22 +377,26 @@ struct GigECameraSource::Impl {
           arv_stream_push_buffer(stream.get(), buffer);
           if (outcome == Outcome::Delivered) {
             last_frame = Clock::now();
-            refusing_since.reset();
-            set_state(StreamState::Streaming, streaming_reason);
+            refusing = false;
           } else if (outcome == Outcome::Refused) {
-            if (!refusing_since) refusing_since = Clock::now();
+            last_refused = Clock::now();
+            if (!refusing) refusing_since = last_refused;
+            refusing = true;
             set_state(StreamState::Stalled, "GigE camera " + stats.camera_id + " sends " + refusal + ": frames refused");
           }
         }
         update_stream_counters();
+        // Refused frames that stopped coming say nothing more: a camera gone after switching
+        // its format is looked for like any silent one.
+        if (refusing && Clock::now() - last_refused > options.stall_after) refusing = false;
         const auto silent = Clock::now() - last_frame;
         if (control_lost) {
           lost = "control lost (no heartbeat answer)";
-        } else if (refusing_since && Clock::now() - *refusing_since > options.probe_after) {
+        } else if (refusing && Clock::now() - refusing_since > options.probe_after) {
           // It changed its format or region by itself (a reset, another tool): set it up again.
           lost = "it sends " + refusal + "; setting it up again";
           still_there = true;
-        } else if (!refusing_since && silent > options.probe_after && Clock::now() - last_probe > options.probe_after) {
+        } else if (!refusing && silent > options.probe_after && Clock::now() - last_probe > options.probe_after) {
           // A camera that stopped sending may be gone. Discovery answers within about a
           // second; a register read of a vanished camera takes Aravis's GVCP retries (~15 s).
           last_probe = Clock::now();

@@ -49,7 +49,7 @@ struct NodeOptions {
   overlay::RoadmapMode mode = overlay::RoadmapMode::Both;
   acquisition::GeometryTimelineOptions timeline;
   std::chrono::milliseconds video_stall{1000};  ///< no frame for this long: "no video"
-  /// The source losing more than this share of its frames (a GigE link dropping packets,
+  /// The source losing this share of its frames or more (a GigE link dropping packets,
   /// a grabber dropping buffers) is an alert while it lasts: the image is live but jerky.
   acquisition::FrameLossOptions frame_loss;
   /// While there is no video the last frame is shown again this often, marked "LAST IMAGE

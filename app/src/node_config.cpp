@@ -65,6 +65,9 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
           s.packet_socket = v.get<bool>();
         } else bad_field(path, field, "unknown setting");
       }
+      if (s.width && s.height && std::int64_t{*s.width} * *s.height > geometry::kMaxImagePixels)
+        bad_field(path, "frames", std::to_string(*s.width) + " x " + std::to_string(*s.height) + " pixels; at most " +
+                                      std::to_string(geometry::kMaxImagePixels) + " in all");
       c.frames = s;
     } else if (key == "carm") c.carm = text(value, path, key);
     else if (key == "fps") c.fps = number_field(path, value, key, 0.1, 1000, "frames per second");

@@ -45,8 +45,13 @@ void VideoSink::write(const ComposedFrame& frame) {
   // A full segment is finished when the next frame comes, so `path` always holds the newest.
   // What the disk refused then is said after this frame is written: no frame is lost to it.
   const std::string problem = segment_full_ ? finish_segment() : std::string();
-  if (!writer_) writer_ = std::make_unique<overlay::VideoFileWriter>(current_, fps_, frame.image->width, frame.image->height);
-  writer_->write(*frame.image);
+  try {
+    if (!writer_) writer_ = std::make_unique<overlay::VideoFileWriter>(current_, fps_, frame.image->width, frame.image->height);
+    writer_->write(*frame.image);
+  } catch (const std::exception& e) {
+    if (problem.empty()) throw;
+    throw std::runtime_error("video: " + problem + "; and then: " + e.what());
+  }
   ++frames_;
   // The file's size, every 30 frames: a stat per second of video is plenty.
   if (segment_bytes_ > 0 && ++frames_in_segment_ % 30 == 0) {

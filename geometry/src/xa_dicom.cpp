@@ -1,4 +1,5 @@
 #include "evar/geometry/xa_dicom.hpp"
+#include "evar/geometry/image_header.hpp"
 
 #include <dcmtk/config/osconfig.h>  // first, as DCMTK requires
 #include <dcmtk/dcmdata/dcdeftag.h>
@@ -182,6 +183,9 @@ XaFrame read_xa_dicom(const std::filesystem::path& path, int frame) {
   v.col_spacing_mm = r.require(DCM_ImagerPixelSpacing, 1e-3, 10.0, "mm", 1);
   const int rows = static_cast<int>(top.require(DCM_Rows, 1, 16384, "pixels"));
   const int cols = static_cast<int>(top.require(DCM_Columns, 1, 16384, "pixels"));
+  if (std::int64_t{rows} * cols > kMaxImagePixels)
+    detail::fail(path, std::to_string(cols) + " x " + std::to_string(rows) + " pixels a frame; at most " +
+                           std::to_string(kMaxImagePixels) + " in all are read");
   v.detector_rows = rows;
   v.detector_cols = cols;
 

@@ -15,7 +15,9 @@ struct GigEFrameServerFill {
     auto* data = static_cast<std::uint8_t*>(const_cast<void*>(arv_buffer_get_data(buffer, nullptr)));
     const int w = arv_buffer_get_image_width(buffer), h = arv_buffer_get_image_height(buffer);
     if (data && w > 0 && h > 0)
-      static_cast<GigEFrameServer*>(self)->paint(data, w, h, format == ARV_PIXEL_FORMAT_MONO_16);
+      static_cast<GigEFrameServer*>(self)->paint(data, w, h, format == ARV_PIXEL_FORMAT_MONO_8 ? 8
+                                                              : format == ARV_PIXEL_FORMAT_MONO_12 ? 12
+                                                                                                    : 16);
   }
 };
 
@@ -66,16 +68,21 @@ void GigEFrameServer::show(const acquisition::Frame& frame) {
                 static_cast<std::size_t>(width_) * 2);
 }
 
-void GigEFrameServer::paint(std::uint8_t* data, int w, int h, bool mono16) {
-  const std::size_t bpp = mono16 ? 2 : 1;
+void GigEFrameServer::paint(std::uint8_t* data, int w, int h, int bits) {
+  const std::size_t bpp = bits > 8 ? 2 : 1;
   std::memset(data, 0, static_cast<std::size_t>(w) * static_cast<std::size_t>(h) * bpp);
   std::lock_guard lock(mutex_);
   const int cw = std::min(w, width_), ch = std::min(h, height_);
   for (int y = 0; y < ch; ++y) {
     const std::uint16_t* src = pixels_.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(width_);
     std::uint8_t* dst = data + static_cast<std::size_t>(y) * static_cast<std::size_t>(w) * bpp;
-    if (mono16) {
+    if (bits == 16) {
       std::memcpy(dst, src, static_cast<std::size_t>(cw) * 2);  // little-endian on both sides
+    } else if (bits == 12) {
+      for (int x = 0; x < cw; ++x) {
+        const auto v = static_cast<std::uint16_t>(src[x] >> 4);
+        std::memcpy(dst + 2 * x, &v, 2);
+      }
     } else {
       for (int x = 0; x < cw; ++x) dst[x] = static_cast<std::uint8_t>(src[x] >> 8);
     }

@@ -508,6 +508,23 @@ TEST(V4l2FrameSource, FieldsInSeparateBuffersAreRefusedNamingTheFieldOrder) {
   EXPECT_TRUE(log.frames.empty());
 }
 
+// Each side within 16384, but 2^27 pixels in all: a driver (or a fake) that grants that is
+// refused before a buffer is asked for.
+TEST(V4l2FrameSource, ASizeOfMorePixelsThanAnyImageReadIsRefused) {
+  FakeV4l2Device::Config c;
+  c.formats = {V4L2_PIX_FMT_GREY};
+  c.max_width = 16384;
+  c.max_height = 16384;
+  V4l2Options o = quick_options(c.path);
+  o.width = 16384;
+  o.height = 8192;
+  Grabbing g(c, o);
+  auto& [device, log, source] = g;
+  ASSERT_TRUE(log.wait([&] { return log.said({"implausible size", "16384x8192"}); }, 5s));
+  source.stop();
+  EXPECT_TRUE(log.frames.empty());
+}
+
 TEST(V4l2FrameSource, StopReturnsWhileACameraOutrunsTheFrameHandling) {
   FakeV4l2Device::Config c;
   c.formats = {V4L2_PIX_FMT_GREY};

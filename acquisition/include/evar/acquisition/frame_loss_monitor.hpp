@@ -37,8 +37,11 @@ class FrameLossMonitor {
   explicit FrameLossMonitor(FrameLossOptions options = {});
 
   /// Feeds the source's running counts at `now` (samples in time order). Returns the change
-  /// when the alarm is raised or cleared by this sample. A window in which no frame came at
-  /// all clears the alarm: that is a stall, which the stall alert says better. Counts that
+  /// when the alarm is raised or cleared by this sample. It is raised as soon as the frames
+  /// seen (at least min_frames, the window full or not) show the loss; it is cleared only by
+  /// a whole window with frames and little loss. A window without any frame clears nothing:
+  /// a link so bad that whole frames are seconds apart reports its losses only when the next
+  /// one comes, and must not flicker the alert (the stall alert says the rest). Counts that
   /// go backwards (a source restarted from zero) start a fresh history.
   std::optional<Change> sample(Clock::time_point now, const SequenceStats& counts);
 

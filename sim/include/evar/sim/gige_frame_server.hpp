@@ -27,7 +27,7 @@ class GigEFrameServer {
   GigEFrameServer& operator=(const GigEFrameServer&) = delete;
 
   /// The picture of every frame sent from now on. Mono16 frames are sent as they are
-  /// (Mono8 clients get the high byte); a camera region larger than the frame is padded
+  /// (Mono8 clients get the high byte, Mono12 clients the high 12 bits); a camera region larger than the frame is padded
   /// with zeros, a smaller one shows the frame's top-left corner. Throws for other formats.
   void show(const acquisition::Frame& frame);
   /// Fault injection: each GVSP packet from now on is lost with this probability (0 to 1),
@@ -44,7 +44,7 @@ class GigEFrameServer {
 
  private:
   friend struct GigEFrameServerFill;  // the camera thread's callback (in the .cpp)
-  void paint(std::uint8_t* data, int width, int height, bool mono16);
+  void paint(std::uint8_t* data, int width, int height, int bits);  // bits: 8, 12 or 16 per pixel
 
   _ArvGvFakeCamera* camera_ = nullptr;
   std::string serial_;
