@@ -205,6 +205,9 @@ int run_cli(const std::vector<std::string>& args) {
   rp->add_option("--loop", replay.loops, "times through the session; 0 = until interrupted")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  rp->add_flag("--preload", replay.preload,
+               "decode every frame before playing and keep them in memory (frames x width x height x 2 bytes), so "
+               "frames leave on time and the decoding takes no CPU from a node measured beside it");
   rp->add_option("--report", replay.report, "write a JSON report");
   rp->add_flag("!--no-progress", replay.progress, "no progress bar");
   rp->add_option("--serve-gige", replay.serve_gige,
@@ -315,6 +318,9 @@ int run_cli(const std::vector<std::string>& args) {
   auto* rspeed = rn->add_option("--speed", run.speed, "replay speed (1 = real time)")->check(CLI::PositiveNumber)->capture_default_str();
   rn->add_flag("--fast", run.fast, "replay as fast as the node takes the frames")->excludes(rspeed);
   rn->add_option("--loop", run.loops, "replay loops; 0 = until interrupted")->check(CLI::NonNegativeNumber)->capture_default_str();
+  rn->add_flag("--preload", run.preload,
+               "with --replay: decode every frame before playing and keep them in memory (frames x width x height x 2 "
+               "bytes), so the decoding (which a grabber does not do) takes no CPU from the node");
   rn->add_option("--seconds", run.seconds, "stop after this long")->check(CLI::PositiveNumber);
   rn->add_flag("!--no-progress", run.progress, "no progress bar");
 

@@ -12,6 +12,7 @@
 #include "interrupt.hpp"
 #include "json_file.hpp"
 #include "logging.hpp"
+#include "preload_memory.hpp"
 #include "progress_bar.hpp"
 
 namespace evar::app {
@@ -43,7 +44,8 @@ int run_replay(const ReplayCommand& cmd) {
     log().info("serving the C-arm states on {} (-> {}), C-arm link protocol v1", cmd.serve_carm, carm_link->slave_path());
   }
   std::string transport_error;  // the first failure to serve; the replay goes on
-  sim::SessionReplay replay(session, {cmd.fast ? 0.0 : cmd.speed, cmd.loops});
+  if (cmd.preload) check_preload_memory(session);
+  sim::SessionReplay replay(session, {cmd.fast ? 0.0 : cmd.speed, cmd.loops, cmd.preload});
   const InterruptGuard ctrl_c;  // Ctrl-C stops the replay cleanly
   replay.carm().start(
       [&](const acquisition::CArmState& s) {

@@ -18,6 +18,7 @@
 #include "json_file.hpp"
 #include "live_node.hpp"
 #include "logging.hpp"
+#include "preload_memory.hpp"
 #include "node_config.hpp"
 #include "output_sinks.hpp"
 #include "progress_bar.hpp"
@@ -150,7 +151,9 @@ int run_node(const RunCommand& cmd) {
   acquisition::FrameSource* frames = nullptr;
   acquisition::CArmGeometrySource* carm = nullptr;
   if (session) {
-    replay = std::make_unique<sim::SessionReplay>(*session, sim::ReplayOptions{cmd.fast ? 0.0 : cmd.speed, cmd.loops});
+    if (cmd.preload) check_preload_memory(*session);
+    replay = std::make_unique<sim::SessionReplay>(*session,
+                                                  sim::ReplayOptions{cmd.fast ? 0.0 : cmd.speed, cmd.loops, cmd.preload});
     frames = &replay->frames();
     carm = &replay->carm();
   } else {

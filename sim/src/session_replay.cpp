@@ -225,6 +225,11 @@ std::string SessionReplay::error() const {
   return error_;
 }
 
+std::uint64_t preload_bytes(const Session& session) {
+  return static_cast<std::uint64_t>(session.frames.size()) * static_cast<std::uint64_t>(session.detector.cols) *
+         static_cast<std::uint64_t>(session.detector.rows) * 2u;
+}
+
 void SessionReplay::run() {
   // One timeline: C-arm samples before frames at the same time (the geometry in force).
   struct Event {
@@ -239,6 +244,18 @@ void SessionReplay::run() {
     return a.t < b.t || (a.t == b.t && !a.frame && b.frame);
   });
   std::string reason = "end of session";
+  std::vector<acquisition::Frame> decoded;  // with preload: every frame, before the first is played
+  if (options_.preload) {
+    try {
+      decoded.reserve(session_.frames.size());
+      for (std::size_t i = 0; i < session_.frames.size() && !cancel_; ++i)
+        decoded.push_back(to_frame(read_session_frame(session_, i), 0, 0));
+    } catch (const std::exception& ex) {
+      std::lock_guard lock(mutex_);
+      error_ = ex.what();
+      events.clear();
+    }
+  }
   // A callback that throws ends the replay with its message (nothing escapes the thread).
   const auto deliver = [&](auto&& call) {
     try {
@@ -277,7 +294,15 @@ void SessionReplay::run() {
         if (e.frame) {
           acquisition::Frame f;
           try {
-            f = to_frame(read_session_frame(session_, e.index), ++sequence, e.t + offset);
+            if (options_.preload) {
+              f = decoded[e.index];
+              f.sequence = ++sequence;
+              f.device_time_ns = e.t + offset;
+              f.host_arrival = std::chrono::steady_clock::now();
+              f.device_time_on_host = f.host_arrival;
+            } else {
+              f = to_frame(read_session_frame(session_, e.index), ++sequence, e.t + offset);
+            }
           } catch (const std::exception& ex) {
             std::lock_guard lock(mutex_);
             error_ = ex.what();

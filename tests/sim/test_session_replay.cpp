@@ -138,6 +138,38 @@ TEST_F(Replay, AnUnreadableFrameEndsTheReplayWithTheFileNamed) {
   EXPECT_EQ(replay.frames().state(), acquisition::StreamState::Disconnected);
 }
 
+// Preloaded, the replay delivers the same frames, times and sequence numbers; a frame that
+// cannot be decoded is found before anything is played.
+TEST_F(Replay, PreloadedFramesAreTheSameAndAnUnreadableOneStopsItBeforeTheFirstFrame) {
+  Received plain, preloaded;
+  {
+    SessionReplay replay(session_, {0.0, 2}, std::make_shared<FakeClock>());
+    attach(replay, plain);
+    ASSERT_TRUE(replay.wait(std::chrono::seconds(20)));
+  }
+  {
+    SessionReplay replay(session_, {0.0, 2, true}, std::make_shared<FakeClock>());
+    attach(replay, preloaded);
+    ASSERT_TRUE(replay.wait(std::chrono::seconds(20)));
+    EXPECT_EQ(replay.error(), "");
+  }
+  ASSERT_EQ(preloaded.frames.size(), plain.frames.size());
+  for (std::size_t i = 0; i < plain.frames.size(); ++i) {
+    EXPECT_EQ(preloaded.frames[i].pixels, plain.frames[i].pixels) << i;
+    EXPECT_EQ(preloaded.frames[i].sequence, plain.frames[i].sequence) << i;
+    EXPECT_EQ(preloaded.frames[i].device_time_ns, plain.frames[i].device_time_ns) << i;
+  }
+  EXPECT_EQ(preloaded.primary_in_force, plain.primary_in_force);
+
+  fs::remove(dir_ / "frames" / "f3.png");
+  SessionReplay replay(session_, {0.0, 1, true}, std::make_shared<FakeClock>());
+  Received r;
+  attach(replay, r);
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(20)));
+  EXPECT_TRUE(r.frames.empty());
+  EXPECT_NE(replay.error().find("f3.png"), std::string::npos) << replay.error();
+}
+
 TEST_F(Replay, NoCallbackAfterStopReturns) {
   SessionReplay replay(session_, {0.0, 0}, std::make_shared<FakeClock>());  // forever
   Received r;

@@ -42,7 +42,15 @@ std::shared_ptr<ReplayClock> steady_replay_clock();
 struct ReplayOptions {
   double speed = 1.0;  ///< 1 = real time, 2 = twice as fast; 0 = as fast as possible
   int loops = 1;       ///< times through the session; 0 = until stopped
+  /// Decode every frame before the first is played and keep them in memory (frames x
+  /// width x height x 2 bytes), so each is delivered on time and the decoding does not
+  /// compete with what receives them: a grabber does not decode PNG. Otherwise each frame
+  /// is read when it is due.
+  bool preload = false;
 };
+
+/// Memory that `preload` needs for a session (bytes).
+std::uint64_t preload_bytes(const Session& session);
 
 struct ReplayProgress {
   std::size_t frames = 0, carm_states = 0;  ///< delivered so far (all loops)

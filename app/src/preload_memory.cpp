@@ -1,0 +1,26 @@
+#include "preload_memory.hpp"
+
+#include <unistd.h>
+
+#include <stdexcept>
+#include <string>
+
+#include "evar/sim/session_replay.hpp"
+#include "logging.hpp"
+
+namespace evar::app {
+
+void check_preload_memory(const sim::Session& session) {
+  const std::uint64_t need = sim::preload_bytes(session);
+  const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
+  const std::uint64_t have = pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page) : 0;
+  const std::string sizes = std::to_string(session.frames.size()) + " frames of " + std::to_string(session.detector.cols) +
+                            " x " + std::to_string(session.detector.rows) + " at 16 bits: " +
+                            std::to_string(need >> 20) + " MiB";
+  if (have > 0 && need > have / 2)
+    throw std::runtime_error("--preload: " + sizes + ", more than half this machine's " + std::to_string(have >> 20) +
+                             " MiB; replay without --preload");
+  log().info("preloading {} before the replay starts", sizes);
+}
+
+}  // namespace evar::app
