@@ -1,16 +1,36 @@
 #include "output_sinks.hpp"
 
 #include <algorithm>
+#include <chrono>
 #include <cstdio>
+#include <ctime>
 #include <iterator>
 #include <stdexcept>
 
+#include "logging.hpp"
+
 namespace evar::app {
+
+std::optional<std::filesystem::path> set_aside_earlier(const std::filesystem::path& file) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) return std::nullopt;
+  const auto written = std::filesystem::last_write_time(file, ec);
+  const auto utc = std::chrono::system_clock::to_time_t(std::chrono::file_clock::to_sys(written));
+  std::tm tm{};
+  ::gmtime_r(&utc, &tm);
+  char stamp[32];
+  std::strftime(stamp, sizeof stamp, "%Y%m%d-%H%M%SZ", &tm);
+  const std::string stem = file.stem().string() + "-" + stamp, ext = file.extension().string();
+  std::filesystem::path to = file.parent_path() / (stem + ext);
+  for (int n = 1; std::filesystem::exists(to, ec); ++n) to = file.parent_path() / (stem + "-" + std::to_string(n) + ext);
+  std::filesystem::rename(file, to, ec);
+  if (ec) throw std::runtime_error("cannot set the earlier run's " + file.string() + " aside as " + to.string() + ": " + ec.message());
+  return to;
+}
 
 VideoSink::VideoSink(std::filesystem::path path, double fps, std::uintmax_t max_bytes)
     : path_(std::move(path)), current_(path_), fps_(fps), max_bytes_(max_bytes),
       segment_bytes_(max_bytes == 0 ? 0 : std::max<std::uintmax_t>(max_bytes / 8, 1u << 20)) {
-  if (segment_bytes_ == 0) return;
   // Segments an earlier run left in the same directory count against the budget (oldest
   // first, deleted first) and the numbering goes on after them, so none is overwritten.
   std::error_code ec;
@@ -31,6 +51,27 @@ VideoSink::VideoSink(std::filesystem::path path, double fps, std::uintmax_t max_
     finished_.push_back({file, ec ? 0 : bytes});
     finished_bytes_ += finished_.back().bytes;
     next_number_ = number + 1;
+  }
+  // The segment an earlier run was writing when it stopped (a restarted service) is
+  // finished under the next number rather than overwritten; if it cannot be renamed this
+  // run writes to numbered segments from the start.
+  if (std::filesystem::is_regular_file(path_, ec)) {
+    const std::filesystem::path kept = numbered(next_number_++);
+    std::filesystem::rename(path_, kept, ec);
+    if (ec) {
+      log().error("video: the earlier run's {} cannot be renamed to {} ({}); it is kept and this run writes to {}",
+                  path_.string(), kept.string(), ec.message(), numbered(next_number_).string());
+      current_ = numbered(next_number_);
+    } else {
+      log().info("video: the earlier run's unfinished segment is kept as {}", kept.string());
+      const std::uintmax_t bytes = std::filesystem::file_size(kept, ec);
+      finished_.push_back({kept, ec ? 0 : bytes});
+      finished_bytes_ += finished_.back().bytes;
+    }
+  }
+  if (segment_bytes_ == 0) {  // no budget: nothing to count or delete
+    finished_.clear();
+    finished_bytes_ = 0;
   }
 }
 
@@ -113,12 +154,28 @@ void VideoSink::finish() {
 SnapshotSink::SnapshotSink(std::filesystem::path directory, std::uintmax_t max_bytes)
     : directory_(std::move(directory)), max_bytes_(max_bytes) {
   std::filesystem::create_directories(directory_);
+  // Pictures an earlier run left here count against the budget, oldest first; those the
+  // clinician took (snapshot-*) are never deleted. New pictures never overwrite them.
+  std::vector<std::pair<std::filesystem::file_time_type, Picture>> earlier;
+  std::error_code ec;
+  for (const auto& e : std::filesystem::directory_iterator(directory_, ec)) {
+    if (!e.is_regular_file(ec) || e.path().extension() != ".png") continue;
+    const std::uintmax_t size = e.file_size(ec);
+    earlier.push_back({e.last_write_time(ec), {e.path(), ec ? 0 : size, e.path().filename().string().rfind("snapshot-", 0) == 0}});
+  }
+  std::sort(earlier.begin(), earlier.end(), [](const auto& a, const auto& b) { return a.first < b.first; });
+  for (auto& [time, picture] : earlier) {
+    bytes_ += picture.bytes;
+    pictures_.push_back(std::move(picture));
+  }
 }
 
 void SnapshotSink::save(const overlay::Image& image, const std::string& file, bool requested) {
-  const std::filesystem::path path = directory_ / file;
-  overlay::write_png(path, image);
+  std::filesystem::path path = directory_ / file;
   std::error_code ec;
+  for (int n = 1; std::filesystem::exists(path, ec); ++n)  // an earlier run's picture of the same name
+    path = directory_ / (std::filesystem::path(file).stem().string() + "-" + std::to_string(n) + ".png");
+  overlay::write_png(path, image);
   const std::uintmax_t size = std::filesystem::file_size(path, ec);
   pictures_.push_back({path, ec ? 0 : size, requested});
   bytes_ += pictures_.back().bytes;

@@ -18,6 +18,12 @@
 
 namespace evar::app {
 
+/// A report an earlier run left at `file` (a restarted service writes into the same
+/// directory) is renamed <stem>-<its UTC modification time><ext> (-1, -2, ... if taken),
+/// so this run's report does not overwrite it. Returns the new name; none when there was no
+/// such file. Throws std::runtime_error naming both files when the rename fails.
+std::optional<std::filesystem::path> set_aside_earlier(const std::filesystem::path& file);
+
 /// The composited video; the file is opened with the first frame's size. A node that runs
 /// for hours would fill its disk (Motion-JPEG at 1024 x 1024 is about 10 GB an hour), so
 /// with `max_bytes` the video is cut into segments of an eighth of it (at least 1 MiB): the

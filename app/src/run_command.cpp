@@ -99,6 +99,10 @@ int run_node(const RunCommand& cmd) {
   const geometry::Scene scene = geometry::load_scene(scene_path);
 
   std::filesystem::create_directories(cmd.out);
+  // A restarted service writes into the same directory: nothing of the earlier run is lost
+  // (the video and pictures are kept by their sinks).
+  for (const char* report : {"run_report.json", "eval.md"})
+    if (const auto kept = set_aside_earlier(cmd.out / report)) log().info("the earlier run's {} is kept as {}", report, kept->string());
   std::vector<std::unique_ptr<OutputSink>> sinks;
   VideoSink* video = nullptr;
   SnapshotSink* snapshots = nullptr;

@@ -6,6 +6,7 @@
 
 #include <unistd.h>
 
+#include <chrono>
 #include <cstring>
 #include <filesystem>
 #include <fstream>
@@ -192,6 +193,77 @@ TEST(VideoSink, ARenameOrDeleteTheDiskRefusesIsSaidByNameAndNoFrameIsLost) {
   for (const auto& e : fs::directory_iterator(dir))
     if (e.is_regular_file()) on_disk += e.file_size();
   EXPECT_LE(on_disk, budget + (2u << 20));
+  fs::remove_all(dir);
+}
+
+// A restarted node (the bedside service after a failure) writes into the same directory:
+// the segment the earlier run was writing is kept under the next number, and the earlier
+// run's pictures are neither overwritten nor forgotten by the budget.
+TEST(VideoSink, ARestartKeepsTheSegmentTheEarlierRunWasWriting) {
+  for (const std::uintmax_t budget : {std::uintmax_t{0}, std::uintmax_t{8} << 20}) {
+    const fs::path dir = fs::temp_directory_path() / ("evar_video_restart_" + std::to_string(::getpid()));
+    fs::remove_all(dir);
+    fs::create_directories(dir);
+    std::ofstream(dir / "overlay-0002.avi") << "an earlier run's finished segment";
+    std::ofstream(dir / "overlay.avi") << "the segment it was writing when it stopped";
+    {
+      app::VideoSink sink(dir / "overlay.avi", 30.0, budget);
+      sink.write(frame(10, 0, true));
+      sink.finish();
+      EXPECT_EQ(sink.frames(), 1u);
+    }
+    std::ifstream kept(dir / "overlay-0003.avi");
+    std::string text;
+    std::getline(kept, text);
+    EXPECT_EQ(text, "the segment it was writing when it stopped") << "budget " << budget;
+    EXPECT_TRUE(fs::exists(dir / "overlay-0002.avi"));
+    EXPECT_GT(fs::file_size(dir / "overlay.avi"), 1000u) << "this run's video";
+    fs::remove_all(dir);
+  }
+}
+
+TEST(SetAsideEarlier, AnEarlierReportIsRenamedByItsTimeNeverOverwritten) {
+  const fs::path dir = fs::temp_directory_path() / ("evar_set_aside_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  fs::create_directories(dir);
+  EXPECT_FALSE(app::set_aside_earlier(dir / "run_report.json")) << "nothing there";
+  const auto at = [&](const std::string& text) {
+    std::ofstream(dir / "run_report.json") << text;
+    // 2026-11-22 10:11:12 UTC, the same second for both: the second gets "-1".
+    fs::last_write_time(dir / "run_report.json",
+                        std::chrono::file_clock::from_sys(std::chrono::sys_days{std::chrono::year{2026} / 11 / 22} +
+                                                          std::chrono::hours(10) + std::chrono::minutes(11) +
+                                                          std::chrono::seconds(12)));
+    return app::set_aside_earlier(dir / "run_report.json");
+  };
+  const auto first = at("first"), second = at("second");
+  ASSERT_TRUE(first && second);
+  EXPECT_EQ(first->filename(), "run_report-20261122-101112Z.json");
+  EXPECT_EQ(second->filename(), "run_report-20261122-101112Z-1.json");
+  EXPECT_FALSE(fs::exists(dir / "run_report.json"));
+  std::string text;
+  std::ifstream(*first) >> text;
+  EXPECT_EQ(text, "first");
+  fs::remove_all(dir);
+}
+
+TEST(SnapshotSink, ARestartNeitherOverwritesNorForgetsTheEarlierRunsPictures) {
+  const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_restart_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  {
+    app::SnapshotSink first(dir);
+    first.write(frame(10, 0, true));
+    first.write(frame(20, 1, true));  // model 1: before (10) and after (20)
+  }
+  app::SnapshotSink second(dir);
+  EXPECT_EQ(second.kept().size(), 2u) << "the earlier run's pictures count";
+  second.write(frame(30, 0, true));
+  second.write(frame(40, 1, true));  // this run's model 1
+  EXPECT_EQ(grey_of(dir / "model-1-before.png"), 10);
+  EXPECT_EQ(grey_of(dir / "model-1-after.png"), 20);
+  EXPECT_EQ(grey_of(dir / "model-1-before-1.png"), 30);
+  EXPECT_EQ(grey_of(dir / "model-1-after-1.png"), 40);
+  EXPECT_EQ(second.kept().size(), 4u);
   fs::remove_all(dir);
 }
 
