@@ -36,6 +36,25 @@ app::ComposedFrame frame(std::uint8_t grey, std::uint64_t version, bool drawn) {
 
 int grey_of(const fs::path& png) { return cv::imread(png.string(), cv::IMREAD_GRAYSCALE).at<std::uint8_t>(0, 0); }
 
+// A 256 x 256 frame of noise (Motion-JPEG compresses it little: tens of kB).
+app::ComposedFrame noise_frame(cv::RNG& rng) {
+  cv::Mat noise(256, 256, CV_8UC3);
+  rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
+  overlay::Image image = overlay::Image::filled(256, 256, {0, 0, 0});
+  std::memcpy(image.bgr.data(), noise.data, image.bgr.size());
+  app::ComposedFrame f;
+  f.image = std::make_shared<const overlay::Image>(std::move(image));
+  return f;
+}
+
+// The bytes of one picture (all of frame()'s are the same size), taken in `probe`.
+std::uintmax_t one_picture_bytes(const fs::path& probe) {
+  app::SnapshotSink sink(probe);
+  sink.request();
+  sink.write(frame(1, 0, true));
+  return sink.bytes();
+}
+
 }  // namespace
 
 TEST(SnapshotSink, AfterIsTheFirstFrameDrawnWithTheNewModel) {
@@ -67,13 +86,7 @@ TEST(SnapshotSink, AfterIsTheFirstFrameDrawnWithTheNewModel) {
 TEST(SnapshotSink, APictureTheDiskRefusesToDeleteIsSaidOnceAndTheBudgetGoesOn) {
   const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_refused_" + std::to_string(::getpid()));
   fs::remove_all(dir);
-  std::uintmax_t one = 0;
-  {
-    app::SnapshotSink probe(dir / "probe");
-    probe.request();
-    probe.write(frame(1, 0, true));
-    one = probe.bytes();
-  }
+  const std::uintmax_t one = one_picture_bytes(dir / "probe");
   ASSERT_GT(one, 0u);
   app::SnapshotSink sink(dir / "run", 4 * one + one / 2);
   sink.write(frame(20, 0, true));
@@ -105,13 +118,7 @@ TEST(SnapshotSink, APictureTheDiskRefusesToDeleteIsSaidOnceAndTheBudgetGoesOn) {
 TEST(SnapshotSink, KeepsModelPicturesWithinItsBudgetAndNeverDeletesARequestedSnapshot) {
   const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_budget_" + std::to_string(::getpid()));
   fs::remove_all(dir);
-  std::uintmax_t one = 0;  // bytes of one picture (all are the same size here)
-  {
-    app::SnapshotSink probe(dir / "probe");
-    probe.request();
-    probe.write(frame(1, 0, true));
-    one = probe.bytes();
-  }
+  const std::uintmax_t one = one_picture_bytes(dir / "probe");
   ASSERT_GT(one, 0u);
   {
     app::SnapshotSink sink(dir / "run", 5 * one + one / 2);
@@ -154,16 +161,10 @@ TEST(VideoSink, ARenameOrDeleteTheDiskRefusesIsSaidByNameAndNoFrameIsLost) {
   std::size_t written = 0;
   app::VideoSink sink(dir / "overlay.avi", 30.0, budget);
   fs::create_directories(dir / "overlay-0001.avi" / "in-the-way");  // the first segment's new name
-  cv::Mat noise(256, 256, CV_8UC3);
   cv::RNG rng(11);
   for (int i = 0; i < 900; ++i) {
-    rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
-    overlay::Image image = overlay::Image::filled(256, 256, {0, 0, 0});
-    std::memcpy(image.bgr.data(), noise.data, image.bgr.size());
-    app::ComposedFrame f;
-    f.image = std::make_shared<const overlay::Image>(std::move(image));
     try {
-      sink.write(f);
+      sink.write(noise_frame(rng));
     } catch (const std::runtime_error& e) {
       said.push_back(e.what());
       if (said.size() == 1) {
@@ -281,15 +282,9 @@ TEST(VideoSink, KeepsTheVideoWithinItsBudgetInSegmentsTheNewestKept) {
   std::size_t written = 0;
   {
     app::VideoSink sink(dir / "overlay.avi", 30.0, budget);
-    cv::Mat noise(256, 256, CV_8UC3);
     cv::RNG rng(7);
     for (int i = 0; i < 900; ++i) {
-      rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
-      overlay::Image image = overlay::Image::filled(256, 256, {0, 0, 0});
-      std::memcpy(image.bgr.data(), noise.data, image.bgr.size());
-      app::ComposedFrame f;
-      f.image = std::make_shared<const overlay::Image>(std::move(image));
-      sink.write(f);
+      sink.write(noise_frame(rng));
       ++written;
     }
     sink.finish();

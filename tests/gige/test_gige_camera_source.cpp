@@ -110,16 +110,22 @@ void start(acq::GigECameraSource& source, Received& rx) {
 
 std::string unique_serial(const char* prefix) { return prefix + std::to_string(::getpid() % 100000); }
 
+// A Mono16 stream of width x height at 30 fps from the camera `serial`.
+acq::GigECameraOptions mono16_stream(const std::string& serial, int width, int height) {
+  acq::GigECameraOptions o;
+  o.camera = serial;
+  o.pixel_format = acq::PixelFormat::Mono16;
+  o.region = acq::Region{0, 0, width, height};
+  o.frame_rate_hz = 30.0;
+  return o;
+}
+
 }  // namespace
 
 TEST(GigECameraSource, ReceivesEveryFrameWholeAndInOrderFromAGigEVisionCameraOnLoopback) {
   const std::string serial = unique_serial("EVARPX");
   EmbeddedCamera camera(serial);
-  acq::GigECameraOptions o;
-  o.camera = serial;
-  o.pixel_format = acq::PixelFormat::Mono16;
-  o.region = acq::Region{0, 0, 1024, 1024};
-  o.frame_rate_hz = 30.0;
+  acq::GigECameraOptions o = mono16_stream(serial, 1024, 1024);
   Received rx;  // declared first: it outlives the source that calls into it
   acq::GigECameraSource source(o);
   start(source, rx);
@@ -270,11 +276,7 @@ TEST(GigECameraSource, RecoversFromTheStockFakeCameraBeingKilledAndRestarted) {
 TEST(GigECameraSource, FramesThatLostPacketsAreCountedAndNeverDeliveredTorn) {
   const std::string serial = unique_serial("EVARPL");
   EmbeddedCamera camera(serial);
-  acq::GigECameraOptions o;
-  o.camera = serial;
-  o.pixel_format = acq::PixelFormat::Mono16;
-  o.region = acq::Region{0, 0, 512, 256};
-  o.frame_rate_hz = 30.0;
+  acq::GigECameraOptions o = mono16_stream(serial, 512, 256);
   Received rx;  // declared first: it outlives the source that calls into it
   acq::GigECameraSource source(o);
   start(source, rx);
@@ -315,11 +317,7 @@ TEST(GigECameraSource, FramesThatLostPacketsAreCountedAndNeverDeliveredTorn) {
 TEST(GigECameraSource, AFormatTheCameraSwitchedToByItselfIsRefusedAndTheCameraSetUpAgain) {
   const std::string serial = unique_serial("EVARSW");
   EmbeddedCamera camera(serial);
-  acq::GigECameraOptions o;
-  o.camera = serial;
-  o.pixel_format = acq::PixelFormat::Mono16;
-  o.region = acq::Region{0, 0, 256, 256};
-  o.frame_rate_hz = 30.0;
+  acq::GigECameraOptions o = mono16_stream(serial, 256, 256);
   o.reconnect_interval = 200ms;
   Received rx;  // declared first: it outlives the source that calls into it
   acq::GigECameraSource source(o);
@@ -355,11 +353,7 @@ TEST(GigECameraSource, AFormatTheCameraSwitchedToByItselfIsRefusedAndTheCameraSe
 TEST(GigECameraSource, AFormatSwitchedBackSoonIsRefusedWhileItLastsAndNotCountedAsLoss) {
   const std::string serial = unique_serial("EVARSB");
   EmbeddedCamera camera(serial);
-  acq::GigECameraOptions o;
-  o.camera = serial;
-  o.pixel_format = acq::PixelFormat::Mono16;
-  o.region = acq::Region{0, 0, 256, 256};
-  o.frame_rate_hz = 30.0;
+  acq::GigECameraOptions o = mono16_stream(serial, 256, 256);
   Received rx;  // declared first: it outlives the source that calls into it
   acq::GigECameraSource source(o);
   start(source, rx);
