@@ -22,15 +22,30 @@ void GeometryTimeline::add(const CArmState& sample) {
     ++dropped_samples_;
     return;
   }
+  const std::int64_t restart_ns = std::chrono::nanoseconds(options_.restart_after).count();
   if (!samples_.empty() && sample.device_time_ns <= samples_.back().device_time_ns) {
     const std::int64_t behind_ns = samples_.back().device_time_ns - sample.device_time_ns;
-    if (behind_ns <= std::chrono::nanoseconds(options_.restart_after).count()) {
+    if (behind_ns <= restart_ns) {
       ++dropped_samples_;  // interpolation needs increasing times; the newer samples already cover it
+      return;
+    }
+    // Far behind: a restarted C-arm clock, or one stray time (which would also spoil the
+    // clock offset). The next sample decides: one going on from this one confirms the restart.
+    if (!restart_candidate_ || sample.device_time_ns <= restart_candidate_->device_time_ns ||
+        sample.device_time_ns - restart_candidate_->device_time_ns > restart_ns) {
+      if (restart_candidate_) ++dropped_samples_;  // the one held before was a stray
+      restart_candidate_ = sample;
       return;
     }
     ++restarts_;
     samples_.clear();
     clock_.reset();
+    clock_.add(restart_candidate_->device_time_ns, ns(restart_candidate_->host_arrival));
+    samples_.push_back(*restart_candidate_);
+    restart_candidate_.reset();
+  } else if (restart_candidate_) {
+    ++dropped_samples_;  // the far-behind sample held was a stray: the clock went on
+    restart_candidate_.reset();
   }
   clock_.add(sample.device_time_ns, ns(sample.host_arrival));
   samples_.push_back(sample);

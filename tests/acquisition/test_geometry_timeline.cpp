@@ -88,14 +88,43 @@ TEST(GeometryTimeline, ARestartedCArmClockStartsAFreshHistory) {
   Scenario sc;
   acq::GeometryTimeline tl;
   for (const auto& s : sc.samples(1.0)) tl.add(s);
+  const std::size_t kept = tl.size();
   acq::CArmState restarted = sc.samples(0.0)[0];
   restarted.device_time_ns = 42;  // the C-arm rebooted
   restarted.host_arrival = sc.at(1.2);
   restarted.primary_deg = 30.0;
   tl.add(restarted);
-  EXPECT_EQ(tl.size(), 1u);
+  EXPECT_EQ(tl.size(), kept) << "one far-behind sample alone could be a stray";
+  EXPECT_EQ(tl.restarts(), 0u);
+  restarted.device_time_ns += 100'000'000;  // the next, 100 ms on: a restart
+  restarted.host_arrival = sc.at(1.3);
+  tl.add(restarted);
+  EXPECT_EQ(tl.size(), 2u);
   EXPECT_EQ(tl.restarts(), 1u);
-  EXPECT_NEAR(tl.at(sc.at(1.2))->state.primary_deg, 30.0, 1e-9);
+  EXPECT_EQ(tl.dropped_samples(), 0u);
+  EXPECT_NEAR(tl.at(sc.at(1.25))->state.primary_deg, 30.0, 1e-9);
+}
+
+// One sample with a stray time far in the past (a C-arm interface's glitch that passed the
+// CRC): dropped once the next sample goes on from the real clock, and the history and the
+// clock offset stay as they were.
+TEST(GeometryTimeline, AStrayFarBehindSampleIsDroppedNotTakenForARestart) {
+  Scenario sc;
+  acq::GeometryTimeline tl;
+  const auto samples = sc.samples(3.0);
+  acq::GeometryTimeline clean;  // the same samples without the stray
+  for (const auto& s : samples) clean.add(s);
+  for (std::size_t i = 0; i + 1 < samples.size(); ++i) tl.add(samples[i]);
+  acq::CArmState stray = samples.back();
+  stray.device_time_ns -= 3'600'000'000'000;  // an hour in the past
+  stray.primary_deg = 99.0;
+  tl.add(stray);
+  tl.add(samples.back());
+  EXPECT_EQ(tl.restarts(), 0u);
+  EXPECT_EQ(tl.dropped_samples(), 1u);
+  EXPECT_EQ(tl.size(), clean.size());
+  EXPECT_EQ(tl.carm_clock_offset_ns(), clean.carm_clock_offset_ns());
+  EXPECT_NEAR(tl.at(sc.at(3.0))->state.primary_deg, 20.0, 1e-9);
 }
 
 TEST(GeometryTimeline, ALateRepeatedOrAbsurdSampleIsDroppedNotTakenForARestart) {

@@ -18,8 +18,9 @@ struct GeometryTimelineOptions {
   std::chrono::milliseconds window{10'000};     ///< samples kept
   std::chrono::milliseconds stale_after{250};   ///< nearest sample farther than this → stale
   double settled_tolerance_deg = 0.05;          ///< neighbours differing more → moving
-  /// A sample this far behind the newest is a restarted C-arm clock (a reboot) and starts a
-  /// fresh history; one less far behind, or a repeat, arrived late and is dropped.
+  /// Two samples in a row this far behind the newest, the second going on from the first,
+  /// are a restarted C-arm clock (a reboot) and start a fresh history; a single one is a
+  /// stray time and is dropped. One less far behind, or a repeat, arrived late and is dropped.
   std::chrono::milliseconds restart_after{1'000};
 };
 
@@ -36,9 +37,10 @@ class GeometryTimeline {
   explicit GeometryTimeline(GeometryTimelineOptions options = {});
 
   /// A sample as a CArmGeometrySource delivers it (device time and host arrival set).
-  /// Samples whose device time goes back by more than restart_after (a restarted C-arm
-  /// clock) restart the history; a late or repeated sample, or one with an absurd time
-  /// (beyond ±146 years), is dropped and counted.
+  /// Two samples in a row whose device times go back by more than restart_after and then on
+  /// (a restarted C-arm clock) restart the history from them; the first is held until the
+  /// second says which it is. A single far-behind, late or repeated sample, or one with an
+  /// absurd time (beyond ±146 years), is dropped and counted.
   void add(const CArmState& sample);
   /// The geometry at host time `t` (a frame's device_time_on_host); empty before any sample.
   std::optional<FrameGeometry> at(Clock::time_point t) const;
@@ -52,6 +54,7 @@ class GeometryTimeline {
   GeometryTimelineOptions options_;
   ClockOffsetEstimator clock_{256};
   std::deque<CArmState> samples_;  // in C-arm time; a query's host time is mapped onto it
+  std::optional<CArmState> restart_candidate_;  // a far-behind sample, until the next one says what it is
   std::uint64_t dropped_samples_ = 0, restarts_ = 0;
 };
 
