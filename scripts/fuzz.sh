@@ -11,7 +11,7 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 seconds=${1:-60}
 shift || true
 harnesses=("$@")
-[ ${#harnesses[@]} -gt 0 ] || harnesses=(carm_link markups mesh scene view_geometry xa_dicom session node_config image)
+[ ${#harnesses[@]} -gt 0 ] || harnesses=(carm_link markups mesh scene view_geometry xa_dicom session node_config image igtl_request)
 build=${EVAR_FUZZ_BUILD_DIR:-$root/build-fuzz}
 
 if ! command -v clang++ >/dev/null || ! ls /usr/lib/llvm-*/lib/clang/*/lib/linux/libclang_rt.fuzzer-x86_64.a >/dev/null 2>&1; then
