@@ -160,6 +160,13 @@ TEST(XaDicom, MissingOrImplausibleAttributesAreNamed) {
   write_xa_dicom(p, view(), {ramp16(0)});
   rewrite(p, [](DcmDataset& ds) { ds.putAndInsertString(DCM_NumberOfFrames, "2"); });  // pixels for one
   EXPECT_NE(error_of(p).find("PixelData (7FE0,0010): holds"), std::string::npos) << error_of(p);
+  // Each side within 16384, but 2^27 pixels a frame: refused before the pixels are read.
+  write_xa_dicom(p, view(), {ramp16(0)});
+  rewrite(p, [](DcmDataset& ds) {
+    ds.putAndInsertUint16(DCM_Rows, 8192);
+    ds.putAndInsertUint16(DCM_Columns, 16384);
+  });
+  EXPECT_NE(error_of(p).find("16384 x 8192 pixels a frame; at most 67108864 in all"), std::string::npos) << error_of(p);
 }
 
 TEST(XaDicom, GarbageIsAClearErrorNotACrash) {
