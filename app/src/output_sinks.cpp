@@ -47,9 +47,7 @@ VideoSink::VideoSink(std::filesystem::path path, double fps, std::uintmax_t max_
   }
   std::sort(earlier.begin(), earlier.end());
   for (const auto& [number, file] : earlier) {
-    const std::uintmax_t bytes = std::filesystem::file_size(file, ec);
-    finished_.push_back({file, ec ? 0 : bytes});
-    finished_bytes_ += finished_.back().bytes;
+    count_finished(file);
     next_number_ = number + 1;
   }
   // The segment an earlier run was writing when it stopped (a restarted service) is
@@ -64,15 +62,17 @@ VideoSink::VideoSink(std::filesystem::path path, double fps, std::uintmax_t max_
       current_ = numbered(next_number_);
     } else {
       log().info("video: the earlier run's unfinished segment is kept as {}", kept.string());
-      const std::uintmax_t bytes = std::filesystem::file_size(kept, ec);
-      finished_.push_back({kept, ec ? 0 : bytes});
-      finished_bytes_ += finished_.back().bytes;
+      count_finished(kept);
     }
   }
-  if (segment_bytes_ == 0) {  // no budget: nothing to count or delete
-    finished_.clear();
-    finished_bytes_ = 0;
-  }
+}
+
+void VideoSink::count_finished(const std::filesystem::path& segment) {
+  if (segment_bytes_ == 0) return;  // no budget: nothing to count or delete
+  std::error_code ec;
+  const std::uintmax_t bytes = std::filesystem::file_size(segment, ec);
+  finished_.push_back({segment, ec ? 0 : bytes});
+  finished_bytes_ += finished_.back().bytes;
 }
 
 std::filesystem::path VideoSink::numbered(int number) const {
@@ -124,10 +124,8 @@ std::string VideoSink::finish_segment() {
   } else {
     current_ = numbered(++next_number_);
   }
+  count_finished(done);
   std::error_code ec;
-  const std::uintmax_t bytes = std::filesystem::file_size(done, ec);
-  finished_.push_back({done, ec ? 0 : bytes});
-  finished_bytes_ += finished_.back().bytes;
   while (!finished_.empty() && finished_bytes_ + segment_bytes_ > max_bytes_) {
     std::filesystem::remove(finished_.front().path, ec);
     if (ec && problem.empty())  // said once; the entry is dropped so the budget goes on with the rest

@@ -53,6 +53,8 @@ class VideoSink final : public OutputSink {
   /// Closes the current segment and keeps the video within its budget; what the disk
   /// refused (a rename, a delete), or "".
   std::string finish_segment();
+  /// A finished segment counted against the budget (oldest first); nothing without one.
+  void count_finished(const std::filesystem::path& segment);
   std::filesystem::path numbered(int number) const;
 
   std::filesystem::path path_, current_;  // asked for; being written (path_ unless a rename failed)
