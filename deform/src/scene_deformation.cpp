@@ -317,6 +317,9 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
                                  "' runs toward the aorta; it must run from the bifurcation to the distal end");
     models_.push_back(make_model(v, options_));
     if (v.kind == geometry::VesselKind::Iliac) bind_junction(*models_.back(), aorta.mesh.mesh, options_.bind_length_mm);
+    // The tethered system's own factor does not depend on the device either: made here, it
+    // is not paid by the first device pose (measured: a third of the node's first model).
+    models_.back()->system->prefactored();
   }
   // Each landmark follows the vessel surface it sits on, bound once here; one far from
   // every wall is in the wrong frame.

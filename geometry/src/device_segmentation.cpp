@@ -8,6 +8,7 @@
 #include <queue>
 #include <stdexcept>
 
+#include <opencv2/core/utility.hpp>
 #include <opencv2/imgproc.hpp>
 
 #if defined(__SSE2__)
@@ -178,49 +179,54 @@ Ridge compute_ridge(const cv::Mat& intensity, const cv::Rect& inner, const Segme
     cv::GaussianBlur(p, g, cv::Size(0, 0), sigma, sigma, cv::BORDER_REFLECT);
     const float s2 = static_cast<float>(sigma * sigma);
     const float inv_sigma = static_cast<float>(1.0 / sigma);
-    for (int y = std::max(inner.y, 1); y < std::min(inner.y + inner.height, H - 1); ++y) {
-      const float* up = g.ptr<float>(y - 1);
-      const float* row = g.ptr<float>(y);
-      const float* dn = g.ptr<float>(y + 1);
-      float* out = raw.ptr<float>(y);
-      float* out_nx = r.nx.ptr<float>(y);
-      float* out_ny = r.ny.ptr<float>(y);
-      float* out_offset = r.offset.ptr<float>(y);
-      const int x_end = std::min(inner.x + inner.width, W - 1);
-      int x = std::max(inner.x, 1);
+    // Rows are independent (each pixel keeps its own best scale, the scales in order), so
+    // they are split over OpenCV's threads.
+    const int y_begin = std::max(inner.y, 1), y_end = std::min(inner.y + inner.height, H - 1);
+    cv::parallel_for_(cv::Range(y_begin, std::max(y_begin, y_end)), [&](const cv::Range& rows) {
+      for (int y = rows.start; y < rows.end; ++y) {
+        const float* up = g.ptr<float>(y - 1);
+        const float* row = g.ptr<float>(y);
+        const float* dn = g.ptr<float>(y + 1);
+        float* out = raw.ptr<float>(y);
+        float* out_nx = r.nx.ptr<float>(y);
+        float* out_ny = r.ny.ptr<float>(y);
+        float* out_offset = r.offset.ptr<float>(y);
+        const int x_end = std::min(inner.x + inner.width, W - 1);
+        int x = std::max(inner.x, 1);
 #if defined(__SSE2__)
-      x = ridge_row_sse2(up, row, dn, out, out_nx, out_ny, out_offset, x, x_end, s2, inv_sigma);
+        x = ridge_row_sse2(up, row, dn, out, out_nx, out_ny, out_offset, x, x_end, s2, inv_sigma);
 #endif
-      for (; x < x_end; ++x) {
-        const float a = row[x + 1] - 2.0f * row[x] + row[x - 1];
-        const float c = dn[x] - 2.0f * row[x] + up[x];
-        const float b = 0.25f * (dn[x + 1] - dn[x - 1] - up[x + 1] + up[x - 1]);
-        const float root = std::sqrt((a - c) * (a - c) + 4.0f * b * b);
-        const float l2 = 0.5f * (a + c - root);  // across the ridge (most negative)
-        // The damping factors below are at most 1: a pixel this scale cannot win is skipped.
-        if (!(l2 < 0.0f) || !(s2 * (-l2) > out[x])) continue;
-        const float l1 = 0.5f * (a + c + root);
-        // Eigenvector of l2: the better conditioned of (b, l2 − a) and (l2 − c, b).
-        float nx = b, ny = l2 - a;
-        if (std::abs(l2 - c) > std::abs(ny)) nx = l2 - c, ny = b;
-        const float nn = std::sqrt(nx * nx + ny * ny);
-        if (!(nn > 0.0f)) nx = 1.0f, ny = 0.0f;
-        else nx /= nn, ny /= nn;
-        const float gx = 0.5f * (row[x + 1] - row[x - 1]), gy = 0.5f * (dn[x] - up[x]);
-        const float offset = -(gx * nx + gy * ny) / l2;
-        const float blob = l1 / l2;
-        const float edge = offset * inv_sigma;
-        // β = 0.5 for blobs; 0.4 σ for the offset: a ridge pixel is within half a pixel of
-        // the centre, the flank of a blurred step edge about σ from it.
-        const float response = s2 * (-l2) * std::exp(-2.0f * blob * blob - 3.125f * edge * edge);
-        if (response > out[x]) {
-          out[x] = response;
-          out_nx[x] = nx;
-          out_ny[x] = ny;
-          out_offset[x] = std::clamp(offset, -1.0f, 1.0f);
+        for (; x < x_end; ++x) {
+          const float a = row[x + 1] - 2.0f * row[x] + row[x - 1];
+          const float c = dn[x] - 2.0f * row[x] + up[x];
+          const float b = 0.25f * (dn[x + 1] - dn[x - 1] - up[x + 1] + up[x - 1]);
+          const float root = std::sqrt((a - c) * (a - c) + 4.0f * b * b);
+          const float l2 = 0.5f * (a + c - root);  // across the ridge (most negative)
+          // The damping factors below are at most 1: a pixel this scale cannot win is skipped.
+          if (!(l2 < 0.0f) || !(s2 * (-l2) > out[x])) continue;
+          const float l1 = 0.5f * (a + c + root);
+          // Eigenvector of l2: the better conditioned of (b, l2 − a) and (l2 − c, b).
+          float nx = b, ny = l2 - a;
+          if (std::abs(l2 - c) > std::abs(ny)) nx = l2 - c, ny = b;
+          const float nn = std::sqrt(nx * nx + ny * ny);
+          if (!(nn > 0.0f)) nx = 1.0f, ny = 0.0f;
+          else nx /= nn, ny /= nn;
+          const float gx = 0.5f * (row[x + 1] - row[x - 1]), gy = 0.5f * (dn[x] - up[x]);
+          const float offset = -(gx * nx + gy * ny) / l2;
+          const float blob = l1 / l2;
+          const float edge = offset * inv_sigma;
+          // β = 0.5 for blobs; 0.4 σ for the offset: a ridge pixel is within half a pixel of
+          // the centre, the flank of a blurred step edge about σ from it.
+          const float response = s2 * (-l2) * std::exp(-2.0f * blob * blob - 3.125f * edge * edge);
+          if (response > out[x]) {
+            out[x] = response;
+            out_nx[x] = nx;
+            out_ny[x] = ny;
+            out_offset[x] = std::clamp(offset, -1.0f, 1.0f);
+          }
         }
       }
-    }
+    });
   }
   // Local noise level: per 64-pixel block, the 90th percentile of the positive responses
   // (almost all of a block is background; the measure's noise has a long tail, so the
@@ -381,10 +387,7 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
   cv::Mat dist_to_confident;
   cv::Mat not_confident = confident == 0;
   cv::distanceTransform(not_confident, dist_to_confident, cv::DIST_L2, 3);
-  const auto in_band = [&](int y, int x) {
-    return x >= inner.x && y >= inner.y && x < inner.x + inner.width && y < inner.y + inner.height &&
-           dist_to_confident.at<float>(y, x) <= o.gap_radius_px;
-  };
+
   // 1 on a confident ridge, 31 on flat background: crossing 10 px of background costs as
   // much as following 300 px of wire.
   // Within the confident band the cost still falls towards the ridge centre, so the path
@@ -394,6 +397,19 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     const float miss = 1.0f - std::min(r, 1.0f);
     return 1.0f + 30.0f * miss * miss + 0.5f * (1.0f - std::min(r / 8.0f, 1.0f));
   };
+  // The band (pixels of the inner field within the gap radius of a confident one) and the
+  // cost of each of its pixels, once: the search below reads every pixel from each of its
+  // eight neighbours. Outside the band the cost is never read. The band stays a rim inside
+  // the image, so a band pixel's neighbours are all in the image.
+  std::vector<std::uint8_t> band(static_cast<std::size_t>(H) * static_cast<std::size_t>(W), 0);
+  std::vector<float> band_cost(band.size(), 0.0f);
+  for (int y = inner.y; y < inner.y + inner.height; ++y)
+    for (int x = inner.x; x < inner.x + inner.width; ++x)
+      if (dist_to_confident.at<float>(y, x) <= o.gap_radius_px) {
+        const auto q = static_cast<std::size_t>(y) * static_cast<std::size_t>(W) + static_cast<std::size_t>(x);
+        band[q] = 1;
+        band_cost[q] = cost(y, x);
+      }
   std::vector<float> dist(static_cast<std::size_t>(H) * static_cast<std::size_t>(W), kInf);
   std::vector<int> parent(dist.size(), -1);
   std::vector<int> order;  // settled pixels, parents before children
@@ -402,7 +418,7 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
   for (int y = inner.y; y < inner.y + inner.height; ++y)
     for (int x = inner.x; x < inner.x + inner.width; ++x) {
       const bool on_border = x == inner.x || y == inner.y || x == inner.x + inner.width - 1 || y == inner.y + inner.height - 1;
-      if (on_border && in_band(y, x)) {
+      if (on_border && band[static_cast<std::size_t>(y * W + x)]) {
         dist[static_cast<std::size_t>(y * W + x)] = 0.0f;
         heap.emplace(0.0f, y * W + x);
       }
@@ -426,15 +442,15 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
       if (d > dist[static_cast<std::size_t>(q)]) continue;
       order.push_back(q);
       const int qy = q / W, qx = q % W;
-      const float cq = cost(qy, qx);
+      const float cq = band_cost[static_cast<std::size_t>(q)];
       for (int dy = -1; dy <= 1; ++dy)
         for (int dx = -1; dx <= 1; ++dx) {
           if (!dx && !dy) continue;
           const int ny = qy + dy, nx = qx + dx;
-          if (!in_band(ny, nx)) continue;
-          const float step = (dx && dy) ? 1.41421356f : 1.0f;
-          const float nd = d + step * 0.5f * (cq + cost(ny, nx));
           const auto idx = static_cast<std::size_t>(ny * W + nx);
+          if (!band[idx]) continue;
+          const float step = (dx && dy) ? 1.41421356f : 1.0f;
+          const float nd = d + step * 0.5f * (cq + band_cost[idx]);
           if (nd < dist[idx]) {
             dist[idx] = nd;
             parent[idx] = q;
