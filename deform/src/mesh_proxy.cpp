@@ -113,9 +113,12 @@ geometry::TriangleMesh simplify(const geometry::TriangleMesh& fine, const std::v
   // A closed surface has about two triangles per vertex. The error bound is loose (5 % of
   // the mesh's extent): the vertex count is what we ask for, and the fine vertices'
   // distance to the result is measured by the caller.
+  // The library asserts (aborts) on a target above the mesh's own count, which a mesh of
+  // uneven triangles can ask for: its median edge is short while a few large faces hold
+  // the area.
+  const std::size_t target_indices = std::min(indices.size(), static_cast<std::size_t>(6.0 * target_vertices));
   const std::size_t count = meshopt_simplify(simplified.data(), indices.data(), indices.size(), positions.data(), n,
-                                             3 * sizeof(float), static_cast<std::size_t>(6.0 * target_vertices), 0.05f,
-                                             0, nullptr);
+                                             3 * sizeof(float), target_indices, 0.05f, 0, nullptr);
   simplified.resize(count);
   // Where the simplifier pinches a thin part it can leave the same triangle twice, back to
   // back: a fin of no volume whose edge is shared by four faces. Both copies go, which
@@ -173,6 +176,7 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   MeshProxy proxy;
   std::string why;
   for (const double factor : {1.0, 0.95, 1.05, 0.9, 1.1}) {
+    ++proxy.attempts;
     try {
       proxy.coarse = simplify(fine, positions, indices, factor * target_vertices);
       why.clear();

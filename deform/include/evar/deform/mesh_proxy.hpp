@@ -26,6 +26,7 @@ struct MeshProxy {
   geometry::TriangleMesh coarse;          ///< closed if the fine mesh is; vertices are a subset of the fine ones
   std::vector<ProxyBinding> bindings;     ///< per fine vertex, on `coarse`
   double largest_offset_mm = 0.0;         ///< of any fine vertex from the proxy surface
+  int attempts = 0;                       ///< vertex targets tried until one gave a valid mesh (1 = the first)
 };
 
 /// Whether a mesh is solved on a proxy with edges of about `proxy_edge_mm`: when its
