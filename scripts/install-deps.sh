@@ -5,7 +5,7 @@ set -euo pipefail
 
 packages=(
   build-essential cmake ninja-build pkg-config
-  libeigen3-dev libembree-dev libassimp-dev libsuitesparse-dev libmetis-dev libmeshoptimizer-dev
+  libeigen3-dev libembree-dev libassimp-dev libsuitesparse-dev libmetis-dev
   libcli11-dev libspdlog-dev libfmt-dev nlohmann-json3-dev
   libopencv-core-dev libopencv-imgproc-dev libopencv-imgcodecs-dev
   libopencv-videoio-dev libopencv-highgui-dev

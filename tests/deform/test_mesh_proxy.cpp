@@ -47,18 +47,33 @@ TEST(MeshProxy, OnlyAMeshMuchFinerThanTheProxyGetsOne) {
   EXPECT_FALSE(deform::needs_proxy(tube(0.5), 0.0));   // switched off
 }
 
-TEST(MeshProxy, HasTheAskedEdgeLengthAndTheFineMeshFollowsItExactly) {
-  const geometry::TriangleMesh fine = tube(0.5);
-  const deform::MeshProxy p = deform::make_proxy(fine, 1.4);
-  // About area / (√3/2 · 1.4²) vertices (within 15 %: the simplifier stops where topology
-  // or error say), closed like the fine mesh, every fine vertex within the sagitta of a
-  // few coarse edges on a 10 mm radius (0.1 mm) of it.
-  const double expected = area(fine) / (std::sqrt(3.0) / 2.0 * 1.4 * 1.4);
-  EXPECT_NEAR(static_cast<double>(p.coarse.V.rows()), expected, 0.15 * expected);
-  EXPECT_TRUE(geometry::is_closed(p.coarse));
-  EXPECT_LT(p.largest_offset_mm, 0.1);
-  ASSERT_EQ(p.bindings.size(), static_cast<std::size_t>(fine.V.rows()));
+namespace {
 
+// The smallest angle of any triangle and the share of obtuse ones: what the cotangent
+// weights of ARAP depend on (an obtuse angle gives a negative weight).
+struct Quality {
+  double min_angle_deg = 180.0, obtuse_share = 0.0;
+};
+Quality quality(const geometry::TriangleMesh& m) {
+  Quality q;
+  int obtuse = 0;
+  for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+    double largest = 0.0;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = m.V.row(m.F(f, k)).transpose();
+      const Eigen::Vector3d a = m.V.row(m.F(f, (k + 1) % 3)).transpose() - p, b = m.V.row(m.F(f, (k + 2) % 3)).transpose() - p;
+      const double angle = std::acos(std::clamp(a.normalized().dot(b.normalized()), -1.0, 1.0)) * 180.0 / M_PI;
+      q.min_angle_deg = std::min(q.min_angle_deg, angle);
+      largest = std::max(largest, angle);
+    }
+    if (largest > 90.0) ++obtuse;
+  }
+  q.obtuse_share = static_cast<double>(obtuse) / static_cast<double>(m.F.rows());
+  return q;
+}
+
+void expect_follows_exactly(const deform::MeshProxy& p, const geometry::TriangleMesh& fine) {
+  ASSERT_EQ(p.bindings.size(), static_cast<std::size_t>(fine.V.rows()));
   // Unmoved proxy: the fine vertices where they are.
   EXPECT_LT((deform::follow_proxy(p, p.coarse.V) - fine.V).rowwise().norm().maxCoeff(), 1e-9);
   // A rigid motion of the proxy moves the fine mesh by the same motion.
@@ -69,14 +84,52 @@ TEST(MeshProxy, HasTheAskedEdgeLengthAndTheFineMeshFollowsItExactly) {
   EXPECT_LT((deform::follow_proxy(p, moved) - expected_fine).rowwise().norm().maxCoeff(), 1e-9);
 }
 
-// The simplifier aborts the process when asked for more than the mesh has; a proxy finer
-// than its mesh (a mesh of uneven triangles can ask for that) is the mesh, not a crash.
-TEST(MeshProxy, AProxyFinerThanItsMeshIsTheMeshNotACrash) {
+}  // namespace
+
+TEST(MeshProxy, IsAnEvenMeshOfTheAskedEdgeOnTheSameSurfaceAndTheFineMeshFollowsItExactly) {
+  const geometry::TriangleMesh fine = tube(0.5);
+  const deform::MeshProxy p = deform::make_proxy(fine, 1.4);
+  // About area / (√3/2 · 1.4²) vertices, closed like the fine mesh, near-equilateral: no
+  // angle under 25° and almost none obtuse (the fine tube's own triangles reach 2.8° and
+  // 3 % obtuse at its cap fans).
+  const double expected = area(fine) / (std::sqrt(3.0) / 2.0 * 1.4 * 1.4);
+  EXPECT_NEAR(static_cast<double>(p.coarse.V.rows()), expected, 0.15 * expected);
+  EXPECT_NEAR(geometry::median_edge_length(p.coarse), 1.4, 0.15);
+  EXPECT_TRUE(geometry::is_closed(p.coarse));
+  const Quality q = quality(p.coarse);
+  EXPECT_GT(q.min_angle_deg, 25.0);
+  EXPECT_LT(q.obtuse_share, 0.01);
+  // On the same surface: along the wall every fine vertex lies within the sagitta of a few
+  // coarse edges on a 10 mm radius (0.1 mm) of it. The flat caps' 90° rims are rounded off
+  // by at most about half an edge; the fine vertices there keep that offset (exactly, as
+  // below), so the output keeps its rims.
+  EXPECT_LT(p.largest_offset_mm, 0.6 * 1.4);
+  expect_follows_exactly(p, fine);
+}
+
+TEST(MeshProxy, AnOpenMeshKeepsItsRimAndGetsAnEvenProxy) {
+  std::vector<Eigen::Vector3d> c;
+  for (int i = 0; i <= 20; ++i) c.emplace_back(3.0 * std::sin(i * 0.15), 0.0, 5.0 * i);
+  sim::TubeOptions o;
+  o.segments_around = static_cast<int>(std::lround(2.0 * M_PI * 10.0 / 0.5));
+  o.ring_spacing_mm = 0.5 * std::sqrt(3.0) / 2.0;
+  o.capped = false;
+  const geometry::TriangleMesh fine = sim::tube_mesh(c, [](double) { return 10.0; }, o);
+  ASSERT_FALSE(geometry::is_closed(fine));
+  const deform::MeshProxy p = deform::make_proxy(fine, 1.4);
+  EXPECT_LT(p.coarse.V.rows(), fine.V.rows() / 3);
+  EXPECT_LT(p.largest_offset_mm, 0.1);  // no crease to round: all within the sagitta
+  expect_follows_exactly(p, fine);
+}
+
+// A proxy finer than its mesh (a mesh of uneven triangles can ask for that) is a finer mesh
+// of the same surface, not a failure.
+TEST(MeshProxy, AProxyFinerThanItsMeshIsAFinerMeshOfTheSameSurface) {
   const geometry::TriangleMesh regular = tube(1.4);
   const deform::MeshProxy p = deform::make_proxy(regular, 0.5);
-  EXPECT_EQ(p.coarse.V.rows(), regular.V.rows());
-  EXPECT_EQ(p.attempts, 1);
-  EXPECT_LT((deform::follow_proxy(p, p.coarse.V) - regular.V).rowwise().norm().maxCoeff(), 1e-9);
+  EXPECT_GT(p.coarse.V.rows(), 5 * regular.V.rows());
+  EXPECT_TRUE(geometry::is_closed(p.coarse));
+  expect_follows_exactly(p, regular);
 }
 
 namespace {
@@ -94,6 +147,17 @@ const geometry::Scene& scene_with(int aorta_vertices) {
 }
 
 }  // namespace
+
+// A quadric decimation (the proxy's first method) pinched the example's 30k-vertex aorta
+// into a non-manifold edge at every target for edges of 1.6 to 1.8 mm.
+TEST(MeshProxy, TheFineExampleAortaGetsAValidProxyWhereADecimationPinchedIt) {
+  const geometry::TriangleMesh& aorta = scene_with(30000).vessels[0].mesh.mesh;
+  for (const double edge : {1.6, 1.8}) {
+    const deform::MeshProxy p = deform::make_proxy(aorta, edge);
+    EXPECT_TRUE(geometry::is_closed(p.coarse)) << edge;
+    EXPECT_GT(quality(p.coarse).min_angle_deg, 25.0) << edge;
+  }
+}
 
 TEST(MeshProxy, AFinelyMeshedSceneDeformsThroughItsProxiesLikeThePapersResolution) {
   const geometry::Scene& fine = scene_with(30000);      // 0.66-0.70 mm edges
@@ -117,12 +181,13 @@ TEST(MeshProxy, AFinelyMeshedSceneDeformsThroughItsProxiesLikeThePapersResolutio
   // The aortic stump below the carrier iliac is erased on the fine mesh too.
   EXPECT_GT(out.reports[0].erased_vertices, 0);
 
-  // Landmarks as the paper's resolution puts them. Measured 0.12-0.50 mm apart (the fine
-  // mesh solved as it is: up to 0.48 mm, and 1.2 mm at 120k; docs/DEFORMATION.md); the
-  // carrier's internal iliac ostium moves about 5 mm, so 0.6 mm is a tenth of the motion.
+  // Landmarks as the paper's resolution puts them. Measured 0.02-0.10 mm apart through the
+  // isotropic proxy (0.12-0.50 mm through a quadric decimation; the fine mesh solved as it
+  // is: up to 0.48 mm, and 1.2 mm at 120k; docs/DEFORMATION.md); the carrier's internal
+  // iliac ostium moves about 5 mm, so 0.25 mm is a twentieth of the motion.
   ASSERT_EQ(out.landmarks.size(), ref.landmarks.size());
   for (std::size_t k = 0; k < out.landmarks.size(); ++k)
-    EXPECT_LT((out.landmarks[k].position_lps - ref.landmarks[k].position_lps).norm(), 0.6) << out.landmarks[k].label;
+    EXPECT_LT((out.landmarks[k].position_lps - ref.landmarks[k].position_lps).norm(), 0.25) << out.landmarks[k].label;
   const auto carrier = std::find_if(out.landmarks.begin(), out.landmarks.end(),
                                     [](const auto& l) { return l.label == "internal_iliac_right"; });
   ASSERT_NE(carrier, out.landmarks.end());

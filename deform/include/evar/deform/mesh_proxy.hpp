@@ -23,19 +23,21 @@ struct ProxyBinding {
 };
 
 struct MeshProxy {
-  geometry::TriangleMesh coarse;          ///< closed if the fine mesh is; vertices are a subset of the fine ones
+  geometry::TriangleMesh coarse;          ///< closed if the fine mesh is; its vertices lie on the fine surface
   std::vector<ProxyBinding> bindings;     ///< per fine vertex, on `coarse`
   double largest_offset_mm = 0.0;         ///< of any fine vertex from the proxy surface
-  int attempts = 0;                       ///< vertex targets tried until one gave a valid mesh (1 = the first)
 };
 
 /// Whether a mesh is solved on a proxy with edges of about `proxy_edge_mm`: when its
 /// median edge is under 3/4 of that (never when `proxy_edge_mm` is 0).
 bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm);
 
-/// Quadric edge collapse (meshoptimizer) to about area / (√3/2 · edge²) vertices, keeping
-/// the topology; then every fine vertex bound to it. std::runtime_error when the result is
-/// not a valid mesh (the caller then solves the fine mesh itself).
+/// Isotropic remeshing of the fine surface (Botsch & Kobbelt 2004) to near-equilateral
+/// triangles with edges of about `edge_mm`, keeping the topology; then every fine vertex
+/// bound to it. A sharp crease (a flat cap's rim) is rounded by up to about half an edge;
+/// the fine vertices keep their offsets, so the output keeps it. Rim vertices of an open
+/// mesh stay as they are. std::runtime_error when the result is not a valid mesh (the
+/// caller then solves the fine mesh itself).
 MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm);
 
 /// The fine mesh's vertices for the proxy's vertices V (same order as proxy.coarse.V).

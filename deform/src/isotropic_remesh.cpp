@@ -1,0 +1,312 @@
+#include "isotropic_remesh.hpp"
+
+#include <algorithm>
+#include <array>
+#include <cmath>
+#include <map>
+#include <stdexcept>
+#include <utility>
+#include <vector>
+
+#include <Eigen/Geometry>
+
+#include "triangle_grid.hpp"
+
+namespace evar::deform::detail {
+
+namespace {
+
+using Vec = Eigen::Vector3d;
+using Face = std::array<int, 3>;
+
+// The mesh being remeshed: faces and vertices are killed, never reused, and compacted at
+// the end; vf holds each vertex's live faces.
+class Remesher {
+ public:
+  Remesher(const geometry::TriangleMesh& m, double edge_mm)
+      : lo_(0.8 * edge_mm), hi_(4.0 / 3.0 * edge_mm) {
+    const auto n = static_cast<std::size_t>(m.V.rows());
+    P_.resize(n);
+    for (std::size_t i = 0; i < n; ++i) P_[i] = m.V.row(static_cast<Eigen::Index>(i)).transpose();
+    F_.resize(static_cast<std::size_t>(m.F.rows()));
+    vf_.resize(n);
+    for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+      for (int k = 0; k < 3; ++k) {
+        F_[static_cast<std::size_t>(f)][static_cast<std::size_t>(k)] = m.F(f, k);
+        vf_[static_cast<std::size_t>(m.F(f, k))].push_back(static_cast<int>(f));
+      }
+    }
+    face_alive_.assign(F_.size(), 1);
+    vertex_alive_.assign(n, 1);
+    // Vertices on an edge with one face are the open mesh's rim: held.
+    locked_.assign(n, 0);
+    std::map<std::pair<int, int>, int> uses;
+    for (const Face& f : F_)
+      for (int k = 0; k < 3; ++k) ++uses[ordered(f[static_cast<std::size_t>(k)], f[static_cast<std::size_t>((k + 1) % 3)])];
+    for (const auto& [e, count] : uses)
+      if (count == 1) locked_[static_cast<std::size_t>(e.first)] = locked_[static_cast<std::size_t>(e.second)] = 1;
+  }
+
+  void split_long_edges(RemeshStats& s) {
+    for (const auto& [u, v] : edges())
+      if ((P_[idx(u)] - P_[idx(v)]).norm() > hi_ && edge_faces(u, v).size() == 2) {
+        split(u, v);
+        ++s.splits;
+      }
+  }
+
+  void collapse_short_edges(RemeshStats& s) {
+    auto list = edges();
+    std::vector<double> length(list.size());
+    for (std::size_t i = 0; i < list.size(); ++i) length[i] = (P_[idx(list[i].first)] - P_[idx(list[i].second)]).norm();
+    std::vector<std::size_t> order(list.size());
+    for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return length[a] < length[b]; });
+    for (const std::size_t i : order) {
+      const auto [u, v] = list[i];
+      if (!vertex_alive_[idx(u)] || !vertex_alive_[idx(v)]) continue;
+      if ((P_[idx(u)] - P_[idx(v)]).norm() >= lo_) continue;
+      if (try_collapse(u, v)) ++s.collapses;
+    }
+  }
+
+  void equalize_valences(RemeshStats& s) {
+    for (const auto& [u, v] : edges())
+      if (try_flip(u, v)) ++s.flips;
+  }
+
+  // Each free vertex moves to its neighbours' centroid within its tangent plane (Jacobi).
+  void relax_tangentially() {
+    std::vector<Vec> next = P_;
+    std::vector<int> nb;
+    for (std::size_t v = 0; v < P_.size(); ++v) {
+      if (!vertex_alive_[v] || locked_[v]) continue;
+      neighbours(static_cast<int>(v), nb);
+      if (nb.empty()) continue;
+      Vec c = Vec::Zero();
+      for (const int w : nb) c += P_[idx(w)];
+      c /= static_cast<double>(nb.size());
+      Vec n = Vec::Zero();
+      for (const int f : vf_[v]) n += face_normal(f);
+      if (!(n.norm() > 0.0)) continue;
+      n.normalize();
+      next[v] = c + n.dot(P_[v] - c) * n;
+    }
+    P_ = std::move(next);
+  }
+
+  void project_onto(const TriangleGrid& surface) {
+    for (std::size_t v = 0; v < P_.size(); ++v)
+      if (vertex_alive_[v] && !locked_[v]) P_[v] = surface.closest(P_[v]).point;
+  }
+
+  geometry::TriangleMesh compact() const {
+    std::vector<int> remap(P_.size(), -1);
+    int kept = 0;
+    for (std::size_t f = 0; f < F_.size(); ++f)
+      if (face_alive_[f])
+        for (const int v : F_[f])
+          if (remap[idx(v)] < 0) remap[idx(v)] = kept++;
+    geometry::TriangleMesh out;
+    out.V.resize(kept, 3);
+    for (std::size_t v = 0; v < P_.size(); ++v)
+      if (remap[v] >= 0) out.V.row(remap[v]) = P_[v].transpose();
+    const auto faces = std::count(face_alive_.begin(), face_alive_.end(), 1);
+    out.F.resize(faces, 3);
+    Eigen::Index row = 0;
+    for (std::size_t f = 0; f < F_.size(); ++f) {
+      if (!face_alive_[f]) continue;
+      for (int k = 0; k < 3; ++k) out.F(row, k) = remap[idx(F_[f][static_cast<std::size_t>(k)])];
+      ++row;
+    }
+    return out;
+  }
+
+ private:
+  static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
+  static std::pair<int, int> ordered(int a, int b) { return a < b ? std::pair{a, b} : std::pair{b, a}; }
+
+  std::vector<std::pair<int, int>> edges() const {
+    std::vector<std::pair<int, int>> e;
+    e.reserve(3 * F_.size());
+    for (std::size_t f = 0; f < F_.size(); ++f)
+      if (face_alive_[f])
+        for (int k = 0; k < 3; ++k) e.push_back(ordered(F_[f][static_cast<std::size_t>(k)], F_[f][static_cast<std::size_t>((k + 1) % 3)]));
+    std::sort(e.begin(), e.end());
+    e.erase(std::unique(e.begin(), e.end()), e.end());
+    return e;
+  }
+
+  bool has(int f, int v) const {
+    const Face& t = F_[idx(f)];
+    return t[0] == v || t[1] == v || t[2] == v;
+  }
+  std::vector<int> edge_faces(int u, int v) const {
+    std::vector<int> out;
+    for (const int f : vf_[idx(u)])
+      if (has(f, v)) out.push_back(f);
+    return out;
+  }
+  void neighbours(int v, std::vector<int>& out) const {
+    out.clear();
+    for (const int f : vf_[idx(v)])
+      for (const int w : F_[idx(f)])
+        if (w != v) out.push_back(w);
+    std::sort(out.begin(), out.end());
+    out.erase(std::unique(out.begin(), out.end()), out.end());
+  }
+  int valence(int v) const {
+    // Faces around an inner vertex; one more neighbour than faces on a rim.
+    return static_cast<int>(vf_[idx(v)].size()) + (locked_[idx(v)] ? 1 : 0);
+  }
+  int target_valence(int v) const { return locked_[idx(v)] ? 4 : 6; }
+  Vec face_normal(int f, int moved = -1, const Vec& to = Vec::Zero(), int replaced = -1, int by = -1) const {
+    std::array<Vec, 3> p;
+    for (std::size_t k = 0; k < 3; ++k) {
+      int w = F_[idx(f)][k];
+      if (w == replaced) w = by;
+      p[k] = w == moved ? to : P_[idx(w)];
+    }
+    return (p[1] - p[0]).cross(p[2] - p[0]);
+  }
+  // The face rotated so that it reads (a, b, c) with a→b one of its edges; false if the
+  // edge u→v does not run that way in it.
+  bool rotated(int f, int a, int b, Face& out) const {
+    const Face& t = F_[idx(f)];
+    for (std::size_t k = 0; k < 3; ++k)
+      if (t[k] == a && t[(k + 1) % 3] == b) {
+        out = {t[k], t[(k + 1) % 3], t[(k + 2) % 3]};
+        return true;
+      }
+    return false;
+  }
+  void drop(int v, int f) {
+    auto& l = vf_[idx(v)];
+    l.erase(std::find(l.begin(), l.end(), f));
+  }
+
+  void split(int u, int v) {
+    const int m = static_cast<int>(P_.size());
+    P_.push_back(0.5 * (P_[idx(u)] + P_[idx(v)]));
+    vf_.emplace_back();
+    vertex_alive_.push_back(1);
+    locked_.push_back(0);
+    for (const int f : edge_faces(u, v)) {
+      Face t{};
+      if (!rotated(f, u, v, t)) rotated(f, v, u, t);
+      const int x = t[0], y = t[1], z = t[2];
+      const int g = static_cast<int>(F_.size());
+      F_[idx(f)] = {x, m, z};
+      F_.push_back({m, y, z});
+      face_alive_.push_back(1);
+      drop(y, f);
+      vf_[idx(y)].push_back(g);
+      vf_[idx(z)].push_back(g);
+      vf_[idx(m)].push_back(f);
+      vf_[idx(m)].push_back(g);
+    }
+  }
+
+  bool try_collapse(int u, int v) {
+    if (locked_[idx(u)] || locked_[idx(v)]) return false;
+    const std::vector<int> shared = edge_faces(u, v);
+    if (shared.size() != 2) return false;
+    std::vector<int> nu, nv, common;
+    neighbours(u, nu);
+    neighbours(v, nv);
+    std::set_intersection(nu.begin(), nu.end(), nv.begin(), nv.end(), std::back_inserter(common));
+    // Link condition: only the two opposite vertices are shared, and they keep three
+    // neighbours at least.
+    if (common.size() != 2) return false;
+    for (const int w : common)
+      if (valence(w) <= 3) return false;
+    if (valence(u) + valence(v) - 4 < 3) return false;
+    const Vec p = 0.5 * (P_[idx(u)] + P_[idx(v)]);
+    for (const auto* list : {&nu, &nv})
+      for (const int w : *list)
+        if (w != u && w != v && (p - P_[idx(w)]).norm() > hi_) return false;
+    // No face may turn over or by more than 60°.
+    for (const int x : {u, v})
+      for (const int f : vf_[idx(x)]) {
+        if (f == shared[0] || f == shared[1]) continue;
+        const Vec before = face_normal(f), after = face_normal(f, v, p, u, v);
+        if (!(after.dot(before) > 0.5 * after.norm() * before.norm())) return false;
+      }
+    for (const int f : shared) {
+      face_alive_[idx(f)] = 0;
+      for (const int w : F_[idx(f)]) drop(w, f);
+    }
+    for (const int f : vf_[idx(u)]) {
+      for (int& w : F_[idx(f)])
+        if (w == u) w = v;
+      vf_[idx(v)].push_back(f);
+    }
+    vf_[idx(u)].clear();
+    vertex_alive_[idx(u)] = 0;
+    P_[idx(v)] = p;
+    return true;
+  }
+
+  bool try_flip(int u, int v) {
+    const std::vector<int> shared = edge_faces(u, v);
+    if (shared.size() != 2) return false;
+    Face t1{}, t2{};
+    int f1 = shared[0], f2 = shared[1];
+    if (!rotated(f1, u, v, t1)) std::swap(f1, f2);
+    if (!rotated(f1, u, v, t1) || !rotated(f2, v, u, t2)) return false;  // inconsistent orientation
+    const int a = t1[2], b = t2[2];
+    if (a == b) return false;
+    for (const int f : vf_[idx(a)])
+      if (has(f, b)) return false;  // a–b is an edge already
+    if (valence(u) <= 3 || valence(v) <= 3) return false;
+    const auto dev = [&](int w, int change) {
+      const int d = valence(w) + change - target_valence(w);
+      return d * d;
+    };
+    const int before = dev(u, 0) + dev(v, 0) + dev(a, 0) + dev(b, 0);
+    const int after = dev(u, -1) + dev(v, -1) + dev(a, 1) + dev(b, 1);
+    if (after >= before) return false;
+    // The quad must stay a surface: the new faces agree with each other and the old ones.
+    const Vec n_old = face_normal(f1).normalized() + face_normal(f2).normalized();
+    const Vec& pa = P_[idx(a)];
+    const Vec n1 = (P_[idx(u)] - pa).cross(P_[idx(b)] - pa), n2 = (P_[idx(v)] - P_[idx(b)]).cross(pa - P_[idx(b)]);
+    if (!(n1.dot(n2) > 0.0 && n1.dot(n_old) > 0.0 && n2.dot(n_old) > 0.0)) return false;
+    F_[idx(f1)] = {a, u, b};
+    F_[idx(f2)] = {b, v, a};
+    drop(u, f2);
+    drop(v, f1);
+    vf_[idx(a)].push_back(f2);
+    vf_[idx(b)].push_back(f1);
+    return true;
+  }
+
+  double lo_, hi_;
+  std::vector<Vec> P_;
+  std::vector<Face> F_;
+  std::vector<char> face_alive_, vertex_alive_, locked_;
+  std::vector<std::vector<int>> vf_;
+};
+
+}  // namespace
+
+geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, double edge_mm, int iterations,
+                                        RemeshStats* stats) {
+  if (!(edge_mm > 0.0) || !std::isfinite(edge_mm))
+    throw std::invalid_argument("isotropic remesh: the edge length must be positive and finite");
+  // Cells of three input edges: a few dozen triangles around each query, which stays within
+  // a fraction of an edge of the surface (farther ones fall back to a full search).
+  const TriangleGrid grid(surface, 1.5 * geometry::median_edge_length(surface));
+  Remesher r(surface, edge_mm);
+  RemeshStats s;
+  for (int i = 0; i < iterations; ++i) {
+    r.split_long_edges(s);
+    r.collapse_short_edges(s);
+    r.equalize_valences(s);
+    r.relax_tangentially();
+    r.project_onto(grid);
+  }
+  if (stats) *stats = s;
+  return r.compact();
+}
+
+}  // namespace evar::deform::detail

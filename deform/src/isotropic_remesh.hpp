@@ -1,0 +1,26 @@
+#pragma once
+// Isotropic remeshing (Botsch & Kobbelt 2004, "A remeshing approach to multiresolution
+// modeling"): edges longer than 4/3 L split, shorter than 4/5 L collapsed, flips toward
+// valence 6, tangential relaxation, every vertex put back on the input surface. The result
+// has near-equilateral triangles of edge about L on the same surface, which is what the
+// cotangent weights of ARAP want; a quadric decimation leaves long slivers along a tube
+// and can pinch two sheets into a non-manifold edge.
+//
+// Topology is kept: a collapse must pass the link condition (the two ends share exactly
+// the two opposite vertices) and may not fold a face. Boundary vertices of an open mesh are
+// held where they are (neither moved, collapsed nor flipped), so its rims keep the input's
+// resolution.
+#include "evar/geometry/triangle_mesh.hpp"
+
+namespace evar::deform::detail {
+
+struct RemeshStats {
+  int splits = 0, collapses = 0, flips = 0;
+};
+
+/// The remeshed surface (a new, compact mesh). `surface` must be a valid, manifold mesh.
+/// std::invalid_argument for a non-positive or non-finite edge length.
+geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, double edge_mm, int iterations = 8,
+                                        RemeshStats* stats = nullptr);
+
+}  // namespace evar::deform::detail
