@@ -25,6 +25,7 @@ nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& out
           {"vertices", r.vertices},
           {"faces", r.faces},
           {"proxy_vertices", r.proxy_vertices},
+          {"proxy_refused", r.proxy_refused},
           {"device_points", r.device_points},
           {"control_points", r.control_points},
           {"bound_vertices", r.bound_vertices},
@@ -125,6 +126,9 @@ int run_deform(const DeformCommand& cmd) {
                r.erased_faces > 0 ? fmt::format(", {} faces erased", r.erased_faces) : "");
     if (r.proxy_vertices > 0)
       log().info("{:<12} solved on a proxy of {} vertices (its {} follow it)", r.name, r.proxy_vertices, r.vertices);
+    if (!r.proxy_refused.empty())
+      log().warn("{}: solved on its own {} vertices, slower and less even than on a proxy: {}", r.name, r.vertices,
+                 r.proxy_refused);
     if (!r.converged) log().warn("{}: ARAP stopped at the iteration cap before reaching {} mm", r.name, cmd.tolerance_mm);
   }
   geometry::Markup landmarks{"Fiducial", "landmarks", result.landmarks};

@@ -65,6 +65,10 @@ LiveNode::LiveNode(const geometry::Scene& scene, NodeOptions options, std::vecto
   m->ready = Clock::now();
   model_ = m;
   log().info("node: {} vessels prepared for deformation in {:.0f} ms", scene.vessels.size(), deformer_->precompute_ms());
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i)
+    if (!deformer_->proxy_refused(i).empty())
+      log().warn("node: vessel '{}' is solved on its own {} vertices (slower, less even): {}", scene.vessels[i].name,
+                 scene.vessels[i].mesh.mesh.V.rows(), deformer_->proxy_refused(i));
 }
 
 LiveNode::~LiveNode() { stop(); }

@@ -38,13 +38,13 @@ class Remesher {
     }
     face_alive_.assign(F_.size(), 1);
     vertex_alive_.assign(n, 1);
-    // Vertices on an edge with one face are the open mesh's rim: held.
-    locked_.assign(n, 0);
+    // Vertices on an edge with one face are the open mesh's rim: they only collapse along it.
+    rim_.assign(n, 0);
     std::map<std::pair<int, int>, int> uses;
     for (const Face& f : F_)
       for (int k = 0; k < 3; ++k) ++uses[ordered(f[static_cast<std::size_t>(k)], f[static_cast<std::size_t>((k + 1) % 3)])];
     for (const auto& [e, count] : uses)
-      if (count == 1) locked_[static_cast<std::size_t>(e.first)] = locked_[static_cast<std::size_t>(e.second)] = 1;
+      if (count == 1) rim_[static_cast<std::size_t>(e.first)] = rim_[static_cast<std::size_t>(e.second)] = 1;
   }
 
   void split_long_edges(RemeshStats& s) {
@@ -80,7 +80,7 @@ class Remesher {
     std::vector<Vec> next = P_;
     std::vector<int> nb;
     for (std::size_t v = 0; v < P_.size(); ++v) {
-      if (!vertex_alive_[v] || locked_[v]) continue;
+      if (!vertex_alive_[v] || rim_[v]) continue;
       neighbours(static_cast<int>(v), nb);
       if (nb.empty()) continue;
       Vec c = Vec::Zero();
@@ -97,7 +97,7 @@ class Remesher {
 
   void project_onto(const TriangleGrid& surface) {
     for (std::size_t v = 0; v < P_.size(); ++v)
-      if (vertex_alive_[v] && !locked_[v]) P_[v] = surface.closest(P_[v]).point;
+      if (vertex_alive_[v] && !rim_[v]) P_[v] = surface.closest(P_[v]).point;
   }
 
   geometry::TriangleMesh compact() const {
@@ -157,9 +157,9 @@ class Remesher {
   }
   int valence(int v) const {
     // Faces around an inner vertex; one more neighbour than faces on a rim.
-    return static_cast<int>(vf_[idx(v)].size()) + (locked_[idx(v)] ? 1 : 0);
+    return static_cast<int>(vf_[idx(v)].size()) + (rim_[idx(v)] ? 1 : 0);
   }
-  int target_valence(int v) const { return locked_[idx(v)] ? 4 : 6; }
+  int target_valence(int v) const { return rim_[idx(v)] ? 4 : 6; }
   Vec face_normal(int f, int moved = -1, const Vec& to = Vec::Zero(), int replaced = -1, int by = -1) const {
     std::array<Vec, 3> p;
     for (std::size_t k = 0; k < 3; ++k) {
@@ -190,7 +190,7 @@ class Remesher {
     P_.push_back(0.5 * (P_[idx(u)] + P_[idx(v)]));
     vf_.emplace_back();
     vertex_alive_.push_back(1);
-    locked_.push_back(0);
+    rim_.push_back(0);
     for (const int f : edge_faces(u, v)) {
       Face t{};
       if (!rotated(f, u, v, t)) rotated(f, v, u, t);
@@ -207,28 +207,43 @@ class Remesher {
     }
   }
 
+  // The edges of v that bound the mesh (one face).
+  int rim_edges(int v, const std::vector<int>& nb) const {
+    int count = 0;
+    for (const int w : nb)
+      if (edge_faces(v, w).size() == 1) ++count;
+    return count;
+  }
+
+  // u goes, v stays. Inside, v moves to the edge's midpoint; a vertex collapses onto a rim
+  // vertex where that one is; along a rim, u goes into v, which keeps its place, so the
+  // rim's vertices stay rim vertices of the input.
   bool try_collapse(int u, int v) {
-    if (locked_[idx(u)] || locked_[idx(v)]) return false;
+    if (rim_[idx(u)] && !rim_[idx(v)]) std::swap(u, v);
     const std::vector<int> shared = edge_faces(u, v);
-    if (shared.size() != 2) return false;
+    const bool along_rim = rim_[idx(u)];
+    if (along_rim ? shared.size() != 1 : shared.size() != 2) return false;
     std::vector<int> nu, nv, common;
     neighbours(u, nu);
     neighbours(v, nv);
+    // A rim vertex where more than one rim passes (two open ends touching) stays.
+    if (along_rim && (rim_edges(u, nu) != 2 || rim_edges(v, nv) != 2)) return false;
     std::set_intersection(nu.begin(), nu.end(), nv.begin(), nv.end(), std::back_inserter(common));
-    // Link condition: only the two opposite vertices are shared, and they keep three
-    // neighbours at least.
-    if (common.size() != 2) return false;
+    // Link condition: only the opposite vertices of the edge's faces are shared, and they
+    // keep three neighbours at least.
+    if (common.size() != shared.size()) return false;
     for (const int w : common)
       if (valence(w) <= 3) return false;
     if (valence(u) + valence(v) - 4 < 3) return false;
-    const Vec p = 0.5 * (P_[idx(u)] + P_[idx(v)]);
+    if (along_rim && nu.size() + nv.size() <= 4) return false;  // a rim of three vertices stays
+    const Vec p = rim_[idx(v)] ? P_[idx(v)] : Vec(0.5 * (P_[idx(u)] + P_[idx(v)]));
     for (const auto* list : {&nu, &nv})
       for (const int w : *list)
         if (w != u && w != v && (p - P_[idx(w)]).norm() > hi_) return false;
     // No face may turn over or by more than 60°.
     for (const int x : {u, v})
       for (const int f : vf_[idx(x)]) {
-        if (f == shared[0] || f == shared[1]) continue;
+        if (std::find(shared.begin(), shared.end(), f) != shared.end()) continue;
         const Vec before = face_normal(f), after = face_normal(f, v, p, u, v);
         if (!(after.dot(before) > 0.5 * after.norm() * before.norm())) return false;
       }
@@ -283,7 +298,7 @@ class Remesher {
   double lo_, hi_;
   std::vector<Vec> P_;
   std::vector<Face> F_;
-  std::vector<char> face_alive_, vertex_alive_, locked_;
+  std::vector<char> face_alive_, vertex_alive_, rim_;
   std::vector<std::vector<int>> vf_;
 };
 

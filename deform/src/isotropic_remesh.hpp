@@ -7,9 +7,9 @@
 // and can pinch two sheets into a non-manifold edge.
 //
 // Topology is kept: a collapse must pass the link condition (the two ends share exactly
-// the two opposite vertices) and may not fold a face. Boundary vertices of an open mesh are
-// held where they are (neither moved, collapsed nor flipped), so its rims keep the input's
-// resolution.
+// the opposite vertices of the edge's faces) and may not fold a face. The rim of an open
+// mesh is coarsened along itself only: its vertices stay rim vertices of the input, in
+// place, and are not relaxed.
 #include "evar/geometry/triangle_mesh.hpp"
 
 namespace evar::deform::detail {

@@ -31,6 +31,7 @@ bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm) {
 
 MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   if (!(edge_mm > 0.0)) throw std::invalid_argument("mesh proxy: the edge length must be positive");
+  if (fine.F.rows() == 0) throw std::runtime_error("mesh proxy: the mesh has no faces");
   const auto n = static_cast<std::size_t>(fine.V.rows());
   MeshProxy proxy;
   proxy.coarse = detail::isotropic_remesh(fine, edge_mm);

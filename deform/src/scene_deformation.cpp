@@ -272,15 +272,18 @@ void apply_erasure(DeformedVessel& dv, const geometry::Faces& faces, const geome
 // The scene with a proxy in place of every mesh that needs one (null when none does); a
 // mesh whose proxy cannot be made is solved as it is.
 std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double edge_mm,
-                                         std::vector<std::optional<MeshProxy>>& proxies, double& ms) {
+                                         std::vector<std::optional<MeshProxy>>& proxies,
+                                         std::vector<std::string>& refusals, double& ms) {
   const auto t0 = Clock::now();
   proxies.assign(scene.vessels.size(), std::nullopt);
+  refusals.assign(scene.vessels.size(), std::string());
   std::unique_ptr<geometry::Scene> working;
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
     if (!needs_proxy(scene.vessels[i].mesh.mesh, edge_mm)) continue;
     try {
       proxies[i] = make_proxy(scene.vessels[i].mesh.mesh, edge_mm);
-    } catch (const std::runtime_error&) {
+    } catch (const std::runtime_error& e) {
+      refusals[i] = e.what();
       continue;
     }
     if (!working) working = std::make_unique<geometry::Scene>(scene);
@@ -295,7 +298,7 @@ std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double ed
 SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions options)
     : original_(original),
       options_(std::move(options)),
-      working_(proxied(original, options_.proxy_edge_mm, proxies_, proxy_ms_)),
+      working_(proxied(original, options_.proxy_edge_mm, proxies_, proxy_refusals_, proxy_ms_)),
       scene_(working_ ? *working_ : original) {
   const auto t0 = Clock::now();
   const geometry::Scene& scene = scene_;
@@ -350,7 +353,11 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
 }
 
 SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const SceneDeformation* previous) const {
-  if (!working_) return solve(device, previous);
+  if (!working_) {
+    SceneDeformation out = solve(device, previous);
+    for (std::size_t i = 0; i < out.reports.size(); ++i) out.reports[i].proxy_refused = proxy_refusals_[i];
+    return out;
+  }
   const auto t_total = Clock::now();
   // The previous frame as the proxies saw it.
   std::optional<SceneDeformation> seen;
@@ -369,6 +376,7 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
   // around it (by its barycentric weights).
   out.proxy_solutions.resize(out.vessels.size());
   for (std::size_t i = 0; i < out.vessels.size(); ++i) {
+    out.reports[i].proxy_refused = proxy_refusals_[i];
     if (!proxies_[i]) continue;
     const MeshProxy& proxy = *proxies_[i];
     const geometry::TriangleMesh& fine = original_.vessels[i].mesh.mesh;

@@ -107,7 +107,7 @@ TEST(MeshProxy, IsAnEvenMeshOfTheAskedEdgeOnTheSameSurfaceAndTheFineMeshFollowsI
   expect_follows_exactly(p, fine);
 }
 
-TEST(MeshProxy, AnOpenMeshKeepsItsRimAndGetsAnEvenProxy) {
+TEST(MeshProxy, AnOpenMeshGetsAnEvenProxyWhoseRimsAreTheFineRims) {
   std::vector<Eigen::Vector3d> c;
   for (int i = 0; i <= 20; ++i) c.emplace_back(3.0 * std::sin(i * 0.15), 0.0, 5.0 * i);
   sim::TubeOptions o;
@@ -118,7 +118,26 @@ TEST(MeshProxy, AnOpenMeshKeepsItsRimAndGetsAnEvenProxy) {
   ASSERT_FALSE(geometry::is_closed(fine));
   const deform::MeshProxy p = deform::make_proxy(fine, 1.4);
   EXPECT_LT(p.coarse.V.rows(), fine.V.rows() / 3);
+  EXPECT_FALSE(geometry::is_closed(p.coarse));
+  // The rims are coarsened too, along themselves; their vertices do not relax, so the
+  // triangles on them are less even than inside (measured: 17.6° at worst, against 31-37°).
+  EXPECT_GT(quality(p.coarse).min_angle_deg, 15.0);
   EXPECT_LT(p.largest_offset_mm, 0.1);  // no crease to round: all within the sagitta
+  // The rims are rims of the fine mesh: each vertex of an edge with one face is a fine one.
+  std::map<std::pair<int, int>, int> uses;
+  for (Eigen::Index f = 0; f < p.coarse.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = p.coarse.F(f, k), b = p.coarse.F(f, (k + 1) % 3);
+      ++uses[{std::min(a, b), std::max(a, b)}];
+    }
+  int rim_edges = 0;
+  for (const auto& [e, count] : uses) {
+    if (count != 1) continue;
+    ++rim_edges;
+    for (const int i : {e.first, e.second})
+      EXPECT_LT((fine.V.rowwise() - p.coarse.V.row(i)).rowwise().norm().minCoeff(), 1e-12) << i;
+  }
+  EXPECT_LT(rim_edges, 2 * o.segments_around / 2);  // two rims, each at most half its fine vertices
   expect_follows_exactly(p, fine);
 }
 
@@ -130,6 +149,20 @@ TEST(MeshProxy, AProxyFinerThanItsMeshIsAFinerMeshOfTheSameSurface) {
   EXPECT_GT(p.coarse.V.rows(), 5 * regular.V.rows());
   EXPECT_TRUE(geometry::is_closed(p.coarse));
   expect_follows_exactly(p, regular);
+}
+
+// What cannot have a proxy is refused with a reason (the scene then solves the mesh as it
+// is and says why in its report, VesselReport::proxy_refused).
+TEST(MeshProxy, AMeshWithoutFacesIsRefusedWithAReason) {
+  geometry::TriangleMesh points;
+  points.V = tube(0.5).V;
+  points.F.resize(0, 3);
+  try {
+    (void)deform::make_proxy(points, 1.4);
+    ADD_FAILURE() << "a mesh without faces got a proxy";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("no faces"), std::string::npos) << e.what();
+  }
 }
 
 namespace {

@@ -35,8 +35,8 @@ bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm);
 /// Isotropic remeshing of the fine surface (Botsch & Kobbelt 2004) to near-equilateral
 /// triangles with edges of about `edge_mm`, keeping the topology; then every fine vertex
 /// bound to it. A sharp crease (a flat cap's rim) is rounded by up to about half an edge;
-/// the fine vertices keep their offsets, so the output keeps it. Rim vertices of an open
-/// mesh stay as they are. std::runtime_error when the result is not a valid mesh (the
+/// the fine vertices keep their offsets, so the output keeps it. The rim of an open mesh
+/// keeps a subset of its vertices. std::runtime_error when the result is not a valid mesh (the
 /// caller then solves the fine mesh itself).
 MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm);
 

@@ -68,6 +68,7 @@ struct VesselReport {
   std::string role;              ///< "deformed", "carries the device", "follows the aorta", "unchanged"
   int vertices = 0, faces = 0;
   int proxy_vertices = 0;        ///< the proxy it was solved on (0: solved on its own mesh)
+  std::string proxy_refused;     ///< why a mesh fine enough for a proxy is solved as it is ("" otherwise)
   int device_points = 0;         ///< device samples that lie within this vessel's reach
   int control_points = 0;        ///< handles from the device
   int bound_vertices = 0;        ///< iliac top vertices bound to the aorta
@@ -128,6 +129,8 @@ class SceneDeformer {
   double precompute_ms() const { return precompute_ms_; }
   /// The vessel's proxy (null when it is solved on its own mesh).
   const MeshProxy* proxy(std::size_t vessel) const { return proxies_[vessel] ? &*proxies_[vessel] : nullptr; }
+  /// Why vessel i needed a proxy and has none ("" when it has one or needs none).
+  const std::string& proxy_refused(std::size_t vessel) const { return proxy_refusals_[vessel]; }
 
   struct VesselModel;  ///< opaque per-vessel precomputation
 
@@ -138,6 +141,7 @@ class SceneDeformer {
   const geometry::Scene& original_;
   DeformOptions options_;
   std::vector<std::optional<MeshProxy>> proxies_;  ///< per vessel
+  std::vector<std::string> proxy_refusals_;        ///< per vessel, see proxy_refused()
   double proxy_ms_ = 0.0;                          ///< making them (part of precompute_ms_)
   std::unique_ptr<geometry::Scene> working_;       ///< the scene with the proxies (null: none)
   const geometry::Scene& scene_;                   ///< *working_ or original_
