@@ -48,11 +48,15 @@ class Remesher {
   }
 
   void split_long_edges(RemeshStats& s) {
-    for (const auto& [u, v] : edges())
-      if ((P_[idx(u)] - P_[idx(v)]).norm() > hi_ && edge_faces(u, v).size() == 2) {
-        split(u, v);
-        ++s.splits;
-      }
+    for (const auto& [u, v] : edges()) {
+      if (!((P_[idx(u)] - P_[idx(v)]).norm() > hi_)) continue;
+      const std::vector<int> faces = edge_faces(u, v);
+      // Two faces with the same third vertex (a two-sided triangle) would give the new
+      // vertex the same edge to it twice.
+      if (faces.size() != 2 || opposite(faces[0], u, v) == opposite(faces[1], u, v)) continue;
+      split(u, v);
+      ++s.splits;
+    }
   }
 
   void collapse_short_edges(RemeshStats& s) {
@@ -137,6 +141,11 @@ class Remesher {
     return e;
   }
 
+  int opposite(int f, int u, int v) const {
+    for (const int w : F_[idx(f)])
+      if (w != u && w != v) return w;
+    return -1;
+  }
   bool has(int f, int v) const {
     const Face& t = F_[idx(f)];
     return t[0] == v || t[1] == v || t[2] == v;

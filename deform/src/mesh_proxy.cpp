@@ -42,6 +42,28 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   }
   if (geometry::is_closed(fine) && !geometry::is_closed(proxy.coarse))
     throw std::runtime_error("mesh proxy: the remeshed surface is not closed");
+  // The same surface, face by face: each has area and faces the way the fine surface does
+  // where it lies (a vessel thinner than about an edge can fold or shrink under the
+  // collapses; then the fine mesh is solved as it is).
+  {
+    const detail::TriangleGrid fine_grid(fine, 3.0 * geometry::median_edge_length(fine));
+    for (Eigen::Index f = 0; f < proxy.coarse.F.rows(); ++f) {
+      const Eigen::Vector3d a = proxy.coarse.V.row(proxy.coarse.F(f, 0)).transpose(),
+                            b = proxy.coarse.V.row(proxy.coarse.F(f, 1)).transpose(),
+                            c = proxy.coarse.V.row(proxy.coarse.F(f, 2)).transpose();
+      const Eigen::Vector3d normal = (b - a).cross(c - a);
+      if (!(0.5 * normal.norm() > 1e-3 * edge_mm * edge_mm))
+        throw std::runtime_error("mesh proxy: face " + std::to_string(f) + " of the remeshed surface has no area");
+      const geometry::SurfacePoint on_fine = fine_grid.closest((a + b + c) / 3.0);
+      const Eigen::Vector3d fa = fine.V.row(fine.F(on_fine.face, 0)).transpose(),
+                            fb = fine.V.row(fine.F(on_fine.face, 1)).transpose(),
+                            fc = fine.V.row(fine.F(on_fine.face, 2)).transpose();
+      if (!(normal.dot((fb - fa).cross(fc - fa)) > 0.0))
+        throw std::runtime_error("mesh proxy: face " + std::to_string(f) +
+                                 " of the remeshed surface is turned against the mesh (a vessel thinner than the "
+                                 "proxy's edge?)");
+    }
+  }
 
   const detail::TriangleGrid grid(proxy.coarse, geometry::median_edge_length(proxy.coarse));
   proxy.bindings.resize(n);
@@ -54,6 +76,12 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
     b.offset_in_face = face_frame(proxy.coarse.F, proxy.coarse.V, sp.face).transpose() * (p - sp.point);
     proxy.largest_offset_mm = std::max(proxy.largest_offset_mm, sp.distance_mm);
   }
+  // A crease is rounded by about half an edge; a fine vertex farther away than a whole edge
+  // means the proxy lost part of the surface (a thin vessel shrunk along its length).
+  if (proxy.largest_offset_mm > edge_mm)
+    throw std::runtime_error("mesh proxy: a vertex of the mesh lies " + std::to_string(proxy.largest_offset_mm) +
+                             " mm from the remeshed surface, more than its edge of " + std::to_string(edge_mm) +
+                             " mm (a vessel thinner than the proxy's edge?)");
   return proxy;
 }
 

@@ -2,6 +2,8 @@
 
 #include <Eigen/Geometry>
 #include <chrono>
+#include <exception>
+#include <future>
 #include <numeric>
 #include <set>
 #include <cmath>
@@ -481,10 +483,10 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
   }
   const auto& aorta_deformed = out.vessels[static_cast<std::size_t>(aorta)].mesh.V;
 
-  // 2-4. Iliacs.
-  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+  // 2-4. Iliacs. Each depends on the deformed aorta only, not on the others (the carrier
+  // alone writes the aorta's erasure), so with more than one they are solved at once.
+  const auto solve_iliac = [&](std::size_t i) {
     const auto& v = scene.vessels[i];
-    if (v.kind != geometry::VesselKind::Iliac) continue;
     auto& r = out.reports[i];
     const auto& m = *models[i];
     const auto& mesh = v.mesh.mesh;
@@ -540,7 +542,25 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
       V_out = deform_vessel(m, {}, bound, options, {}, warm_start(previous, i), r);
       r.role = "follows the aorta";
     }
-  }
+  };
+  std::vector<std::size_t> iliacs;
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i)
+    if (scene.vessels[i].kind == geometry::VesselKind::Iliac) iliacs.push_back(i);
+  std::vector<std::future<void>> others;
+  for (std::size_t k = 0; k + 1 < iliacs.size(); ++k)
+    others.push_back(std::async(options.parallel_iliacs ? std::launch::async : std::launch::deferred, solve_iliac, iliacs[k]));
+  std::exception_ptr failed;
+  if (!iliacs.empty()) try {
+      solve_iliac(iliacs.back());
+    } catch (...) {
+      failed = std::current_exception();
+    }
+  for (auto& f : others) try {
+      f.get();
+    } catch (...) {
+      if (!failed) failed = std::current_exception();
+    }
+  if (failed) std::rethrow_exception(failed);
 
   // Apply erasures: faces touching an erased vertex are removed; vertices keep their order.
   for (std::size_t i = 0; i < out.vessels.size(); ++i) {

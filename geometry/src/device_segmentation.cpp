@@ -431,6 +431,10 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     cv::Mat masked;
     R.copyTo(masked, confident);
     cv::minMaxLoc(masked, nullptr, nullptr, nullptr, &best);
+    if (!band[static_cast<std::size_t>(best.y * W + best.x)]) {  // no confident pixel has a response
+      result.reason = "no ridge stronger than " + std::to_string(o.high_threshold) + " noise units";
+      return result;
+    }
     dist[static_cast<std::size_t>(best.y * W + best.x)] = 0.0f;
     heap.emplace(0.0f, best.y * W + best.x);
   }
@@ -711,6 +715,13 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
     throw std::invalid_argument("segment_device: device width must be 0.5 to 100 px");
   for (const double sc : o.scales_px)
     if (!(sc > 0.0 && sc < 100.0)) throw std::invalid_argument("segment_device: ridge scales must be 0 to 100 px");
+  // The path search starts only inside the band these span; a zero or negative threshold
+  // would make every pixel confident, and a negative gap radius an empty band.
+  if (!(o.high_threshold > 0.0 && o.low_threshold > 0.0 && o.low_threshold <= o.high_threshold &&
+        std::isfinite(o.high_threshold)))
+    throw std::invalid_argument("segment_device: thresholds must be positive, low at most high");
+  if (!(o.gap_radius_px >= 0.0 && std::isfinite(o.gap_radius_px)))
+    throw std::invalid_argument("segment_device: the gap radius must be a finite length of 0 px or more");
   const cv::Rect field = exposed_field(f);
   // Shadows 4 px and wider are searched at half resolution (2 px and wider there: enough
   // for the ridge measure), four times fewer pixels; the result is refined on the frame.

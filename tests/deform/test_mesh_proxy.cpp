@@ -151,6 +151,41 @@ TEST(MeshProxy, AProxyFinerThanItsMeshIsAFinerMeshOfTheSameSurface) {
   expect_follows_exactly(p, regular);
 }
 
+// A vessel thinner than about an edge cannot be meshed at that edge: the collapses fold
+// and shorten it (an independent review measured a closed tube of radius 0.5 mm shrunk to
+// a third of its length at 1.4 mm). Refused, so it is solved on its own mesh.
+TEST(MeshProxy, AVesselThinnerThanTheProxysEdgeIsRefusedNotShrunk) {
+  std::vector<Eigen::Vector3d> c;
+  for (int i = 0; i <= 20; ++i) c.emplace_back(0.0, 0.0, 1.0 * i);
+  sim::TubeOptions o;
+  o.segments_around = 16;
+  o.ring_spacing_mm = 0.2;
+  const geometry::TriangleMesh thin = sim::tube_mesh(c, [](double) { return 0.5; }, o);
+  for (const double edge : {1.4, 2.0}) {
+    try {
+      const deform::MeshProxy p = deform::make_proxy(thin, edge);
+      ADD_FAILURE() << "a proxy at " << edge << " mm, " << p.coarse.V.rows() << " vertices, offset " << p.largest_offset_mm;
+    } catch (const std::runtime_error& e) {
+      EXPECT_NE(std::string(e.what()).find("thinner than the proxy's edge"), std::string::npos) << e.what();
+    }
+  }
+}
+
+// The review's other case: an open tube of fine 0.2 mm edges at a 2 mm proxy edge gave an
+// inverted face and a 1° angle when the rims were held at the fine resolution.
+TEST(MeshProxy, AFinelyMeshedOpenTubeAtALongEdgeHasNoFoldedOrSliverFace) {
+  std::vector<Eigen::Vector3d> c;
+  for (int i = 0; i <= 6; ++i) c.emplace_back(0.0, 0.0, 5.0 * i);
+  sim::TubeOptions o;
+  o.segments_around = static_cast<int>(std::lround(2.0 * M_PI * 10.0 / 0.2));
+  o.ring_spacing_mm = 0.2 * std::sqrt(3.0) / 2.0;
+  o.capped = false;
+  const geometry::TriangleMesh fine = sim::tube_mesh(c, [](double) { return 10.0; }, o);
+  const deform::MeshProxy p = deform::make_proxy(fine, 2.0);  // checks every face's area and side
+  EXPECT_GT(quality(p.coarse).min_angle_deg, 15.0);
+  EXPECT_LT(p.largest_offset_mm, 0.2);
+}
+
 // What cannot have a proxy is refused with a reason (the scene then solves the mesh as it
 // is and says why in its report, VesselReport::proxy_refused).
 TEST(MeshProxy, AMeshWithoutFacesIsRefusedWithAReason) {

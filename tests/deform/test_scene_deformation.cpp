@@ -329,3 +329,26 @@ TEST(SceneDeformation, WarmStartFromThePreviousFrameReachesTheSameShapeInFewerIt
   other.vessels.pop_back();
   EXPECT_THROW(deformer.deform(moved, &other), std::invalid_argument);
 }
+
+// The iliacs solved at once give what one after the other gives, bit for bit: each reads
+// the deformed aorta only, and only the carrier writes the aorta's erasure.
+TEST(SceneDeformation, TheIliacsSolvedAtOnceGiveExactlyWhatOneAfterTheOtherGives) {
+  const auto scene = sim::to_scene(example());
+  deform::DeformOptions at_once, in_turn;
+  at_once.parallel_iliacs = true;
+  in_turn.parallel_iliacs = false;
+  const auto a = deform::SceneDeformer(scene, at_once).deform(example().device);
+  const auto b = deform::SceneDeformer(scene, in_turn).deform(example().device);
+  ASSERT_EQ(a.vessels.size(), b.vessels.size());
+  int moved_iliacs = 0;
+  for (std::size_t i = 0; i < a.vessels.size(); ++i) {
+    EXPECT_EQ(a.vessels[i].mesh.V, b.vessels[i].mesh.V) << a.reports[i].name;
+    EXPECT_EQ(a.vessels[i].mesh.F, b.vessels[i].mesh.F) << a.reports[i].name;
+    EXPECT_EQ(a.vessels[i].erased, b.vessels[i].erased) << a.reports[i].name;
+    EXPECT_EQ(a.reports[i].iterations, b.reports[i].iterations) << a.reports[i].name;
+    if (a.reports[i].kind == "iliac" && a.reports[i].iterations > 0) ++moved_iliacs;
+  }
+  EXPECT_EQ(moved_iliacs, 2);  // both iliacs were solved: the carrier and the one that follows
+  for (std::size_t k = 0; k < a.landmarks.size(); ++k)
+    EXPECT_EQ(a.landmarks[k].position_lps, b.landmarks[k].position_lps) << a.landmarks[k].label;
+}

@@ -232,3 +232,24 @@ TEST(DeviceSegmentation, GarbageNeverCrashes) {
   EXPECT_THROW(geometry::segment_device(cv::Mat()), std::invalid_argument);
   EXPECT_THROW(geometry::segment_device(cv::Mat(10, 10, CV_8UC3)), std::invalid_argument);
 }
+
+// Options that would start the path search outside its band (an independent review found
+// a read before the image with a zero threshold and a negative gap radius) are refused.
+TEST(DeviceSegmentation, OptionsThatLeaveNoBandAreRefused) {
+  const cv::Mat flat(72, 46, CV_32FC1, cv::Scalar(1000.0f));
+  geometry::SegmentationOptions o;
+  o.high_threshold = 0.0;
+  EXPECT_THROW(geometry::segment_device(flat, o), std::invalid_argument);
+  o = {};
+  o.low_threshold = -1.0;
+  EXPECT_THROW(geometry::segment_device(flat, o), std::invalid_argument);
+  o = {};
+  o.low_threshold = 2.0 * o.high_threshold;
+  EXPECT_THROW(geometry::segment_device(flat, o), std::invalid_argument);
+  o = {};
+  o.gap_radius_px = -1.0;
+  EXPECT_THROW(geometry::segment_device(flat, o), std::invalid_argument);
+  o.gap_radius_px = std::numeric_limits<double>::quiet_NaN();
+  EXPECT_THROW(geometry::segment_device(flat, o), std::invalid_argument);
+  EXPECT_NO_THROW(geometry::segment_device(flat, {}));
+}

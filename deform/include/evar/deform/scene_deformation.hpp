@@ -56,6 +56,9 @@ struct DeformOptions {
   /// result at the paper's resolution (its 7,500-vertex aorta has edges of about 1.4 mm)
   /// does not depend on how finely CT was meshed. 0 = every mesh is solved as it is.
   double proxy_edge_mm = 1.4;
+  /// The iliacs (independent once the aorta is solved) on threads of their own; false:
+  /// one after the other on the calling thread. The result is the same either way.
+  bool parallel_iliacs = true;
 };
 
 struct StageTimings {
