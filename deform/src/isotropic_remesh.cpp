@@ -47,7 +47,7 @@ class Remesher {
       if (count == 1) rim_[static_cast<std::size_t>(e.first)] = rim_[static_cast<std::size_t>(e.second)] = 1;
   }
 
-  void split_long_edges(RemeshStats& s) {
+  void split_long_edges() {
     for (const auto& [u, v] : edges()) {
       if (!((P_[idx(u)] - P_[idx(v)]).norm() > hi_)) continue;
       const std::vector<int> faces = edge_faces(u, v);
@@ -55,11 +55,10 @@ class Remesher {
       // vertex the same edge to it twice.
       if (faces.size() != 2 || opposite(faces[0], u, v) == opposite(faces[1], u, v)) continue;
       split(u, v);
-      ++s.splits;
     }
   }
 
-  void collapse_short_edges(RemeshStats& s) {
+  void collapse_short_edges() {
     auto list = edges();
     std::vector<double> length(list.size());
     for (std::size_t i = 0; i < list.size(); ++i) length[i] = (P_[idx(list[i].first)] - P_[idx(list[i].second)]).norm();
@@ -70,13 +69,12 @@ class Remesher {
       const auto [u, v] = list[i];
       if (!vertex_alive_[idx(u)] || !vertex_alive_[idx(v)]) continue;
       if ((P_[idx(u)] - P_[idx(v)]).norm() >= lo_) continue;
-      if (try_collapse(u, v)) ++s.collapses;
+      try_collapse(u, v);
     }
   }
 
-  void equalize_valences(RemeshStats& s) {
-    for (const auto& [u, v] : edges())
-      if (try_flip(u, v)) ++s.flips;
+  void equalize_valences() {
+    for (const auto& [u, v] : edges()) try_flip(u, v);
   }
 
   // Each free vertex moves to its neighbours' centroid within its tangent plane (Jacobi).
@@ -313,23 +311,20 @@ class Remesher {
 
 }  // namespace
 
-geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, double edge_mm, int iterations,
-                                        RemeshStats* stats) {
+geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, double edge_mm, int iterations) {
   if (!(edge_mm > 0.0) || !std::isfinite(edge_mm))
     throw std::invalid_argument("isotropic remesh: the edge length must be positive and finite");
   // Cells of three input edges: a few dozen triangles around each query, which stays within
   // a fraction of an edge of the surface (farther ones fall back to a full search).
   const TriangleGrid grid(surface, 1.5 * geometry::median_edge_length(surface));
   Remesher r(surface, edge_mm);
-  RemeshStats s;
   for (int i = 0; i < iterations; ++i) {
-    r.split_long_edges(s);
-    r.collapse_short_edges(s);
-    r.equalize_valences(s);
+    r.split_long_edges();
+    r.collapse_short_edges();
+    r.equalize_valences();
     r.relax_tangentially();
     r.project_onto(grid);
   }
-  if (stats) *stats = s;
   return r.compact();
 }
 

@@ -14,13 +14,8 @@
 
 namespace evar::deform::detail {
 
-struct RemeshStats {
-  int splits = 0, collapses = 0, flips = 0;
-};
-
 /// The remeshed surface (a new, compact mesh). `surface` must be a valid, manifold mesh.
 /// std::invalid_argument for a non-positive or non-finite edge length.
-geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, double edge_mm, int iterations = 8,
-                                        RemeshStats* stats = nullptr);
+geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, double edge_mm, int iterations = 8);
 
 }  // namespace evar::deform::detail

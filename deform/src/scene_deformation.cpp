@@ -546,21 +546,24 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
   std::vector<std::size_t> iliacs;
   for (std::size_t i = 0; i < scene.vessels.size(); ++i)
     if (scene.vessels[i].kind == geometry::VesselKind::Iliac) iliacs.push_back(i);
+  // All but the last on threads of their own, the last here; every one is waited for, and
+  // the first failure in scene order is the one reported, as one after the other would.
   std::vector<std::future<void>> others;
   for (std::size_t k = 0; k + 1 < iliacs.size(); ++k)
     others.push_back(std::async(options.parallel_iliacs ? std::launch::async : std::launch::deferred, solve_iliac, iliacs[k]));
-  std::exception_ptr failed;
+  std::vector<std::exception_ptr> failed(iliacs.size());
   if (!iliacs.empty()) try {
       solve_iliac(iliacs.back());
     } catch (...) {
-      failed = std::current_exception();
+      failed.back() = std::current_exception();
     }
-  for (auto& f : others) try {
-      f.get();
+  for (std::size_t k = 0; k < others.size(); ++k) try {
+      others[k].get();
     } catch (...) {
-      if (!failed) failed = std::current_exception();
+      failed[k] = std::current_exception();
     }
-  if (failed) std::rethrow_exception(failed);
+  for (const auto& e : failed)
+    if (e) std::rethrow_exception(e);
 
   // Apply erasures: faces touching an erased vertex are removed; vertices keep their order.
   for (std::size_t i = 0; i < out.vessels.size(); ++i) {
