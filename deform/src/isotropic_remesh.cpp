@@ -311,19 +311,17 @@ class Remesher {
 
 }  // namespace
 
-geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, double edge_mm, int iterations) {
+geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, const TriangleGrid& surface_grid,
+                                        double edge_mm, int iterations) {
   if (!(edge_mm > 0.0) || !std::isfinite(edge_mm))
     throw std::invalid_argument("isotropic remesh: the edge length must be positive and finite");
-  // Cells of three input edges: a few dozen triangles around each query, which stays within
-  // a fraction of an edge of the surface (farther ones fall back to a full search).
-  const TriangleGrid grid(surface, 1.5 * geometry::median_edge_length(surface));
   Remesher r(surface, edge_mm);
   for (int i = 0; i < iterations; ++i) {
     r.split_long_edges();
     r.collapse_short_edges();
     r.equalize_valences();
     r.relax_tangentially();
-    r.project_onto(grid);
+    r.project_onto(surface_grid);
   }
   return r.compact();
 }

@@ -11,11 +11,15 @@
 // mesh is coarsened along itself only: its vertices stay rim vertices of the input, in
 // place, and are not relaxed.
 #include "evar/geometry/triangle_mesh.hpp"
+#include "triangle_grid.hpp"
 
 namespace evar::deform::detail {
 
-/// The remeshed surface (a new, compact mesh). `surface` must be a valid, manifold mesh.
-/// std::invalid_argument for a non-positive or non-finite edge length.
-geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, double edge_mm, int iterations = 8);
+/// The remeshed surface (a new, compact mesh). `surface` must be a valid, manifold mesh and
+/// `surface_grid` a grid over it (vertices are put back on it by closest-point queries,
+/// which start within a fraction of an edge of it). std::invalid_argument for a
+/// non-positive or non-finite edge length.
+geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, const TriangleGrid& surface_grid,
+                                        double edge_mm, int iterations = 8);
 
 }  // namespace evar::deform::detail

@@ -34,7 +34,11 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   if (fine.F.rows() == 0) throw std::runtime_error("mesh proxy: the mesh has no faces");
   const auto n = static_cast<std::size_t>(fine.V.rows());
   MeshProxy proxy;
-  proxy.coarse = detail::isotropic_remesh(fine, edge_mm);
+  // One grid over the fine surface, cells of three of its edges (a few dozen triangles
+  // around each query): the remesher puts its vertices back on it, and the check below
+  // looks up where each face lies.
+  const detail::TriangleGrid fine_grid(fine, 3.0 * geometry::median_edge_length(fine));
+  proxy.coarse = detail::isotropic_remesh(fine, fine_grid, edge_mm);
   try {
     geometry::validate_mesh(proxy.coarse, "the proxy");
   } catch (const std::exception& e) {
@@ -46,7 +50,6 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   // where it lies (a vessel thinner than about an edge can fold or shrink under the
   // collapses; then the fine mesh is solved as it is).
   {
-    const detail::TriangleGrid fine_grid(fine, 3.0 * geometry::median_edge_length(fine));
     for (Eigen::Index f = 0; f < proxy.coarse.F.rows(); ++f) {
       const Eigen::Vector3d a = proxy.coarse.V.row(proxy.coarse.F(f, 0)).transpose(),
                             b = proxy.coarse.V.row(proxy.coarse.F(f, 1)).transpose(),
