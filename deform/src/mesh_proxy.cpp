@@ -23,6 +23,12 @@ Eigen::Matrix3d face_frame(const geometry::Faces& F, const geometry::Vertices& V
   return frame;
 }
 
+// Twice the face's area along its normal.
+Eigen::Vector3d area_normal(const geometry::TriangleMesh& m, Eigen::Index f) {
+  const Eigen::Vector3d a = m.V.row(m.F(f, 0)).transpose();
+  return (m.V.row(m.F(f, 1)).transpose() - a).cross(m.V.row(m.F(f, 2)).transpose() - a);
+}
+
 }  // namespace
 
 bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm) {
@@ -49,23 +55,16 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   // The same surface, face by face: each has area and faces the way the fine surface does
   // where it lies (a vessel thinner than about an edge can fold or shrink under the
   // collapses; then the fine mesh is solved as it is).
-  {
-    for (Eigen::Index f = 0; f < proxy.coarse.F.rows(); ++f) {
-      const Eigen::Vector3d a = proxy.coarse.V.row(proxy.coarse.F(f, 0)).transpose(),
-                            b = proxy.coarse.V.row(proxy.coarse.F(f, 1)).transpose(),
-                            c = proxy.coarse.V.row(proxy.coarse.F(f, 2)).transpose();
-      const Eigen::Vector3d normal = (b - a).cross(c - a);
-      if (!(0.5 * normal.norm() > 1e-3 * edge_mm * edge_mm))
-        throw std::runtime_error("mesh proxy: face " + std::to_string(f) + " of the remeshed surface has no area");
-      const geometry::SurfacePoint on_fine = fine_grid.closest((a + b + c) / 3.0);
-      const Eigen::Vector3d fa = fine.V.row(fine.F(on_fine.face, 0)).transpose(),
-                            fb = fine.V.row(fine.F(on_fine.face, 1)).transpose(),
-                            fc = fine.V.row(fine.F(on_fine.face, 2)).transpose();
-      if (!(normal.dot((fb - fa).cross(fc - fa)) > 0.0))
-        throw std::runtime_error("mesh proxy: face " + std::to_string(f) +
-                                 " of the remeshed surface is turned against the mesh (a vessel thinner than the "
-                                 "proxy's edge?)");
-    }
+  for (Eigen::Index f = 0; f < proxy.coarse.F.rows(); ++f) {
+    const Eigen::Vector3d normal = area_normal(proxy.coarse, f);
+    if (!(0.5 * normal.norm() > 1e-3 * edge_mm * edge_mm))
+      throw std::runtime_error("mesh proxy: face " + std::to_string(f) + " of the remeshed surface has no area");
+    Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
+    for (int k = 0; k < 3; ++k) centroid += proxy.coarse.V.row(proxy.coarse.F(f, k)).transpose() / 3.0;
+    if (!(normal.dot(area_normal(fine, fine_grid.closest(centroid).face)) > 0.0))
+      throw std::runtime_error("mesh proxy: face " + std::to_string(f) +
+                               " of the remeshed surface is turned against the mesh (a vessel thinner than the "
+                               "proxy's edge?)");
   }
 
   const detail::TriangleGrid grid(proxy.coarse, geometry::median_edge_length(proxy.coarse));
