@@ -91,6 +91,30 @@ TEST_F(Cli, DeformWritesMeshesLandmarksReportAndPreview) {
   EXPECT_EQ(before.V.rows(), after.V.rows());
 }
 
+// A vessel too thin for the asked proxy edge is solved on its own mesh; the run says so in
+// the log and in report.json, and still writes every vessel.
+TEST_F(Cli, DeformSaysWhichVesselsItCouldNotSolveOnAProxy) {
+  const auto out = scratch("deform_proxy_refused");
+  const auto r = evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", out.string(),
+                           "--no-preview", "--proxy-edge-mm", "10"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto report = nlohmann::json::parse(std::ifstream(out / "report.json"));
+  EXPECT_EQ(report["proxy_edge_mm"], 10.0);
+  ASSERT_EQ(report["vessels"].size(), 3u);
+  for (const auto& v : report["vessels"]) {
+    const std::string name = v["name"];
+    EXPECT_TRUE(fs::exists(out / (name + ".stl"))) << name;
+    if (name == "aorta") {
+      EXPECT_GT(v["proxy_vertices"].get<int>(), 0);
+      EXPECT_EQ(v["proxy_refused"], "");
+    } else {
+      EXPECT_EQ(v["proxy_vertices"], 0) << name;
+      EXPECT_NE(v["proxy_refused"].get<std::string>().find("thinner than the proxy's edge"), std::string::npos) << name;
+      EXPECT_NE(r.err.find(name + ": solved on its own"), std::string::npos) << r.err;
+    }
+  }
+}
+
 TEST_F(Cli, DeformWithoutCoarseRotationsSaysSoAndIteratesTheIliacsPlainly) {
   const auto with = scratch("deform_coarse"), without = scratch("deform_plain");
   ASSERT_EQ(evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", with.string(),

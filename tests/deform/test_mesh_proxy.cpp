@@ -294,3 +294,60 @@ TEST(MeshProxy, AFinelyMeshedSceneDeformsThroughItsProxiesLikeThePapersResolutio
   const deform::SceneDeformer plain(fine, off);
   EXPECT_EQ(plain.proxy(0), nullptr);
 }
+
+// A scene where one vessel gets a proxy and the others cannot (iliacs of 4.5-6 mm radius at a
+// 10 mm edge): the refused vessels are solved on their own meshes, say why, hold the device,
+// and a live sequence warm-starts the mixed scene from its previous frame.
+TEST(MeshProxy, AVesselWhoseProxyIsRefusedIsSolvedOnItsOwnMeshBesideAProxiedOne) {
+  const geometry::Scene& scene = scene_with(7500);
+  const auto device = sim::make_example_scene({}).device;
+  deform::DeformOptions coarse;
+  coarse.proxy_edge_mm = 10.0;
+  const deform::SceneDeformer deformer(scene, coarse);
+  ASSERT_EQ(scene.vessels.size(), 3u);
+  ASSERT_NE(deformer.proxy(0), nullptr);
+  EXPECT_TRUE(deformer.proxy_refused(0).empty());
+  for (std::size_t i : {1u, 2u}) {
+    EXPECT_EQ(deformer.proxy(i), nullptr) << scene.vessels[i].name;
+    EXPECT_NE(deformer.proxy_refused(i).find("thinner than the proxy's edge"), std::string::npos)
+        << scene.vessels[i].name << ": " << deformer.proxy_refused(i);
+  }
+
+  const deform::SceneDeformation out = deformer.deform(device);
+  ASSERT_EQ(out.reports.size(), 3u);
+  EXPECT_GT(out.reports[0].proxy_vertices, 0);
+  for (std::size_t i : {1u, 2u}) {
+    const auto& r = out.reports[i];
+    EXPECT_EQ(r.proxy_refused, deformer.proxy_refused(i)) << r.name;
+    EXPECT_EQ(r.proxy_vertices, 0) << r.name;
+    EXPECT_EQ(out.proxy_solutions[i].rows(), 0) << r.name;
+    EXPECT_EQ(r.vertices, scene.vessels[i].mesh.mesh.V.rows()) << r.name;
+    EXPECT_EQ(out.vessels[i].mesh.V.rows(), scene.vessels[i].mesh.mesh.V.rows()) << r.name;
+  }
+
+  // The carrier iliac, solved on its own mesh, holds the part of the device that runs in it
+  // as it does at the default edge (within Δd of the wall plus the solver's tolerance).
+  const auto carrier = std::find_if(out.reports.begin(), out.reports.end(),
+                                    [](const auto& r) { return r.name == "iliac_right"; });
+  ASSERT_NE(carrier, out.reports.end());
+  const std::size_t c = static_cast<std::size_t>(carrier - out.reports.begin());
+  const geometry::TriangleMesh rest = scene.vessels[c].mesh.mesh;
+  const geometry::TriangleMesh wall{out.vessels[c].mesh.V, rest.F};
+  const geometry::RayCaster before(rest), after(wall);
+  int in_iliac = 0, moved = 0;
+  for (const auto& d : device) {
+    // The device points that run along this iliac: within 10 mm of its undeformed wall.
+    if (geometry::closest_point_on_mesh(rest, d).distance_mm > 10.0 || d.z() > 0.0) continue;
+    ++in_iliac;
+    if (!before.contains(d)) ++moved;
+    EXPECT_TRUE(after.contains(d) || geometry::closest_point_on_mesh(wall, d).distance_mm <= scene.device_thickness_mm + 0.05)
+        << d.transpose();
+  }
+  EXPECT_GT(in_iliac, 50);
+  EXPECT_GT(moved, 10);  // the undeformed iliac did not hold all of it: the test can fail
+
+  // Warm start of the mixed scene: proxied and own-mesh vessels from the previous frame.
+  const deform::SceneDeformation again = deformer.deform(device, &out);
+  for (std::size_t k = 0; k < out.landmarks.size(); ++k)
+    EXPECT_LT((again.landmarks[k].position_lps - out.landmarks[k].position_lps).norm(), 0.05) << out.landmarks[k].label;
+}
