@@ -294,6 +294,16 @@ struct GigECameraSource::Impl {
   // statistics; its block id is a gap the sequence tracker counts as a drop.
   Outcome handle(ArvBuffer* buffer) {
     const ArvBufferStatus status = arv_buffer_get_status(buffer);
+    if (status == ARV_BUFFER_STATUS_SIZE_MISMATCH) {
+      // More data than the buffers sized for what the camera was set to: it sends a larger
+      // region or a wider pixel format by itself (a reset, settings changed elsewhere).
+      refusal = std::string("frames larger than the ") + to_string(options.pixel_format) + " " + std::to_string(expected_width) +
+                " x " + std::to_string(expected_height) + " it was set to";
+      std::lock_guard lock(mutex);
+      ++stats.refused;
+      refused_since_delivery = true;
+      return Outcome::Refused;
+    }
     if (status != ARV_BUFFER_STATUS_SUCCESS) return Outcome::Incomplete;
     Frame f;
     f.host_arrival = Clock::now();

@@ -57,11 +57,16 @@ class EmbeddedCamera {
   }
   ~EmbeddedCamera() { g_object_unref(cam_); }
   // Faults: packets lost on the way (the fake camera never resends them), and a pixel
-  // format switched by the camera itself, as after a reset.
+  // format or region switched by the camera itself, as after a reset.
   void lose_packets(double probability) { g_object_set(cam_, "gvsp-lost-ratio", probability, nullptr); }
   void switch_pixel_format(ArvPixelFormat format) {
     arv_fake_camera_write_register(arv_gv_fake_camera_get_fake_camera(cam_), ARV_FAKE_CAMERA_REGISTER_PIXEL_FORMAT,
                                    format);
+  }
+  // Its region, as a camera does whose settings were reset or changed from elsewhere.
+  void switch_width(int width) {
+    arv_fake_camera_write_register(arv_gv_fake_camera_get_fake_camera(cam_), ARV_FAKE_CAMERA_REGISTER_WIDTH,
+                                   static_cast<guint32>(width));
   }
   EmbeddedCamera(const EmbeddedCamera&) = delete;
   EmbeddedCamera& operator=(const EmbeddedCamera&) = delete;
@@ -342,6 +347,42 @@ TEST(GigECameraSource, AFormatTheCameraSwitchedToByItselfIsRefusedAndTheCameraSe
   EXPECT_EQ(rx.bad_pixels, 0u);
   for (const acq::Frame& f : rx.frames) {
     EXPECT_EQ(f.format, acq::PixelFormat::Mono16);
+    EXPECT_EQ(f.width, 256);
+    EXPECT_EQ(f.height, 256);
+  }
+  EXPECT_TRUE(rx.said({"setting it up again"}));
+}
+
+// The camera narrows its region by itself: its smaller frames fit the stream's buffers but
+// are not what the source was set to receive, so they are refused by size, never delivered
+// as a picture of another shape, and the camera is set up again.
+TEST(GigECameraSource, ASmallerRegionTheCameraSwitchedToByItselfIsRefusedAndTheCameraSetUpAgain) {
+  const std::string serial = unique_serial("EVARRS");
+  EmbeddedCamera camera(serial);
+  acq::GigECameraOptions o = mono16_stream(serial, 256, 256);
+  o.reconnect_interval = 200ms;
+  Received rx;  // declared first: it outlives the source that calls into it
+  acq::GigECameraSource source(o);
+  start(source, rx);
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 10; }));
+  camera.switch_width(128);
+  const auto stalled = acq::StreamState::Stalled;
+  ASSERT_TRUE(rx.wait(
+      [&] { return rx.said({"sends Mono16 128 x 256 frames, not the Mono16 256 x 256 it was set to"}, &stalled); },
+      30s));
+  const std::size_t before = [&] {
+    std::lock_guard lock(rx.mutex);
+    return rx.frames.size();
+  }();
+  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= before + 30; }, 30s)) << "not set up again";
+  source.stop();
+  const acq::GigEStatistics st = source.gige_statistics();
+  std::lock_guard lock(rx.mutex);
+  EXPECT_GT(st.refused, 0u);
+  EXPECT_EQ(st.outages, 1u);
+  EXPECT_EQ(st.connections, 2u);
+  EXPECT_EQ(rx.bad_pixels, 0u);
+  for (const acq::Frame& f : rx.frames) {
     EXPECT_EQ(f.width, 256);
     EXPECT_EQ(f.height, 256);
   }
