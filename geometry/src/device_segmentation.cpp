@@ -1,8 +1,10 @@
 #include "evar/geometry/device_segmentation.hpp"
 
 #include <algorithm>
+#include <bit>
 #include <chrono>
 #include <cmath>
+#include <cstdint>
 #include <limits>
 #include <numeric>
 #include <queue>
@@ -413,14 +415,18 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
   std::vector<float> dist(static_cast<std::size_t>(H) * static_cast<std::size_t>(W), kInf);
   std::vector<int> parent(dist.size(), -1);
   std::vector<int> order;  // settled pixels, parents before children
-  using Entry = std::pair<float, int>;
-  std::priority_queue<Entry, std::vector<Entry>, std::greater<>> heap;
+  // (distance, pixel) packed into one word that orders as the pair does (the bits of a
+  // non-negative float order as the float): one integer compare per heap step.
+  std::priority_queue<std::uint64_t, std::vector<std::uint64_t>, std::greater<>> heap;
+  const auto push = [&heap](float d, int q) {
+    heap.push(static_cast<std::uint64_t>(std::bit_cast<std::uint32_t>(d)) << 32 | static_cast<std::uint32_t>(q));
+  };
   for (int y = inner.y; y < inner.y + inner.height; ++y)
     for (int x = inner.x; x < inner.x + inner.width; ++x) {
       const bool on_border = x == inner.x || y == inner.y || x == inner.x + inner.width - 1 || y == inner.y + inner.height - 1;
       if (on_border && band[static_cast<std::size_t>(y * W + x)]) {
         dist[static_cast<std::size_t>(y * W + x)] = 0.0f;
-        heap.emplace(0.0f, y * W + x);
+        push(0.0f, y * W + x);
       }
     }
   const bool border_reachable = !heap.empty();
@@ -436,13 +442,15 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
       return result;
     }
     dist[static_cast<std::size_t>(best.y * W + best.x)] = 0.0f;
-    heap.emplace(0.0f, best.y * W + best.x);
+    push(0.0f, best.y * W + best.x);
   }
   const auto run_dijkstra = [&] {
     order.clear();
     while (!heap.empty()) {
-      const auto [d, q] = heap.top();
+      const std::uint64_t top = heap.top();
       heap.pop();
+      const float d = std::bit_cast<float>(static_cast<std::uint32_t>(top >> 32));
+      const int q = static_cast<int>(static_cast<std::uint32_t>(top));
       if (d > dist[static_cast<std::size_t>(q)]) continue;
       order.push_back(q);
       const int qy = q / W, qx = q % W;
@@ -458,7 +466,7 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
           if (nd < dist[idx]) {
             dist[idx] = nd;
             parent[idx] = q;
-            heap.emplace(nd, ny * W + nx);
+            push(nd, ny * W + nx);
           }
         }
     }
@@ -469,7 +477,7 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
     std::fill(dist.begin(), dist.end(), kInf);
     std::fill(parent.begin(), parent.end(), -1);
     dist[static_cast<std::size_t>(root)] = 0.0f;
-    heap.emplace(0.0f, root);
+    push(0.0f, root);
     run_dijkstra();
   };
   if (!border_reachable) {
