@@ -165,7 +165,7 @@ TEST(CArmLinkProtocol, GarbageBetweenMessagesCostsNoMessage) {
 TEST(CArmLinkProtocol, EveryBitFlipIsCaughtAndOnlyItsMessageIsLost) {
   // One flipped bit in every message of a stream, at every bit position in turn.
   const Bytes one = wire::encode(sample(1));
-  std::size_t flips = 0;
+  ASSERT_GT(one.size(), 2u);  // two delimiters and a message between them
   for (std::size_t bit = 8; bit < (one.size() - 1) * 8; ++bit) {  // not the delimiters
     Bytes stream = wire::encode(sample(0));
     Bytes hit = wire::encode(sample(1));
@@ -179,9 +179,7 @@ TEST(CArmLinkProtocol, EveryBitFlipIsCaughtAndOnlyItsMessageIsLost) {
     EXPECT_EQ(std::get<wire::GeometryMessage>(got[1]).sequence, 2);
     EXPECT_GE(d.stats().crc_errors + d.stats().framing_errors, 1u);
     EXPECT_EQ(d.stats().sequence.dropped, 1u);  // the receiver knows one sample is missing
-    ++flips;
   }
-  EXPECT_EQ(flips, (one.size() - 2) * 8);
 }
 
 TEST(CArmLinkProtocol, TornAndOversizedFramesAreCountedAndSkipped) {

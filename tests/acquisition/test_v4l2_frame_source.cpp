@@ -4,6 +4,8 @@
 // watchdog, and teardown and reopen when the device goes away.
 #include <gtest/gtest.h>
 
+#include <mutex>
+
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
@@ -307,6 +309,53 @@ TEST(V4l2FrameSource, StreamsEveryFrameInOrderWithPixelsAndMonotonicTimes) {
   EXPECT_TRUE(log.saw(StreamState::Streaming));
   EXPECT_EQ(log.streams.back().first, StreamState::Stopped);
   EXPECT_TRUE(device.wait_closed(1s)) << "stop() unmaps every buffer and closes the device";
+}
+
+// A driver may grant fewer buffers than asked (VIDIOC_REQBUFS lowers the count): the
+// grabber streams with the two it gets; with one it cannot stream and says so.
+TEST(V4l2FrameSource, ADriverGrantingTwoOfTheFourBuffersAskedIsStreamedWithThem) {
+  FakeV4l2Device::Config c;
+  c.max_buffers = 2;
+  FakeV4l2Device device(c);
+  FrameLog log;
+  // The first frame is held in its callback until released: its buffer stays out of the
+  // queue meanwhile, so the sensor finds exactly one other buffer to fill.
+  std::mutex gate;
+  std::unique_lock hold(gate);
+  V4l2FrameSource source(quick_options(c.path), device);
+  source.start(
+      [&](const Frame& f) {
+        if (f.sequence == 0) std::lock_guard wait_for_release(gate);
+        log.record([&] { log.frames.push_back(f); });
+      },
+      log.state_callback());
+  ASSERT_TRUE(device.wait_streaming(5s));
+  ASSERT_TRUE(device.produce(payload_for(device.format(), 0)));
+  EXPECT_TRUE(device.produce(payload_for(device.format(), 1))) << "the second buffer was not queued";
+  EXPECT_FALSE(device.produce(payload_for(device.format(), 2))) << "a third buffer was queued: more than granted";
+  hold.unlock();
+  ASSERT_TRUE(log.wait([&] { return log.frames.size() == 2; }, 5s));
+  // Released, both buffers cycle again: frames land one after another as they are taken.
+  for (int i = 3; i < 20; ++i) {
+    ASSERT_TRUE(log.wait([&] { return static_cast<int>(log.frames.size()) >= i - 1; }, 5s));
+    ASSERT_TRUE(device.produce(payload_for(device.format(), i))) << "frame " << i;
+  }
+  ASSERT_TRUE(log.wait([&] { return log.frames.size() == 19; }, 5s));
+  source.stop();
+  EXPECT_EQ(source.v4l2_statistics().frames.dropped, 1u) << "frame 2, lost inside the driver";
+  for (const Frame& f : log.frames) EXPECT_EQ(mismatches(f, static_cast<int>(f.sequence)), 0) << "frame " << f.sequence;
+}
+
+TEST(V4l2FrameSource, ADriverGrantingOneBufferIsReportedNotStreamed) {
+  FakeV4l2Device::Config c;
+  c.max_buffers = 1;
+  Grabbing g(c);
+  auto& [device, log, source] = g;
+  ASSERT_TRUE(log.wait([&] { return log.said({"/dev/video-fake", "granted 1 buffers, streaming needs 2"}); }, 5s));
+  source.stop();
+  EXPECT_FALSE(log.saw(StreamState::Streaming));
+  EXPECT_TRUE(log.frames.empty());
+  EXPECT_TRUE(device.wait_closed(1s)) << "the refused device is closed again";
 }
 
 TEST(V4l2FrameSource, YuyvAndMjpegGrabbersDeliverGreyFrames) {
