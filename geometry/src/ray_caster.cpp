@@ -20,6 +20,8 @@ using SceneHandle = std::unique_ptr<RTCSceneTy, SceneDeleter>;
 
 // One Embree device for the process: creating one is costly and it is thread safe.
 // threads=1 keeps BVH builds on the calling thread (the node schedules its own work).
+// Different scenes are built and traced from several threads at once on it (the two
+// iliacs are deformed in parallel); Embree allows that for distinct scenes.
 RTCDevice shared_device() {
   static const DeviceHandle device = [] {
     RTCDevice d = rtcNewDevice("threads=1");
