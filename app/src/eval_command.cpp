@@ -1,5 +1,6 @@
 // `evarnode eval`: the paper's Table 1 on sessions with ground truth (session_evaluation.hpp):
 // eval.json, eval.md and the pictures (evaluation_plots.hpp) in --out.
+#include <algorithm>
 #include <cstdio>
 #include <sstream>
 
@@ -54,9 +55,12 @@ int run_eval(const EvalCommand& cmd) {
                {"reliable_fraction", c.model->reconstruction.reliable_fraction},
                {"reconstruct_ms", c.model->reconstruct_ms},
                {"deform_ms", c.model->deform_ms}};
+    nlohmann::json devices = nlohmann::json::array();
+    for (const DeviceError& e : c.devices)
+      devices.push_back({{"frames", {e.frame_earlier, e.frame_later}}, {"mean_mm", e.mean_mm}, {"max_mm", e.max_mm}});
     jcases.push_back({{"session", dir.string()}, {"frames", c.frames}, {"candidates", c.candidates}, {"pairs", c.pairs},
                       {"adaptations", c.adaptations}, {"failures", c.failures}, {"frames_evaluated", c.frames_evaluated},
-                      {"landmarks", lm}, {"model", model}, {"seconds", c.seconds}});
+                      {"landmarks", lm}, {"model", model}, {"device_errors", devices}, {"seconds", c.seconds}});
     if (!c.model) log().warn("{}: no adapted model ({} candidates, {} pairs{}{})", dir.string(), c.candidates, c.pairs,
                              c.failures.empty() ? "" : "; ", c.failures.empty() ? "" : c.failures.back());
     else
@@ -76,6 +80,25 @@ int run_eval(const EvalCommand& cmd) {
   }
   md << "\n" << cases.size() << " sessions, " << cases.size() - without_model
      << " with an adapted model; one value per landmark and session (its mean over the evaluated frames).\n";
+  // The reconstruction's own share: each model's device against the true one, in 3D.
+  std::vector<double> device_means;
+  double device_worst = 0.0;
+  for (const auto& c : cases)
+    for (const DeviceError& e : c.devices) {
+      device_means.push_back(e.mean_mm);
+      device_worst = std::max(device_worst, e.max_mm);
+    }
+  if (!device_means.empty()) {
+    const Statistic sd = statistic(device_means);
+    summary["device_reconstruction"] = {{"mean_mm", sd.mean}, {"sd_mm", sd.sd}, {"median_mm", sd.median},
+                                        {"models", sd.n}, {"worst_point_mm", device_worst}};
+    char line[256];
+    std::snprintf(line, sizeof line,
+                  "\nReconstructed device against the true device (3D, CT LPS, mean distance of its points per "
+                  "model): %s mm over %zu models; worst point %.2f mm.\n",
+                  fmt(sd).c_str(), device_means.size(), device_worst);
+    md << line;
+  }
   summary["sessions"] = cases.size();
   summary["sessions_without_model"] = without_model;
   write_json(cmd.out / "eval.json", {{"summary", summary}, {"cases", jcases}});

@@ -8,6 +8,8 @@
 #include <stdexcept>
 
 #include "evar/geometry/input_error.hpp"
+#include "evar/geometry/markups.hpp"
+#include "evar/geometry/polyline.hpp"
 #include "evar/geometry/scene.hpp"
 #include "evar/sim/session.hpp"
 #include "evar/sim/session_replay.hpp"
@@ -50,6 +52,19 @@ std::vector<LandmarkError> OstiumErrors::result() const {
   return out;
 }
 
+DeviceError device_error(const geometry::Polyline& reconstructed, const geometry::Polyline& truth) {
+  if (reconstructed.empty() || truth.size() < 2)
+    throw std::invalid_argument("device_error: needs reconstructed points and a true curve of 2 or more points");
+  DeviceError e;
+  for (const Eigen::Vector3d& p : reconstructed) {
+    const double d = geometry::project_onto(truth, p).distance_mm;
+    e.mean_mm += d;
+    e.max_mm = std::max(e.max_mm, d);
+  }
+  e.mean_mm /= static_cast<double>(reconstructed.size());
+  return e;
+}
+
 CaseEvaluation evaluate_session(const std::filesystem::path& directory, const EvaluationOptions& options,
                                 const std::function<void(std::size_t, std::size_t)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
@@ -63,6 +78,8 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   if (scene.landmarks.empty())
     throw geometry::InputError(scene.file.string() + ": landmarks: none (nothing to evaluate)");
   const deform::SceneDeformer deformer(scene, options.deform);
+  geometry::Polyline true_device;
+  for (const auto& p : geometry::read_curve(directory / session.truth->device, 2).points) true_device.push_back(p.position_lps);
 
   CaseEvaluation result;
   result.session = directory;
@@ -91,6 +108,10 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
           model = std::make_shared<const AdaptedModel>(
               adapt_model(deformer, *pair, options.adaptation, model ? &model->deformation : nullptr));
           ++result.adaptations;
+          DeviceError e = device_error(model->reconstruction.points, true_device);
+          e.frame_earlier = pair->earlier.frame;
+          e.frame_later = pair->later.frame;
+          result.devices.push_back(e);
         } catch (const AdaptationError& e) {
           result.failures.push_back("frames " + std::to_string(pair->earlier.frame) + "+" +
                                     std::to_string(pair->later.frame) + ": " + e.what());

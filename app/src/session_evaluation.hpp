@@ -64,12 +64,24 @@ class OstiumErrors {
   std::map<std::string, Sums> sums_;
 };
 
+/// A reconstructed device against the session's true device, in 3D (CT LPS): the distance
+/// of each reconstructed point to the true curve. It separates the reconstruction's share
+/// of the ostium errors from the deformation's.
+struct DeviceError {
+  std::uint64_t frame_earlier = 0, frame_later = 0;  ///< the view pair
+  double mean_mm = 0.0, max_mm = 0.0;
+};
+
+/// DeviceError of `reconstructed` against the polyline `truth` (both CT LPS mm).
+DeviceError device_error(const geometry::Polyline& reconstructed, const geometry::Polyline& truth);
+
 struct CaseEvaluation {
   std::filesystem::path session;
   std::size_t frames = 0, candidates = 0, pairs = 0, adaptations = 0;
   std::vector<std::string> failures;  ///< why pairs gave no model
   std::size_t frames_evaluated = 0;
   std::vector<LandmarkError> landmarks;  ///< only those measured
+  std::vector<DeviceError> devices;      ///< each adapted model's reconstruction against the true device
   std::shared_ptr<const AdaptedModel> model;  ///< the last adapted model (null when none)
   std::shared_ptr<const sim::Session> recording;  ///< as read (for pictures)
   std::shared_ptr<const geometry::Scene> scene;   ///< as loaded (for pictures)
