@@ -317,10 +317,13 @@ TEST(GigECameraSource, FramesThatLostPacketsAreCountedAndNeverDeliveredTorn) {
   EXPECT_LE(rx.frames[last].sequence - rx.frames[last - 49].sequence, 51u);
 }
 
-// The camera switches itself to Mono8 mid-stream. Its frames are refused (never passed on
-// labelled Mono16), the state says what it sends, and the source sets it up again by itself.
-TEST(GigECameraSource, AFormatTheCameraSwitchedToByItselfIsRefusedAndTheCameraSetUpAgain) {
-  const std::string serial = unique_serial("EVARSW");
+// A 256 x 256 Mono16 stream whose camera changes by itself (`change`) after 10 frames:
+// its frames are refused with `said` as the reason (never passed on as a picture of
+// another format or shape), and the source sets the camera up again by itself.
+namespace {
+void expect_refused_then_set_up_again(const char* serial_prefix, const std::function<void(EmbeddedCamera&)>& change,
+                                      const char* said) {
+  const std::string serial = unique_serial(serial_prefix);
   EmbeddedCamera camera(serial);
   acq::GigECameraOptions o = mono16_stream(serial, 256, 256);
   o.reconnect_interval = 200ms;
@@ -328,11 +331,9 @@ TEST(GigECameraSource, AFormatTheCameraSwitchedToByItselfIsRefusedAndTheCameraSe
   acq::GigECameraSource source(o);
   start(source, rx);
   ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 10; }));
-  camera.switch_pixel_format(ARV_PIXEL_FORMAT_MONO_8);
+  change(camera);
   const auto stalled = acq::StreamState::Stalled;
-  ASSERT_TRUE(rx.wait(
-      [&] { return rx.said({"sends Mono8 256 x 256 frames, not the Mono16 256 x 256 it was set to"}, &stalled); },
-      30s));
+  ASSERT_TRUE(rx.wait([&] { return rx.said({said}, &stalled); }, 30s)) << said;
   const std::size_t before = [&] {
     std::lock_guard lock(rx.mutex);
     return rx.frames.size();
@@ -352,41 +353,20 @@ TEST(GigECameraSource, AFormatTheCameraSwitchedToByItselfIsRefusedAndTheCameraSe
   }
   EXPECT_TRUE(rx.said({"setting it up again"}));
 }
+}  // namespace
+
+// The camera switches itself to Mono8 mid-stream.
+TEST(GigECameraSource, AFormatTheCameraSwitchedToByItselfIsRefusedAndTheCameraSetUpAgain) {
+  expect_refused_then_set_up_again(
+      "EVARSW", [](EmbeddedCamera& c) { c.switch_pixel_format(ARV_PIXEL_FORMAT_MONO_8); },
+      "sends Mono8 256 x 256 frames, not the Mono16 256 x 256 it was set to");
+}
 
 // The camera narrows its region by itself: its smaller frames fit the stream's buffers but
-// are not what the source was set to receive, so they are refused by size, never delivered
-// as a picture of another shape, and the camera is set up again.
+// are not what the source was set to receive.
 TEST(GigECameraSource, ASmallerRegionTheCameraSwitchedToByItselfIsRefusedAndTheCameraSetUpAgain) {
-  const std::string serial = unique_serial("EVARRS");
-  EmbeddedCamera camera(serial);
-  acq::GigECameraOptions o = mono16_stream(serial, 256, 256);
-  o.reconnect_interval = 200ms;
-  Received rx;  // declared first: it outlives the source that calls into it
-  acq::GigECameraSource source(o);
-  start(source, rx);
-  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 10; }));
-  camera.switch_width(128);
-  const auto stalled = acq::StreamState::Stalled;
-  ASSERT_TRUE(rx.wait(
-      [&] { return rx.said({"sends Mono16 128 x 256 frames, not the Mono16 256 x 256 it was set to"}, &stalled); },
-      30s));
-  const std::size_t before = [&] {
-    std::lock_guard lock(rx.mutex);
-    return rx.frames.size();
-  }();
-  ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= before + 30; }, 30s)) << "not set up again";
-  source.stop();
-  const acq::GigEStatistics st = source.gige_statistics();
-  std::lock_guard lock(rx.mutex);
-  EXPECT_GT(st.refused, 0u);
-  EXPECT_EQ(st.outages, 1u);
-  EXPECT_EQ(st.connections, 2u);
-  EXPECT_EQ(rx.bad_pixels, 0u);
-  for (const acq::Frame& f : rx.frames) {
-    EXPECT_EQ(f.width, 256);
-    EXPECT_EQ(f.height, 256);
-  }
-  EXPECT_TRUE(rx.said({"setting it up again"}));
+  expect_refused_then_set_up_again("EVARRS", [](EmbeddedCamera& c) { c.switch_width(128); },
+                                   "sends Mono16 128 x 256 frames, not the Mono16 256 x 256 it was set to");
 }
 
 // The camera switches to Mono8 and back by itself within a second: its Mono8 frames are
