@@ -3,10 +3,12 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <stdexcept>
 
+#include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/polyline.hpp"
@@ -46,9 +48,16 @@ bool OstiumErrors::add(std::int64_t frame, const geometry::ProjectionMatrix& P_c
 
 std::vector<LandmarkError> OstiumErrors::result() const {
   std::vector<LandmarkError> out;
-  for (const auto& [label, s] : sums_)
-    out.push_back({label, s.frames, s.initial / s.frames, s.adapted / s.frames, s.initial_v / s.frames,
-                   s.adapted_v / s.frames});
+  for (const auto& [label, s] : sums_) {
+    LandmarkError l;
+    l.label = label;
+    l.frames = s.frames;
+    l.initial_mm = s.initial / s.frames;
+    l.adapted_mm = s.adapted / s.frames;
+    l.initial_vertical_mm = s.initial_v / s.frames;
+    l.adapted_vertical_mm = s.adapted_v / s.frames;
+    out.push_back(std::move(l));
+  }
   return out;
 }
 
@@ -128,6 +137,26 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     if (progress) progress(i + 1, session.frames.size());
   }
   result.landmarks = errors.result();
+  // Which iliac the true device runs in (the deformation's own rule, on the true device),
+  // and which vessel each landmark sits on: the paper's Table 1 measures the internal iliac
+  // ostia of iliacs carrying a device.
+  try {
+    result.device_iliac = deformer.deform(true_device).device_iliac;
+  } catch (const std::exception&) {
+    result.device_iliac.clear();  // a truth the deformation refuses carries no iliac here
+  }
+  for (LandmarkError& l : result.landmarks) {
+    double nearest = std::numeric_limits<double>::infinity();
+    for (const auto& lm : scene.landmarks) {
+      if (lm.label != l.label) continue;
+      for (const auto& v : scene.vessels)
+        if (const double d = geometry::closest_point_on_mesh(v.mesh.mesh, lm.position_lps).distance_mm; d < nearest) {
+          nearest = d;
+          l.vessel = v.name;
+        }
+    }
+    l.on_device_vessel = !result.device_iliac.empty() && l.vessel == result.device_iliac;
+  }
   result.model = model;
   result.recording = std::move(recording);
   result.scene = std::move(loaded);
@@ -165,6 +194,8 @@ std::size_t EvaluationSink::frames() const {
 
 nlohmann::json to_json(const LandmarkError& l) {
   return {{"label", l.label},
+          {"vessel", l.vessel},
+          {"on_device_vessel", l.on_device_vessel},
           {"frames", l.frames},
           {"initial_mm", l.initial_mm},
           {"adapted_mm", l.adapted_mm},
@@ -185,10 +216,12 @@ Statistic statistic(std::vector<double> values) {
   return s;
 }
 
-std::vector<double> landmark_values(const std::vector<CaseEvaluation>& cases, double LandmarkError::*measure) {
+std::vector<double> landmark_values(const std::vector<CaseEvaluation>& cases, double LandmarkError::*measure,
+                                    bool device_vessel_only) {
   std::vector<double> values;
   for (const auto& c : cases)
-    for (const auto& l : c.landmarks) values.push_back(l.*measure);
+    for (const auto& l : c.landmarks)
+      if (!device_vessel_only || l.on_device_vessel) values.push_back(l.*measure);
   return values;
 }
 

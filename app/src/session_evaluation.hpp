@@ -34,6 +34,8 @@ struct EvaluationOptions {
 
 struct LandmarkError {
   std::string label;
+  std::string vessel;  ///< the vessel it sits on (nearest surface, as the deformation binds it)
+  bool on_device_vessel = false;  ///< on an iliac the true device runs in (the paper's Table 1 measures these)
   int frames = 0;  ///< frames it was measured in
   double initial_mm = 0, adapted_mm = 0;                    ///< mean Euclidean distance over those frames
   double initial_vertical_mm = 0, adapted_vertical_mm = 0;  ///< mean |row difference|
@@ -82,6 +84,7 @@ struct CaseEvaluation {
   std::size_t frames_evaluated = 0;
   std::vector<LandmarkError> landmarks;  ///< only those measured
   std::vector<DeviceError> devices;      ///< each adapted model's reconstruction against the true device
+  std::string device_iliac;              ///< the iliac the true device runs in ("" if none)
   std::shared_ptr<const AdaptedModel> model;  ///< the last adapted model (null when none)
   std::shared_ptr<const sim::Session> recording;  ///< as read (for pictures)
   std::shared_ptr<const geometry::Scene> scene;   ///< as loaded (for pictures)
@@ -125,7 +128,9 @@ struct Statistic {
 /// Sample mean, standard deviation (n − 1) and median; zeros for no values.
 Statistic statistic(std::vector<double> values);
 
-/// One measure (e.g. &LandmarkError::adapted_mm) of every landmark of every case.
-std::vector<double> landmark_values(const std::vector<CaseEvaluation>& cases, double LandmarkError::*measure);
+/// One measure (e.g. &LandmarkError::adapted_mm) of every landmark of every case; with
+/// `device_vessel_only`, of the landmarks on an iliac carrying the device only.
+std::vector<double> landmark_values(const std::vector<CaseEvaluation>& cases, double LandmarkError::*measure,
+                                    bool device_vessel_only = false);
 
 }  // namespace evar::app
