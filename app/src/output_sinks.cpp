@@ -211,27 +211,39 @@ std::vector<std::filesystem::path> SnapshotSink::kept() const {
 }
 
 void SnapshotSink::write(const ComposedFrame& frame) {
+  // Each picture is tried once. One that cannot be saved (disk full, folder gone) is given
+  // up and said, but what this frame moves on still moves on: otherwise every later frame
+  // would encode the same picture again on the output thread and fail again.
+  std::string failure;
+  const auto attempt = [&](const overlay::Image& image, const std::string& file, bool requested) {
+    try {
+      save(image, file, requested);
+    } catch (const std::exception& e) {
+      if (failure.empty()) failure = e.what();
+    }
+  };
   if (frame.held) {
     // Model pictures are of the video; a snapshot asked for now is of what the screen
     // shows, the held frame saying so.
-    if (requested_.exchange(false)) save(*frame.image, "snapshot-held-" + std::to_string(frame.sequence) + ".png", true);
-    return;
+    if (requested_.exchange(false)) attempt(*frame.image, "snapshot-held-" + std::to_string(frame.sequence) + ".png", true);
+  } else {
+    const std::uint64_t version = frame.model ? frame.model->version : 0;
+    if (previous_ && version != previous_version_) {
+      attempt(*previous_, "model-" + std::to_string(version) + "-before.png", false);
+      after_ = version;
+    }
+    // "After" is the first frame drawn with the new model: the compositor may show the
+    // previous one for a frame or two while it draws the new roadmap. A model superseded
+    // before it was drawn has none (after_ moved on to the newer one above).
+    if (after_ && frame.roadmap == overlay::RoadmapShown::Current) {
+      attempt(*frame.image, "model-" + std::to_string(version) + "-after.png", false);
+      after_.reset();
+    }
+    if (requested_.exchange(false)) attempt(*frame.image, "snapshot-" + std::to_string(frame.sequence) + ".png", true);
+    previous_ = frame.image;
+    previous_version_ = version;
   }
-  const std::uint64_t version = frame.model ? frame.model->version : 0;
-  if (previous_ && version != previous_version_) {
-    save(*previous_, "model-" + std::to_string(version) + "-before.png", false);
-    after_ = version;
-  }
-  // "After" is the first frame drawn with the new model: the compositor may show the
-  // previous one for a frame or two while it draws the new roadmap. A model superseded
-  // before it was drawn has none (after_ moved on to the newer one above).
-  if (after_ && frame.roadmap == overlay::RoadmapShown::Current) {
-    save(*frame.image, "model-" + std::to_string(version) + "-after.png", false);
-    after_.reset();
-  }
-  if (requested_.exchange(false)) save(*frame.image, "snapshot-" + std::to_string(frame.sequence) + ".png", true);
-  previous_ = frame.image;
-  previous_version_ = version;
+  if (!failure.empty()) throw std::runtime_error(failure);
 }
 
 IgtlSink::IgtlSink(overlay::IgtlServerOptions options, const geometry::Scene& scene, double mm_per_px, double max_fps)

@@ -650,7 +650,13 @@ void write_png(const std::filesystem::path& path, const Image& image) {
   if (!out) throw std::runtime_error("write_png: cannot open " + path.string() + " for writing: " + std::strerror(errno));
   out.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
   out.close();
-  if (!out) throw std::runtime_error("write_png: writing " + path.string() + " failed");
+  if (!out) {
+    // A full disk leaves a truncated file: not a picture, so not left behind as one (only
+    // a regular file: a device or pipe written to is not ours to remove).
+    std::error_code ignored;
+    if (std::filesystem::is_regular_file(path, ignored)) std::filesystem::remove(path, ignored);
+    throw std::runtime_error("write_png: writing " + path.string() + " failed (disk full?)");
+  }
 }
 
 void write_comparison_png(const std::filesystem::path& path, const ComparisonPicture& picture,

@@ -115,6 +115,40 @@ TEST(SnapshotSink, APictureTheDiskRefusesToDeleteIsSaidOnceAndTheBudgetGoesOn) {
   fs::remove_all(dir);
 }
 
+// The snapshot folder disappears (a full or unmounted disk behaves alike): each picture
+// that cannot be saved is said once and given up, never tried again on every later frame
+// (which cost a whole frame period each on the output thread), and pictures come back
+// with the folder.
+TEST(SnapshotSink, APictureThatCannotBeSavedIsSaidOnceAndNotTriedAgainOnEveryFrame) {
+  const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_gone_" + std::to_string(::getpid()));
+  fs::remove_all(dir);
+  app::SnapshotSink sink(dir);
+  sink.write(frame(10, 0, true));
+  fs::remove_all(dir);
+  std::vector<std::string> said;
+  const auto write = [&](std::uint8_t grey, std::uint64_t version) {
+    try {
+      sink.write(frame(grey, version, true));
+    } catch (const std::runtime_error& e) {
+      said.push_back(e.what());
+    }
+  };
+  write(11, 1);  // model 1: its "before" and "after" pictures cannot be saved
+  for (std::uint8_t g = 12; g < 40; ++g) write(g, 1);
+  ASSERT_EQ(said.size(), 1u) << "said again on later frames";
+  EXPECT_NE(said[0].find((dir / "model-1-before.png").string()), std::string::npos) << said[0];
+  EXPECT_TRUE(sink.kept().empty());
+  fs::create_directories(dir);
+  write(40, 2);  // model 2: the folder is back
+  EXPECT_EQ(said.size(), 1u);
+  EXPECT_EQ(grey_of(dir / "model-2-before.png"), 39);
+  EXPECT_EQ(grey_of(dir / "model-2-after.png"), 40);
+  std::size_t files = 0;
+  for (const auto& e : fs::directory_iterator(dir)) files += e.is_regular_file() ? 1 : 0;
+  EXPECT_EQ(files, 2u) << "nothing of model 1 left behind";
+  fs::remove_all(dir);
+}
+
 TEST(SnapshotSink, KeepsModelPicturesWithinItsBudgetAndNeverDeletesARequestedSnapshot) {
   const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_budget_" + std::to_string(::getpid()));
   fs::remove_all(dir);

@@ -375,3 +375,18 @@ TEST(ComparisonPicture, RejectsNothingToDrawAndMismatchedLandmarks) {
 }
 
 }  // namespace
+
+// A disk that fills up while a picture is written (/dev/full answers every write with
+// ENOSPC): the failure names the file and says why; a device written to is never removed.
+TEST(WritePng, AFullDiskIsSaidByNameAndADeviceIsNotRemoved) {
+  if (!std::filesystem::exists("/dev/full")) GTEST_SKIP() << "no /dev/full here";
+  const Image image = Image::filled(64, 64, kBlack);
+  try {
+    evar::overlay::write_png("/dev/full", image);
+    ADD_FAILURE() << "a write to a full disk succeeded";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("/dev/full"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("disk full"), std::string::npos) << e.what();
+  }
+  EXPECT_TRUE(std::filesystem::is_character_file("/dev/full"));
+}
