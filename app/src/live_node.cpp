@@ -182,12 +182,13 @@ void LiveNode::clear_alert(const std::string& key) {
   log().info("resolved: {}", text);
 }
 
-std::vector<std::string> LiveNode::current_alerts() {
+std::vector<std::string> LiveNode::current_alerts(std::string_view except) {
   std::lock_guard lock(alerts_mutex_);
   const auto now = Clock::now();
   std::erase_if(alerts_, [&](const auto& a) { return a.second.until <= now; });
   std::vector<std::string> out;
-  for (const auto& a : alerts_) out.push_back(a.second.text);
+  for (const auto& a : alerts_)
+    if (a.first != except) out.push_back(a.second.text);
   return out;
 }
 
@@ -221,8 +222,9 @@ void LiveNode::compose_loop() {
   overlay::FrameCompositor compositor(options_.compositor);
   acquisition::FrameLossMonitor loss_monitor(options_.frame_loss);
   Clock::time_point last_loss_sample{};
-  auto last_frame = Clock::now();
+  auto last_frame = Clock::now();  // the last live frame shown
   bool any_frame = false, stalled = false;
+  bool showing_fails = false;  // frames come but the last could not be composited
   // The last frame shown, with the geometry it was shown with, kept to be shown again,
   // marked as held, while the video is gone: the monitor must not go on showing a frozen
   // picture as if it were live, and the window must go on answering keys.
@@ -242,33 +244,32 @@ void LiveNode::compose_loop() {
     if (stalled && last_shown)
       wait = std::clamp(std::chrono::duration_cast<std::chrono::milliseconds>(options_.held_frame_interval - (Clock::now() - last_held)),
                         std::chrono::milliseconds(1), wait);
-    std::optional<acquisition::Frame> f = input_.pop(wait);
+    // Frames that come but cannot be shown leave the screen as a lost video does: the last
+    // good frame is held in their place (the next one waits in the queue meanwhile).
+    const bool hold_instead = stalled && showing_fails && last_shown && Clock::now() - last_held >= options_.held_frame_interval;
+    std::optional<acquisition::Frame> f = hold_instead ? std::nullopt : input_.pop(wait);
     if (Clock::now() - last_loss_sample >= std::chrono::milliseconds(250)) {
       last_loss_sample = Clock::now();
       watch_frame_loss(loss_monitor);
     }
     std::optional<double> held_s;  // set: f is the last frame shown again, this long after it came
-    if (!f) {
-      if (input_.closed()) break;
-      if (any_frame && !stalled && Clock::now() - last_frame > options_.video_stall) {
-        stalled = true;
-        {
-          std::lock_guard lock(stats_mutex_);
-          ++stats_.video_stalls;
-        }
-        set_alert("video-stall", "no video for " + std::to_string(options_.video_stall.count()) + " ms", false);
+    if (!f && !hold_instead && input_.closed()) break;
+    // Stalled: no live frame shown for video_stall, whether none came or none could be shown.
+    if (any_frame && !stalled && Clock::now() - last_frame > options_.video_stall) {
+      stalled = true;
+      {
+        std::lock_guard lock(stats_mutex_);
+        ++stats_.video_stalls;
       }
+      set_alert("video-stall",
+                (showing_fails ? "no frame shown for " : "no video for ") + std::to_string(options_.video_stall.count()) + " ms",
+                false);
+    }
+    if (!f) {
       if (!stalled || !last_shown || Clock::now() - last_held < options_.held_frame_interval) continue;
       last_held = Clock::now();
       held_s = ms_between(last_frame, last_held) / 1000.0;
       f = last_shown->frame;
-    } else {
-      if (stalled) {
-        clear_alert("video-stall");
-        stalled = false;
-      }
-      any_frame = true;
-      last_frame = Clock::now();
     }
 
     // A held frame is shown with the geometry it was first shown with, and changes no
@@ -343,11 +344,13 @@ void LiveNode::compose_loop() {
     std::snprintf(line, sizeof line, "roadmap: %s   latency %.0f ms", overlay::to_string(mode), last_latency_ms);
     lines.push_back(line);
     ComposedFrame out;
-    out.status = {std::move(lines), current_alerts()};
+    // A live frame is not a stall, even while the stall it ends is still to be cleared.
+    out.status = {std::move(lines), current_alerts(held_s ? std::string_view() : std::string_view("video-stall"))};
     if (held_s) {
       // First and in the alert colour; its changing age is not an alert of its own (no log).
-      out.status.alerts.insert(out.status.alerts.begin(),
-                               fmt::format("LAST IMAGE HELD: no video for {:.0f} s", std::floor(*held_s)));
+      out.status.alerts.insert(out.status.alerts.begin(), fmt::format("LAST IMAGE HELD: {} for {:.0f} s",
+                                                                      showing_fails ? "no frame shown" : "no video",
+                                                                      std::floor(*held_s)));
       out.held = true;
     }
     out.P_ct = view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
@@ -366,8 +369,20 @@ void LiveNode::compose_loop() {
         layer_error = compositor.last_layer_error();
       }
     } catch (const std::exception& e) {
+      // The text stays the same from frame to frame (a frame number would log every frame).
       set_alert("compose", std::string("frame not shown: ") + e.what(), true);
+      if (!held_s) showing_fails = true;
       continue;
+    }
+    if (!held_s) {
+      // A live frame on screen: the video is back, whatever kept it away.
+      showing_fails = false;
+      if (stalled) {
+        clear_alert("video-stall");
+        stalled = false;
+      }
+      any_frame = true;
+      last_frame = Clock::now();
     }
     out.sequence = f->sequence;
     out.device_time_ns = f->device_time_ns;

@@ -22,6 +22,7 @@
 #include <mutex>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <thread>
 #include <vector>
 
@@ -163,7 +164,7 @@ class LiveNode {
   /// Samples the source's counts (compose thread) and raises or clears the frame-loss alert.
   void watch_frame_loss(acquisition::FrameLossMonitor& monitor);
   void clear_alert(const std::string& key);
-  std::vector<std::string> current_alerts();
+  std::vector<std::string> current_alerts(std::string_view except = {});
 
   NodeOptions options_;
   std::vector<std::unique_ptr<OutputSink>> sinks_;

@@ -243,6 +243,74 @@ class SilentCArm final : public acquisition::CArmGeometrySource {
   acquisition::CArmState first_;
 };
 
+// A frame source whose frames `from` to `to` (sequence numbers) cannot be read: their
+// rows are said to be one byte long (a grabber whose layout broke).
+class SpoiledFrames final : public acquisition::FrameSource {
+ public:
+  SpoiledFrames(acquisition::FrameSource& inner, std::uint64_t from, std::uint64_t to) : inner_(inner), from_(from), to_(to) {}
+  void start(FrameCallback on_frame, StateCallback on_state) override {
+    inner_.start(
+        [this, on_frame](const acquisition::Frame& f) {
+          if (f.sequence < from_ || f.sequence >= to_) return on_frame(f);
+          acquisition::Frame spoiled = f;
+          spoiled.stride_bytes = 1;
+          on_frame(spoiled);
+        },
+        std::move(on_state));
+  }
+  void stop() override { inner_.stop(); }
+  acquisition::StreamState state() const override { return inner_.state(); }
+  acquisition::SequenceStats statistics() const override { return inner_.statistics(); }
+  std::string description() const override { return "frames spoiled for a while"; }
+
+ private:
+  acquisition::FrameSource& inner_;
+  std::uint64_t from_, to_;
+};
+
+// Frames keep coming but cannot be shown: the screen does not freeze on the last good
+// frame as if it were live. It is held, marked so, with the reason among the alerts, and
+// the live video comes back by itself with the good frames.
+TEST_F(LiveNodeReplay, FramesThatCannotBeShownLeaveTheLastGoodOneHeldAndMarked) {
+  app::NodeOptions o = options();
+  o.video_stall = std::chrono::milliseconds(300);
+  o.held_frame_interval = std::chrono::milliseconds(200);
+  auto recorder = std::make_unique<StatusRecorder>();
+  StatusRecorder* shown = recorder.get();
+  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  sinks.push_back(std::move(recorder));
+  app::LiveNode node(*scene_, o, std::move(sinks));
+  // The session's first fluoroscopy run is frames 1-60 at 15/s; replayed at 2x, frames
+  // 20-49 are a second of unreadable video within it.
+  sim::SessionReplay replay(session(), {2.0, 1});
+  SpoiledFrames frames(replay.frames(), 20, 50);
+  node.start(frames, replay.carm());
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(60)));
+  node.stop();
+
+  const auto first_held = std::find_if(shown->frames.begin(), shown->frames.end(), [](const auto& f) { return f.held; });
+  ASSERT_NE(first_held, shown->frames.end()) << "no frame was held while the video could not be shown";
+  ASSERT_NE(first_held, shown->frames.begin());
+  const std::uint64_t last_good = std::prev(first_held)->sequence;
+  EXPECT_LT(last_good, 20u);
+  const auto back = std::find_if(first_held, shown->frames.end(), [](const auto& f) { return !f.held; });
+  ASSERT_NE(back, shown->frames.end()) << "the live video did not come back";
+  EXPECT_GE(back->sequence, 50u);
+  EXPECT_LE(back->sequence, 60u) << "the live video came back only after the run";
+  // 1 s without a frame shown, less the 300 ms before the stall, at one held frame per
+  // 200 ms: up to 4; at least 2 leaves room for a slow sanitizer build.
+  EXPECT_GE(back - first_held, 2);
+  EXPECT_TRUE(any_contains(first_held->status.alerts, "no frame shown for 300 ms"));
+  for (auto it = first_held; it != back; ++it) {
+    EXPECT_EQ(it->sequence, last_good) << "a held frame that is not the last good one";
+    ASSERT_FALSE(it->status.alerts.empty());
+    EXPECT_NE(it->status.alerts.front().find("LAST IMAGE HELD: no frame shown for"), std::string::npos)
+        << it->status.alerts.front();
+    EXPECT_TRUE(any_contains(it->status.alerts, "frame not shown: "));
+  }
+  EXPECT_FALSE(any_contains(back->status.alerts, "no frame shown for")) << "the stall was not cleared";
+}
+
 TEST_F(LiveNodeReplay, ASilentCArmLinkAndAStalledVideoAreReportedWhileFramesAreShown) {
   app::NodeOptions o = options();
   o.video_stall = std::chrono::milliseconds(300);
