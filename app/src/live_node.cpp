@@ -75,6 +75,8 @@ LiveNode::~LiveNode() { stop(); }
 
 void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm) {
   if (running_) throw std::logic_error("node: already started");
+  if (started_) throw std::logic_error("node: already run and stopped; a node runs once (make a new one)");
+  started_ = true;
   {
     std::lock_guard lock(source_mutex_);
     frames_ = &frames;
@@ -424,9 +426,13 @@ void LiveNode::analysis_loop() {
       // Held, not dropped: it may be the last frame of a short run of fluoroscopy. Once the
       // adaptation is done, the newest frame is analysed, this one or one that came since.
       adapting_.wait(true);
-      if (std::optional<Analysis> newer = analysis_.try_take()) a = std::move(newer);
+      std::optional<Analysis> newer = analysis_.try_take();
       std::lock_guard lock(stats_mutex_);
       ++stats_.analysis_waited;
+      if (newer) {
+        a = std::move(newer);
+        ++stats_.analysis_replaced;  // the held frame is skipped for the newer one
+      }
     }
     if (retry_pair_.exchange(false)) selector.retry();
     const auto analysis_start = Clock::now();
@@ -492,7 +498,8 @@ void LiveNode::adaptation_loop() {
       {
         std::lock_guard lock(stats_mutex_);
         ++stats_.adaptation_failures;
-        stats_.last_failure = e.what();
+        stats_.last_failure = "frames " + std::to_string(pair->earlier.frame) + "+" + std::to_string(pair->later.frame) +
+                              ": " + e.what();
       }
       retry_pair_ = true;
       set_alert("adaptation", std::string("frames ") + std::to_string(pair->earlier.frame) + "+" +
@@ -565,7 +572,7 @@ NodeStatistics LiveNode::statistics() const {
   s.adaptation_ms = percentiles(std::move(adaptation));
   s.dropped_input = input_.dropped();
   s.dropped_output = output_.dropped();
-  s.analysis_skipped = analysis_.superseded();
+  s.analysis_skipped = analysis_.superseded() + s.analysis_replaced;
   s.pairs_superseded = pairs_.superseded();
   if (lost) s.frames_lost_by_source = *lost;
   {

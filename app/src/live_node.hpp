@@ -111,8 +111,11 @@ struct NodeStatistics {
   std::uint64_t dropped_input = 0, dropped_output = 0, frames_lost_by_source = 0;
   std::uint64_t frames_wrong_size = 0;
   std::uint64_t frames_held = 0;     ///< the last frame shown again while there was no video (not in frames_composited)
+  /// Frames and pairs handed on but never analysed or adapted: replaced by a newer one, or
+  /// left when the node stopped (so pairs = adaptations + adaptation_failures + pairs_superseded).
   std::uint64_t analysed = 0, analysis_skipped = 0, candidates = 0, pairs = 0, pairs_superseded = 0;
   std::uint64_t analysis_waited = 0;  ///< frames whose analysis waited for an adaptation to finish
+  std::uint64_t analysis_replaced = 0;  ///< of those, frames skipped for a newer one (in analysis_skipped)
   std::uint64_t adaptations = 0, adaptation_failures = 0;
   std::uint64_t video_stalls = 0, stale_geometry_frames = 0, moving_frames = 0, sink_errors = 0;
   std::uint64_t frame_loss_alerts = 0;  ///< times the source began losing frames (NodeOptions::frame_loss)
@@ -135,7 +138,8 @@ class LiveNode {
   static constexpr std::size_t kLatencyWindow = 100'000;
 
   /// Starts the threads and the sources (C-arm first). The sources must outlive stop().
-  /// Throws what the sources throw when they cannot be opened (nothing left running).
+  /// Throws what the sources throw when they cannot be opened (nothing left running). A node
+  /// runs once: starting it again after stop() throws std::logic_error (its queues are closed).
   void start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm);
   /// Stops the sources, lets the queued frames through, waits for a running adaptation,
   /// finishes the sinks, and lets go of the sources (statistics() keeps their last counts).
@@ -205,6 +209,7 @@ class LiveNode {
 
   std::thread compose_thread_, analysis_thread_, adaptation_thread_, output_thread_;
   bool running_ = false;
+  bool started_ = false;  // once: a stopped node's queues stay closed
 };
 
 /// p50/p99/max of a sample (nearest rank); zeros for none.

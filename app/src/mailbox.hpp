@@ -86,6 +86,7 @@ template <typename T>
 class LatestSlot {
  public:
   /// Puts an item; returns true when it replaced one nobody had taken (superseded).
+  /// Nothing happens once closed.
   bool put(T item) {
     bool replaced = false;
     {
@@ -115,13 +116,19 @@ class LatestSlot {
     item_.reset();
     return item;
   }
+  /// No more items; one left untaken is dropped and counted as superseded.
   void close() {
     {
       std::lock_guard lock(m_);
       closed_ = true;
+      if (item_) {
+        ++superseded_;
+        item_.reset();
+      }
     }
     cv_.notify_all();
   }
+  /// Items never taken: replaced by a newer one, or left when the slot closed.
   std::size_t superseded() const {
     std::lock_guard lock(m_);
     return superseded_;

@@ -147,11 +147,13 @@ int run_node(const RunCommand& cmd) {
     sinks.push_back(std::make_unique<WindowSink>(cmd.fullscreen, actions));
   }
 
-  LiveNode node(scene, options, std::move(sinks));
-  node_ptr = &node;
+  // The sources before the node: destroyed after it, so a node left running by an
+  // exception stops (in its destructor) while its sources still exist.
   std::unique_ptr<sim::SessionReplay> replay;
   std::unique_ptr<acquisition::FrameSource> live_frames;
   std::unique_ptr<acquisition::CArmGeometrySource> live_carm;
+  LiveNode node(scene, options, std::move(sinks));
+  node_ptr = &node;
   acquisition::FrameSource* frames = nullptr;
   acquisition::CArmGeometrySource* carm = nullptr;
   if (session) {

@@ -85,6 +85,9 @@ TEST_F(LiveNodeReplay, TheAdaptedOverlayAppearsAndTheOstiumErrorFalls) {
   EXPECT_EQ(s.dropped_input + s.dropped_output, 0u);
   ASSERT_GE(s.adaptations, 1u) << s.last_failure;
   ASSERT_TRUE(node.model()->adapted);
+  // Every view pair is accounted for: adapted, failed, or superseded (by a newer pair, or
+  // left when the node stopped).
+  EXPECT_EQ(s.pairs, s.adaptations + s.adaptation_failures + s.pairs_superseded);
   EXPECT_EQ(video_ptr->frames(), kLoops * session().frames.size());
   EXPECT_GT(fs::file_size(dir_ / "out" / "overlay.avi"), 10000u);
   // Before and after the first model, as pictures.
@@ -109,6 +112,9 @@ TEST_F(LiveNodeReplay, TheAdaptedOverlayAppearsAndTheOstiumErrorFalls) {
   }
   EXPECT_TRUE(seen) << "no landmark " << carrier_ostium;
   EXPECT_GT(s.latency_ms.n, 0u);
+  // A stopped node does not run again (its queues are closed): said, not silently idle.
+  sim::SessionReplay again(session(), {0.0, 1});
+  EXPECT_THROW(node.start(again.frames(), again.carm()), std::logic_error);
 }
 
 TEST_F(LiveNodeReplay, AFailedReconstructionIsReportedAndTheVideoGoesOn) {
@@ -122,6 +128,7 @@ TEST_F(LiveNodeReplay, AFailedReconstructionIsReportedAndTheVideoGoesOn) {
   EXPECT_GE(s.adaptation_failures, 1u);
   EXPECT_EQ(s.adaptations, 0u);
   EXPECT_NE(s.last_failure.find("refused"), std::string::npos) << s.last_failure;
+  EXPECT_EQ(s.last_failure.rfind("frames ", 0), 0u) << "the failed pair is named: " << s.last_failure;
   EXPECT_EQ(node.model()->version, 0u);  // the preoperative model stays
 }
 
