@@ -32,7 +32,9 @@ RTCDevice shared_device() {
   return device.get();
 }
 
-RTCRayHit make_ray(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_min, double t_max) {
+// A ray in the BVH's frame; `o` already relative to the mesh's centre. Embree requires
+// 0 <= tnear <= tfar (a negative tnear aborts some builds of it).
+RTCRayHit make_ray(const Eigen::Vector3d& o, const Eigen::Vector3d& d, float t_min, float t_max) {
   RTCRayHit rh{};
   rh.ray.org_x = static_cast<float>(o.x());
   rh.ray.org_y = static_cast<float>(o.y());
@@ -40,8 +42,8 @@ RTCRayHit make_ray(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_
   rh.ray.dir_x = static_cast<float>(d.x());
   rh.ray.dir_y = static_cast<float>(d.y());
   rh.ray.dir_z = static_cast<float>(d.z());
-  rh.ray.tnear = static_cast<float>(t_min);
-  rh.ray.tfar = std::isfinite(t_max) ? static_cast<float>(t_max) : std::numeric_limits<float>::infinity();
+  rh.ray.tnear = t_min;
+  rh.ray.tfar = t_max;
   rh.ray.mask = 0xFFFFFFFFu;
   rh.ray.flags = 0;
   rh.ray.time = 0.0f;
@@ -55,7 +57,29 @@ RTCRayHit make_ray(const Eigen::Vector3d& o, const Eigen::Vector3d& d, double t_
 struct RayCaster::Impl {
   SceneHandle scene;
   TriangleMesh mesh;  // kept in double to recompute hit points exactly
+  // Embree holds the vertices relative to this point (the middle of the mesh's box): in
+  // single precision, CT coordinates a metre from the scanner's origin would otherwise
+  // lose a hundred times more than the mesh's own extent does.
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+
+  // The first hit along the unit direction d with t in [t_min, t_max] (floats, as Embree
+  // traces them); geomID is RTC_INVALID_GEOMETRY_ID when there is none.
+  RTCRayHit trace(const Eigen::Vector3d& origin, const Eigen::Vector3d& d, float t_min, float t_max) const {
+    RTCIntersectContext ctx;
+    rtcInitIntersectContext(&ctx);
+    RTCRayHit rh = make_ray(origin - centre, d, t_min, t_max);
+    rtcIntersect1(scene.get(), &ctx, &rh);
+    return rh;
+  }
 };
+
+namespace {
+// A non-negative float bound for Embree from a double one (not NaN).
+float float_bound(double t) {
+  if (t <= 0.0) return 0.0f;
+  return std::isfinite(t) ? static_cast<float>(t) : std::numeric_limits<float>::infinity();
+}
+}  // namespace
 
 RayCaster::RayCaster(const TriangleMesh& mesh, BuildQuality quality) : impl_(std::make_unique<Impl>()) {
   RTCDevice device = shared_device();
@@ -74,8 +98,9 @@ RayCaster::RayCaster(const TriangleMesh& mesh, BuildQuality quality) : impl_(std
     rtcReleaseGeometry(geom);
     throw std::runtime_error("Embree: cannot allocate geometry buffers");
   }
+  if (mesh.V.rows() > 0) impl_->centre = 0.5 * (mesh.V.colwise().minCoeff() + mesh.V.colwise().maxCoeff()).transpose();
   for (Eigen::Index i = 0; i < mesh.V.rows(); ++i)
-    for (int k = 0; k < 3; ++k) vb[3 * i + k] = static_cast<float>(mesh.V(i, k));
+    for (int k = 0; k < 3; ++k) vb[3 * i + k] = static_cast<float>(mesh.V(i, k) - impl_->centre(k));
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
     for (int k = 0; k < 3; ++k) ib[3 * f + k] = static_cast<unsigned>(mesh.F(f, k));
   rtcCommitGeometry(geom);
@@ -93,12 +118,12 @@ RayCaster& RayCaster::operator=(RayCaster&&) noexcept = default;
 std::optional<RayHit> RayCaster::first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                            double t_max, double t_min) const {
   const double len = direction.norm();
-  if (!(len > 0.0) || !origin.allFinite()) return std::nullopt;
+  if (!(len > 0.0) || !std::isfinite(len) || !origin.allFinite() || std::isnan(t_min) || std::isnan(t_max))
+    return std::nullopt;
   const Eigen::Vector3d d = direction / len;
-  RTCIntersectContext ctx;
-  rtcInitIntersectContext(&ctx);
-  RTCRayHit rh = make_ray(origin, d, t_min, t_max);
-  rtcIntersect1(impl_->scene.get(), &ctx, &rh);
+  const float lo = float_bound(t_min), hi = float_bound(t_max);
+  if (!(lo <= hi)) return std::nullopt;
+  const RTCRayHit rh = impl_->trace(origin, d, lo, hi);
   if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) return std::nullopt;
   RayHit hit;
   hit.face = static_cast<int>(rh.hit.primID);
@@ -114,16 +139,21 @@ std::optional<RayHit> RayCaster::first_hit(const Eigen::Vector3d& origin, const 
 }
 
 int RayCaster::crossings(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const {
+  const double len = direction.norm();
+  if (!(len > 0.0) || !std::isfinite(len) || !origin.allFinite()) return 0;
+  const Eigen::Vector3d d = direction / len;
+  // Each next ray starts just past the last hit's distance as Embree computed it (the same
+  // float ray each time), so no hit comes back; a distance recomputed in double would not
+  // match Embree's rounding and could return the same hit again. Triangles meeting at the
+  // crossing point (a shared edge) are passed as one crossing.
   int count = 0;
-  double t = 0.0;
-  // Step past each hit; a hit exactly on a shared edge may count twice, which the
-  // three-direction vote in contains() absorbs.
+  float t = 0.0f;
   for (int guard = 0; guard < 100000; ++guard) {
-    const auto hit = first_hit(origin, direction, std::numeric_limits<double>::infinity(), t);
-    if (!hit) break;
+    const RTCRayHit rh = impl_->trace(origin, d, t, std::numeric_limits<float>::infinity());
+    if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
     ++count;
-    t = static_cast<double>(std::nextafter(static_cast<float>(hit->t_mm), std::numeric_limits<float>::infinity())) +
-        1e-6 * (1.0 + std::abs(hit->t_mm));
+    t = std::nextafter(rh.ray.tfar, std::numeric_limits<float>::infinity());
+    if (!std::isfinite(t)) break;
   }
   return count;
 }
