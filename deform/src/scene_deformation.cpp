@@ -460,13 +460,20 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
                                "geometry it was reconstructed from) and the CT to C-arm registration");
   }
 
-  // Device points inside another vessel's preoperative lumen (closed meshes only) are that
-  // vessel's: where the aorta's lumen runs on into an iliac, the device leaves one wall
-  // without pushing it.
-  const auto in_other_lumen = [&models](std::size_t i) -> LumenTest {
-    return [&models, i](const Eigen::Vector3d& p) {
+  // Device points inside another vessel's preoperative lumen are that vessel's: where the
+  // aorta's lumen runs on into an iliac, the device leaves one wall without pushing it. A
+  // closed mesh's inside is told by ray parity; an open one (its ends cut off, as
+  // segmentations often leave them) has none, so its lumen is its radius profile around
+  // its centerline.
+  const auto in_lumen = [](const VesselModel& m, const Eigen::Vector3d& p) {
+    if (m.closed) return m.caster->contains(p);
+    const auto at = geometry::project_onto(m.vessel->centerline, p);
+    return !at.beyond_start && !at.beyond_end && at.distance_mm < m.radius.at(at.arc_length_mm);
+  };
+  const auto in_other_lumen = [&models, &in_lumen](std::size_t i) -> LumenTest {
+    return [&models, &in_lumen, i](const Eigen::Vector3d& p) {
       for (std::size_t j = 0; j < models.size(); ++j)
-        if (j != i && models[j]->closed && models[j]->caster->contains(p)) return true;
+        if (j != i && in_lumen(*models[j], p)) return true;
       return false;
     };
   };
@@ -511,8 +518,11 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
                                  std::to_string(options.bind_length_mm) +
                                  " mm of its centerline's proximal end, so it cannot be bound to the aorta");
     auto& V_out = out.vessels[i].mesh.V;
-    if (carries) V_out = deform_vessel(m, device, bound, options, in_other_lumen(i), warm_start(previous, i), r);
-    if (carries && r.control_points > 0) {
+    if (carries) {
+      // Solved once, with the handles the device gives (none where it runs inside the
+      // lumen: then the junction alone moves it), and the stump it replaces erased either
+      // way, so the erasure does not come and go from one frame of a live sequence to the next.
+      V_out = deform_vessel(m, device, bound, options, in_other_lumen(i), warm_start(previous, i), r);
       r.role = "carries the device";
       // 3. Erase the aortic vertices below the bound iliac points: distal of the plane
       // through their centroid (normal: the iliac's initial direction) and inside the

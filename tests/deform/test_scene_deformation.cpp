@@ -219,6 +219,55 @@ TEST(SceneDeformation, ErasesOnlyTheAorticStumpInsideTheDeviceIliac) {
   EXPECT_GT(erased, 0);
 }
 
+// A device that runs inside the carrier iliac's lumen all the way gives it no handles; it
+// still carries the device, so the aortic stump it replaces is erased as when it bends it
+// (before session 14 the erasure came and went with the handles, frame to frame).
+TEST(SceneDeformation, TheStumpIsErasedAlsoWhenTheCarrierNeedsNoHandles) {
+  const auto scene = sim::to_scene(example());
+  const auto& aortic = example().vessel("aorta").centerline;
+  const auto& iliac = example().vessel("iliac_right").centerline;
+  std::vector<Eigen::Vector3d> device(aortic.begin() + 10, aortic.end());
+  device.insert(device.end(), iliac.begin(), iliac.end() - 5);
+  const auto out = deform::deform_scene(scene, device);
+  EXPECT_EQ(out.device_iliac, "iliac_right");
+  const std::size_t carrier = 2;
+  ASSERT_EQ(out.reports[carrier].name, "iliac_right");
+  EXPECT_EQ(out.reports[carrier].control_points, 0);
+  EXPECT_EQ(out.reports[carrier].role, "carries the device");
+  EXPECT_GT(out.reports[0].erased_vertices, 0);
+  EXPECT_LT(out.vessels[0].mesh.F.rows(), scene.vessels[0].mesh.mesh.F.rows());
+  // Nothing moved: no handle anywhere.
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i)
+    EXPECT_LT((out.vessels[i].mesh.V - scene.vessels[i].mesh.mesh.V).cwiseAbs().maxCoeff(), 1e-9) << out.reports[i].name;
+}
+
+// Segmentations often leave a vessel's ends open. An iliac whose top cap is cut off has no
+// inside for ray parity, yet the device in it must still count as in its lumen, not as
+// pushing the aortic wall (before session 14 the aorta got 3 handles instead of 1 and
+// moved 3.8 mm instead of 1.5).
+TEST(SceneDeformation, AnIliacWithAnOpenTopStillHoldsTheDeviceForTheAorta) {
+  const auto closed = sim::to_scene(example());
+  auto open = closed;
+  auto& iliac = open.vessels[2];
+  ASSERT_EQ(iliac.name, "iliac_right");
+  // The top cap: the fan of faces around the vertex at the centerline's first point.
+  Eigen::Index tip = 0;
+  (iliac.mesh.mesh.V.rowwise() - iliac.centerline.front().transpose()).rowwise().norm().minCoeff(&tip);
+  std::vector<Eigen::RowVector3i> kept;
+  for (Eigen::Index f = 0; f < iliac.mesh.mesh.F.rows(); ++f)
+    if ((iliac.mesh.mesh.F.row(f).array() != static_cast<int>(tip)).all()) kept.push_back(iliac.mesh.mesh.F.row(f));
+  ASSERT_LT(kept.size(), static_cast<std::size_t>(iliac.mesh.mesh.F.rows()));
+  iliac.mesh.mesh.F.resize(static_cast<Eigen::Index>(kept.size()), 3);
+  for (std::size_t f = 0; f < kept.size(); ++f) iliac.mesh.mesh.F.row(static_cast<Eigen::Index>(f)) = kept[f];
+  ASSERT_FALSE(geometry::is_closed(iliac.mesh.mesh));
+
+  const auto a = deform::deform_scene(closed, example().device);
+  const auto b = deform::deform_scene(open, example().device);
+  EXPECT_EQ(b.reports[0].control_points, a.reports[0].control_points);
+  EXPECT_NEAR(b.reports[0].max_displacement_mm, a.reports[0].max_displacement_mm, 0.25);
+  EXPECT_NEAR(b.reports[1].max_displacement_mm, a.reports[1].max_displacement_mm, 0.25);  // the other iliac follows it
+}
+
 TEST(SceneDeformation, FindsTheIliacCarryingTheDeviceFromTheGeometry) {
   // Nominal anatomy (no seeded variation: the iliacs are mirror images) with the device
   // mirrored left-right, so it runs up the left iliac instead of the right.
