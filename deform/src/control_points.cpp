@@ -36,7 +36,8 @@ std::vector<Eigen::Vector3d> device_points_in_vessel(const geometry::Polyline& c
   std::vector<Eigen::Vector3d> inside;
   const geometry::PolylineProjector onto_centerline(centerline);
   int segment = -1;
-  for (const auto& d : geometry::resample(device, options.sample_step_mm)) {
+  // Samples placed symmetrically: the device given from either end gives the same ones.
+  for (const auto& d : geometry::resample_symmetric(device, options.sample_step_mm)) {
     const auto foot = onto_centerline.project(d, segment, &segment);
     if (foot.beyond_start || foot.beyond_end) continue;
     if (foot.distance_mm > options.reach_radii * radius.at(foot.arc_length_mm)) continue;
@@ -84,9 +85,13 @@ std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, co
     }
   }
   // Resampling: deepest first, then keep a candidate only if no kept handle is closer
-  // than `spacing` (hit points), so handles are even however the vessel winds.
-  std::stable_sort(candidates.begin(), candidates.end(),
-                   [](const Candidate& a, const Candidate& b) { return a.penetration_mm > b.penetration_mm; });
+  // than `spacing` (hit points), so handles are even however the vessel winds. Equal
+  // depths are ordered by where they hit, not by the order the device was given in.
+  std::sort(candidates.begin(), candidates.end(), [](const Candidate& a, const Candidate& b) {
+    if (a.penetration_mm != b.penetration_mm) return a.penetration_mm > b.penetration_mm;
+    return std::lexicographical_compare(a.handle.hit.data(), a.handle.hit.data() + 3, b.handle.hit.data(),
+                                        b.handle.hit.data() + 3);
+  });
   std::vector<Handle> kept;
   for (const auto& c : candidates) {
     const bool crowded = std::any_of(kept.begin(), kept.end(), [&](const Handle& h) {

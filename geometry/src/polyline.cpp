@@ -61,6 +61,29 @@ Polyline resample(const Polyline& points, double step_mm) {
   return out;
 }
 
+Polyline resample_symmetric(const Polyline& points, double step_mm) {
+  if (!(step_mm > 0.0)) throw std::invalid_argument("resample: step must be positive");
+  Polyline unique;
+  for (const auto& p : points)
+    if (unique.empty() || (p - unique.back()).norm() > 0.0) unique.push_back(p);
+  if (unique.size() < 2) return unique;
+  const auto arc = arc_lengths(unique);
+  const double length = arc.back();
+  const double count = std::floor(length / step_mm);
+  if (!(count < 1e7)) throw std::invalid_argument("resample: more than 10 million samples requested");
+  const auto n = static_cast<std::size_t>(count);
+  const double margin = 0.5 * (length - static_cast<double>(n) * step_mm);
+  Polyline out;
+  out.reserve(n + 3);
+  out.push_back(unique.front());
+  for (std::size_t k = 0; k <= n; ++k) {
+    const Eigen::Vector3d p = point_at(unique, arc, margin + static_cast<double>(k) * step_mm);
+    if ((p - out.back()).norm() > 1e-9 * std::max(1.0, length)) out.push_back(p);
+  }
+  if ((unique.back() - out.back()).norm() > 1e-9 * std::max(1.0, length)) out.push_back(unique.back());
+  return out;
+}
+
 PolylineProjector::PolylineProjector(const Polyline& points) : points_(&points) {
   if (points.size() < 2) throw std::invalid_argument("project_onto: polyline needs 2 points");
   length_.resize(points.size() - 1);

@@ -10,6 +10,9 @@
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "evar/geometry/markups.hpp"
+#include "evar/geometry/scene.hpp"
+#include "evar/geometry/closest_point.hpp"
+#include "evar/geometry/ray_caster.hpp"
 #include "evar/geometry/polyline.hpp"
 #include "evar/sim/fluoro_render.hpp"
 
@@ -576,18 +579,29 @@ TEST_F(Cli, EvalOfASessionWithoutGroundTruthNamesTheField) {
   EXPECT_NE(r.err.find("ground_truth"), std::string::npos) << r.err;
 }
 
-// Seed 7's tortuous iliac is pushed into a bend where the swept sections miss the device;
-// the truth pushes those sections in an extra pass instead of refusing the seed (it did
-// until session 12), and says so in patient.json.
-TEST_F(Cli, SimPatientResolvesASeedWhoseSweptWallsMissedTheDevice) {
-  const auto out = scratch("sim_patient_mesh_pass");
+// Seed 7's tortuous iliac, pushed into a tight bend, was refused until session 12 and then
+// made with an extra pass on the meshes; both came from the inside test's repeated hits
+// (fixed in session 14). Its truth holds the device in the distorted vessels, checked here
+// on the written files: every device point inside a truth mesh or within Δd of a wall.
+TEST_F(Cli, SimPatientSeed7HoldsTheDeviceInItsTruth) {
+  const auto out = scratch("sim_patient_seed7");
   const auto r = evarnode({"sim", "patient", "--seed", "7", "--out", out.string()});
   ASSERT_EQ(r.code, 0) << r.err;
-  EXPECT_TRUE(fs::exists(out / "scene.json"));
-  EXPECT_TRUE(fs::exists(out / "truth" / "scene.json"));
-  std::ifstream in(out / "patient.json");
-  const auto j = nlohmann::json::parse(in);
-  EXPECT_GE(j["ground_truth"]["mesh_passes"].get<int>(), 1);
+  const auto truth = evar::geometry::load_scene(out / "truth" / "scene.json");
+  std::vector<evar::geometry::RayCaster> casters;
+  for (const auto& v : truth.vessels) casters.emplace_back(v.mesh.mesh);
+  const auto device = evar::geometry::read_curve(out / "truth" / "device.mrk.json").points;
+  ASSERT_GT(device.size(), 50u);
+  for (const auto& d : device) {
+    bool held = false;
+    for (std::size_t i = 0; i < casters.size() && !held; ++i)
+      held = casters[i].contains(d.position_lps) ||
+             evar::geometry::closest_point_on_mesh(truth.vessels[i].mesh.mesh, d.position_lps).distance_mm <=
+                 truth.device_thickness_mm;
+    EXPECT_TRUE(held) << d.position_lps.transpose();
+  }
+  const auto j = nlohmann::json::parse(std::ifstream(out / "patient.json"));
+  EXPECT_GE(j["ground_truth"]["mesh_passes"].get<int>(), 0);
 }
 
 // A simulated intervention, replayed through the acquisition interfaces: every frame

@@ -15,6 +15,10 @@ std::vector<double> arc_lengths(const Polyline& points);
 /// interval may be shorter). Consecutive duplicate points are skipped.
 Polyline resample(const Polyline& points, double step_mm);
 
+/// Both end points and points every `step_mm` between them, the gaps left at either end
+/// equal: the same points (in reverse order) for the reversed polyline.
+Polyline resample_symmetric(const Polyline& points, double step_mm);
+
 struct PolylineProjection {
   Eigen::Vector3d point;   ///< closest point on the polyline
   double arc_length_mm;    ///< its arc length from the first point
