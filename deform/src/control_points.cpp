@@ -25,7 +25,10 @@ void try_ray(const geometry::RayCaster& caster, const Eigen::Vector3d& c, const 
   const Eigen::Vector3d dh = d - hit->point;
   const double pen = dh.norm();
   if (!(pen > 1e-9)) return;
-  const Eigen::Vector3d s = dh + thickness * dh / pen;  // eq. 6
+  // Eq. 6, s = d − h + Δd (d − h)/|d − h|: h lies on the ray from c to d, so (d − h)/|d − h|
+  // is the ray's direction, taken from the ray itself (d − h alone is rounding where d
+  // is within a hair of the wall).
+  const Eigen::Vector3d s = dh + thickness * cd / reach;
   out.push_back({{hit->point, hit->face, hit->barycentric, d, s, arc}, pen});
 }
 

@@ -213,13 +213,18 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
     if (!r.X.allFinite())
       throw std::runtime_error("vessel '" + m.vessel->name + "': the ARAP solve produced non-finite positions");
     X = r.X;
-    if (device.empty() || round + 1 >= options.containment_rounds) break;
+    // Rounds need a deformed centerline: two skeleton planes at least.
+    if (device.empty() || round + 1 >= options.containment_rounds || m.skeleton.centres.size() < 2) break;
 
     t0 = Clock::now();
     const geometry::TriangleMesh deformed{X.topRows(n), mesh.F};
     const geometry::RayCaster caster(deformed, geometry::RayCaster::BuildQuality::Low);
-    const auto more = select_control_points(deformed, caster, deformed_centerline(m, deformed.V), m.radius, device,
-                                            options.control, in_other_lumen);
+    // The deformed centerline runs through the planes, so its arc starts at the first one:
+    // the radii are looked up by arc along it, plane by plane.
+    const geometry::Polyline moved_centerline = deformed_centerline(m, deformed.V);
+    const RadiusProfile moved_radius{geometry::arc_lengths(moved_centerline), m.skeleton.radius_mm};
+    const auto more = select_control_points(deformed, caster, moved_centerline, moved_radius, device, options.control,
+                                            in_other_lumen);
     std::set<int> fresh;  // vertices constrained for the first time this round
     for (const auto& [v, p] : handle_vertex_targets(deformed, more))
       if (targets.emplace(v, p).second) fresh.insert(v);
@@ -312,6 +317,10 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
     throw geometry::InputError(scene.file.string() + ": the scene has no vessel of kind \"aorta\"");
   const auto& aorta = *std::find_if(scene.vessels.begin(), scene.vessels.end(),
                                     [](const geometry::Vessel& v) { return v.kind == geometry::VesselKind::Aorta; });
+  // Where each iliac begins, against the aortic lumen (a closed aortic mesh has one).
+  std::optional<geometry::RayCaster> aortic_lumen;
+  if (geometry::is_closed(aorta.mesh.mesh))
+    aortic_lumen.emplace(aorta.mesh.mesh, geometry::RayCaster::BuildQuality::Low);
   for (const auto& v : scene.vessels) {
     // Iliac centerlines run from the bifurcation (near the aorta) to the distal end; a
     // reversed one would bind the wrong end to the aorta.
@@ -321,7 +330,21 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
       throw geometry::InputError(v.centerline_path.string() + ": the centerline of iliac '" + v.name +
                                  "' runs toward the aorta; it must run from the bifurcation to the distal end");
     models_.push_back(make_model(v, options_));
-    if (v.kind == geometry::VesselKind::Iliac) bind_junction(*models_.back(), aorta.mesh.mesh, options_.bind_length_mm);
+    if (v.kind == geometry::VesselKind::Iliac) {
+      // Its top is bound to the aortic wall: an iliac that begins well outside the aorta
+      // (a gap between the meshes, or another frame) would be bound to a wall it never met.
+      const Eigen::Vector3d start = v.centerline.front();
+      const double gap = geometry::closest_point_on_mesh(aorta.mesh.mesh, start).distance_mm;
+      const double allowed = models_.back()->radius.at(0.0) + 5.0;
+      if (aortic_lumen && !aortic_lumen->contains(start) && gap > allowed) {
+        char text[64];
+        std::snprintf(text, sizeof text, "%.1f mm (at most %.1f)", gap, allowed);
+        throw geometry::InputError(v.centerline_path.string() + ": iliac '" + v.name + "' begins " + text +
+                                   " outside the aorta " + aorta.mesh_path.string() +
+                                   "; its centerline must start at the bifurcation, inside or at the aortic wall");
+      }
+      bind_junction(*models_.back(), aorta.mesh.mesh, options_.bind_length_mm);
+    }
     // The tethered system's own factor does not depend on the device either: made here, it
     // is not paid by the first device pose (measured: a third of the node's first model).
     models_.back()->system->prefactored();

@@ -284,6 +284,23 @@ TEST(SceneDeformation, AnIliacWithAnOpenTopStillHoldsTheDeviceForTheAorta) {
   EXPECT_NEAR(b.reports[1].max_displacement_mm, a.reports[1].max_displacement_mm, 0.25);  // the other iliac follows it
 }
 
+// An iliac that begins well away from the aorta (a gap between the meshes, another frame)
+// would have its top bound to an aortic wall it never met: refused by name.
+TEST(SceneDeformation, AnIliacThatBeginsOutsideTheAortaIsRefusedByName) {
+  auto scene = sim::to_scene(example());
+  auto& iliac = scene.vessels[2];
+  const Eigen::Vector3d away(-40.0, 0.0, -30.0);
+  iliac.mesh.mesh.V.rowwise() += away.transpose();
+  for (auto& p : iliac.centerline) p += away;
+  try {
+    (void)deform::SceneDeformer(scene);
+    ADD_FAILURE() << "an iliac 40 mm from the aorta was bound to it";
+  } catch (const geometry::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("iliac 'iliac_right' begins"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("outside the aorta"), std::string::npos) << e.what();
+  }
+}
+
 TEST(SceneDeformation, FindsTheIliacCarryingTheDeviceFromTheGeometry) {
   // Nominal anatomy (no seeded variation: the iliacs are mirror images) with the device
   // mirrored left-right, so it runs up the left iliac instead of the right.

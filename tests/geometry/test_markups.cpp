@@ -2,6 +2,7 @@
 // files Slicer can load, and malformed files refused with the JSON path of the problem.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -29,7 +30,7 @@ namespace {
 
 fs::path test_dir() {
   const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(testing::TempDir()) / "evar_geometry_markups" /
+  const fs::path dir = fs::path(testing::TempDir()) / ("evar_geometry_markups_" + std::to_string(::getpid())) /
                        (std::string(info->test_suite_name()) + "." + info->name());
   fs::remove_all(dir);
   fs::create_directories(dir);

@@ -2,6 +2,7 @@
 // detection, and every kind of malformed input ending in an InputError that names the file.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <algorithm>
 #include <array>
@@ -37,7 +38,7 @@ namespace {
 // A fresh folder per test under the GoogleTest temp dir.
 fs::path test_dir() {
   const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(testing::TempDir()) / "evar_geometry_io" /
+  const fs::path dir = fs::path(testing::TempDir()) / ("evar_geometry_io_" + std::to_string(::getpid())) /
                        (std::string(info->test_suite_name()) + "." + info->name());
   fs::remove_all(dir);
   fs::create_directories(dir);

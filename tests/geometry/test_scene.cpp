@@ -2,6 +2,7 @@
 // relative to the scene file, and every rule load_scene enforces.
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
@@ -35,7 +36,7 @@ namespace {
 
 fs::path test_dir() {
   const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(testing::TempDir()) / "evar_geometry_scene" /
+  const fs::path dir = fs::path(testing::TempDir()) / ("evar_geometry_scene_" + std::to_string(::getpid())) /
                        (std::string(info->test_suite_name()) + "." + info->name());
   fs::remove_all(dir);
   fs::create_directories(dir);

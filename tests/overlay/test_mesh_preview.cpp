@@ -1,6 +1,7 @@
 #include "evar/overlay/mesh_preview.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <array>
 #include <cmath>
@@ -83,7 +84,7 @@ RedMass red_mass(const Image& image, int x0, int y0, int width, int height) {
 }
 
 std::filesystem::path fresh_temp_dir(const std::string& name) {
-  const auto dir = std::filesystem::temp_directory_path() / ("evar_overlay_" + name);
+  const auto dir = std::filesystem::temp_directory_path() / ("evar_overlay_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   std::filesystem::create_directories(dir);
   return dir;

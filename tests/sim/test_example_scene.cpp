@@ -1,6 +1,7 @@
 #include "evar/sim/example_scene.hpp"
 
 #include <gtest/gtest.h>
+#include <unistd.h>
 
 #include <Eigen/Geometry>
 #include <algorithm>
@@ -255,7 +256,7 @@ TEST(ExampleScene, RejectsParametersThatCannotGiveAnAnatomy) {
 }
 
 std::filesystem::path fresh_dir(const std::string& name) {
-  const auto dir = std::filesystem::path(::testing::TempDir()) / ("evar_sim_" + name);
+  const auto dir = std::filesystem::path(::testing::TempDir()) / ("evar_sim_" + name + "_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   return dir;
 }

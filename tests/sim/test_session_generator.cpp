@@ -1,4 +1,7 @@
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <string>
 
 #include <algorithm>
 #include <filesystem>
@@ -27,7 +30,7 @@ SessionPlan small_plan(std::uint64_t seed) {
 class GeneratedSessionTest : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = fs::path(testing::TempDir()) / "evar_generated_session";
+    dir_ = fs::path(testing::TempDir()) / ("evar_generated_session_" + std::to_string(::getpid()));
     fs::remove_all(dir_);
     generate_session(small_plan(3), dir_);
   }
@@ -101,7 +104,8 @@ TEST_F(GeneratedSessionTest, TheDeviceShadowLiesWhereTheRecordedGeometryProjects
 }
 
 TEST(SessionGenerator, SameSeedSameFrames) {
-  const auto a = fs::path(testing::TempDir()) / "evar_gen_a", b = fs::path(testing::TempDir()) / "evar_gen_b";
+  const std::string pid = std::to_string(::getpid());
+  const auto a = fs::path(testing::TempDir()) / ("evar_gen_a_" + pid), b = fs::path(testing::TempDir()) / ("evar_gen_b_" + pid);
   fs::remove_all(a);
   fs::remove_all(b);
   auto plan = small_plan(5);

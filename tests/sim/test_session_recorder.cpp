@@ -2,6 +2,9 @@
 // acquisition interfaces and recorded again must come back with every frame's pixels, every
 // C-arm state, and the same geometry in force at every frame.
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <string>
 
 #include <filesystem>
 #include <fstream>
@@ -24,7 +27,8 @@ class Recording : public ::testing::Test {
  protected:
   void SetUp() override {
     root_ = fs::path(testing::TempDir()) /
-            ("evar_record_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+            ("evar_record_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+             std::to_string(::getpid()));
     fs::remove_all(root_);
     ExampleSceneParams p;
     p.aorta_vertices = 800;

@@ -1,4 +1,7 @@
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <string>
 
 #include <filesystem>
 #include <mutex>
@@ -27,7 +30,8 @@ class FakeClock final : public ReplayClock {
 class Replay : public ::testing::Test {
  protected:
   void SetUp() override {
-    dir_ = fs::path(testing::TempDir()) / ("evar_replay_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()));
+    dir_ = fs::path(testing::TempDir()) / ("evar_replay_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
+                                          std::to_string(::getpid()));
     fs::remove_all(dir_);
     Session s;
     s.scene = "scene.json";

@@ -1,4 +1,7 @@
 #include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <string>
 
 #include <Eigen/Geometry>
 #include <cmath>
@@ -144,7 +147,7 @@ TEST(SyntheticPatient, DrawnAnatomyStaysInItsRanges) {
 }
 
 TEST(SyntheticPatient, WrittenTruthIsALoadableSceneWithTheSameVertexOrder) {
-  const auto dir = std::filesystem::path(testing::TempDir()) / "evar_patient_7";
+  const auto dir = std::filesystem::path(testing::TempDir()) / ("evar_patient_7_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
   const auto patient = make_patient(7, kAorta, kIliac);
   write_patient(patient, dir);
