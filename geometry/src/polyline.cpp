@@ -43,44 +43,56 @@ Eigen::Vector3d tangent_at(const Polyline& points, const std::vector<double>& ar
   throw std::invalid_argument("tangent_at: polyline has no extent");
 }
 
-Polyline resample(const Polyline& points, double step_mm) {
-  if (!(step_mm > 0.0)) throw std::invalid_argument("resample: step must be positive");
+namespace {
+
+// A polyline about to be sampled every `step_mm`: its points without consecutive
+// duplicates, their arc lengths, and how many whole steps its length holds.
+struct Sampling {
   Polyline unique;
+  std::vector<double> arc;
+  double length = 0.0;
+  std::size_t steps = 0;
+};
+
+Sampling prepare_sampling(const Polyline& points, double step_mm) {
+  if (!(step_mm > 0.0)) throw std::invalid_argument("resample: step must be positive");
+  Sampling s;
   for (const auto& p : points)
-    if (unique.empty() || (p - unique.back()).norm() > 0.0) unique.push_back(p);
-  if (unique.size() < 2) return unique;
-  const auto arc = arc_lengths(unique);
-  const double length = arc.back();
-  const double count = std::floor(length / step_mm);
+    if (s.unique.empty() || (p - s.unique.back()).norm() > 0.0) s.unique.push_back(p);
+  if (s.unique.size() < 2) return s;
+  s.arc = arc_lengths(s.unique);
+  s.length = s.arc.back();
+  const double count = std::floor(s.length / step_mm);
   if (!(count < 1e7)) throw std::invalid_argument("resample: more than 10 million samples requested");
-  const auto n = static_cast<std::size_t>(count);
+  s.steps = static_cast<std::size_t>(count);
+  return s;
+}
+
+}  // namespace
+
+Polyline resample(const Polyline& points, double step_mm) {
+  const Sampling s = prepare_sampling(points, step_mm);
+  if (s.unique.size() < 2) return s.unique;
   Polyline out;
-  out.reserve(n + 2);
-  for (std::size_t k = 0; k <= n; ++k) out.push_back(point_at(unique, arc, static_cast<double>(k) * step_mm));
-  if (length - static_cast<double>(n) * step_mm > 1e-9 * std::max(1.0, length)) out.push_back(unique.back());
+  out.reserve(s.steps + 2);
+  for (std::size_t k = 0; k <= s.steps; ++k) out.push_back(point_at(s.unique, s.arc, static_cast<double>(k) * step_mm));
+  if (s.length - static_cast<double>(s.steps) * step_mm > 1e-9 * std::max(1.0, s.length)) out.push_back(s.unique.back());
   return out;
 }
 
 Polyline resample_symmetric(const Polyline& points, double step_mm) {
-  if (!(step_mm > 0.0)) throw std::invalid_argument("resample: step must be positive");
-  Polyline unique;
-  for (const auto& p : points)
-    if (unique.empty() || (p - unique.back()).norm() > 0.0) unique.push_back(p);
-  if (unique.size() < 2) return unique;
-  const auto arc = arc_lengths(unique);
-  const double length = arc.back();
-  const double count = std::floor(length / step_mm);
-  if (!(count < 1e7)) throw std::invalid_argument("resample: more than 10 million samples requested");
-  const auto n = static_cast<std::size_t>(count);
-  const double margin = 0.5 * (length - static_cast<double>(n) * step_mm);
+  const Sampling s = prepare_sampling(points, step_mm);
+  if (s.unique.size() < 2) return s.unique;
+  const double margin = 0.5 * (s.length - static_cast<double>(s.steps) * step_mm);
+  const double apart = 1e-9 * std::max(1.0, s.length);
   Polyline out;
-  out.reserve(n + 3);
-  out.push_back(unique.front());
-  for (std::size_t k = 0; k <= n; ++k) {
-    const Eigen::Vector3d p = point_at(unique, arc, margin + static_cast<double>(k) * step_mm);
-    if ((p - out.back()).norm() > 1e-9 * std::max(1.0, length)) out.push_back(p);
+  out.reserve(s.steps + 3);
+  out.push_back(s.unique.front());
+  for (std::size_t k = 0; k <= s.steps; ++k) {
+    const Eigen::Vector3d p = point_at(s.unique, s.arc, margin + static_cast<double>(k) * step_mm);
+    if ((p - out.back()).norm() > apart) out.push_back(p);
   }
-  if ((unique.back() - out.back()).norm() > 1e-9 * std::max(1.0, length)) out.push_back(unique.back());
+  if ((s.unique.back() - out.back()).norm() > apart) out.push_back(s.unique.back());
   return out;
 }
 

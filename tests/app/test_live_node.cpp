@@ -46,6 +46,13 @@ class LiveNodeReplay : public ::testing::Test {
     o.registration = generated_->session.ct_to_carm;
     return o;
   }
+  // A node that notices a stall after 300 ms and holds a frame every 200 ms.
+  static app::NodeOptions stall_options() {
+    app::NodeOptions o = options();
+    o.video_stall = std::chrono::milliseconds(300);
+    o.held_frame_interval = std::chrono::milliseconds(200);
+    return o;
+  }
   static const sim::Session& session() { return generated_->session; }
   // The whole session through the node as fast as it takes it, `loops` times; false if the
   // replay hangs.
@@ -250,6 +257,15 @@ class SilentCArm final : public acquisition::CArmGeometrySource {
   acquisition::CArmState first_;
 };
 
+// The sink that records what a node shows.
+std::vector<std::unique_ptr<app::OutputSink>> recording(StatusRecorder*& shown) {
+  auto recorder = std::make_unique<StatusRecorder>();
+  shown = recorder.get();
+  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  sinks.push_back(std::move(recorder));
+  return sinks;
+}
+
 // A frame source whose frames `from` to `to` (sequence numbers) cannot be read: their
 // rows are said to be one byte long (a grabber whose layout broke).
 class SpoiledFrames final : public acquisition::FrameSource {
@@ -279,14 +295,8 @@ class SpoiledFrames final : public acquisition::FrameSource {
 // frame as if it were live. It is held, marked so, with the reason among the alerts, and
 // the live video comes back by itself with the good frames.
 TEST_F(LiveNodeReplay, FramesThatCannotBeShownLeaveTheLastGoodOneHeldAndMarked) {
-  app::NodeOptions o = options();
-  o.video_stall = std::chrono::milliseconds(300);
-  o.held_frame_interval = std::chrono::milliseconds(200);
-  auto recorder = std::make_unique<StatusRecorder>();
-  StatusRecorder* shown = recorder.get();
-  std::vector<std::unique_ptr<app::OutputSink>> sinks;
-  sinks.push_back(std::move(recorder));
-  app::LiveNode node(*scene_, o, std::move(sinks));
+  StatusRecorder* shown = nullptr;
+  app::LiveNode node(*scene_, stall_options(), recording(shown));
   // The session's first fluoroscopy run is frames 1-60 at 15/s; replayed at 2x, frames
   // 20-49 are a second of unreadable video within it.
   sim::SessionReplay replay(session(), {2.0, 1});
@@ -319,14 +329,8 @@ TEST_F(LiveNodeReplay, FramesThatCannotBeShownLeaveTheLastGoodOneHeldAndMarked) 
 }
 
 TEST_F(LiveNodeReplay, ASilentCArmLinkAndAStalledVideoAreReportedWhileFramesAreShown) {
-  app::NodeOptions o = options();
-  o.video_stall = std::chrono::milliseconds(300);
-  o.held_frame_interval = std::chrono::milliseconds(200);
-  auto recorder = std::make_unique<StatusRecorder>();
-  StatusRecorder* shown = recorder.get();
-  std::vector<std::unique_ptr<app::OutputSink>> sinks;
-  sinks.push_back(std::move(recorder));
-  app::LiveNode node(*scene_, o, std::move(sinks));
+  StatusRecorder* shown = nullptr;
+  app::LiveNode node(*scene_, stall_options(), recording(shown));
   SilentCArm carm(sim::to_carm_state(session().carm.front(), 0));
   sim::SessionReplay replay(session(), {8.0, 1});
   node.start(replay.frames(), carm);
