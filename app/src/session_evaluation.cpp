@@ -3,12 +3,10 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <map>
 #include <numeric>
 #include <stdexcept>
 
-#include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/polyline.hpp"
@@ -141,22 +139,16 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   // and which vessel each landmark sits on: the paper's Table 1 measures the internal iliac
   // ostia of iliacs carrying a device.
   try {
-    result.device_iliac = deformer.deform(true_device).device_iliac;
+    const deform::SceneDeformation on_truth = deformer.deform(true_device);
+    result.device_iliac = on_truth.device_iliac;
+    for (LandmarkError& l : result.landmarks)
+      for (std::size_t k = 0; k < scene.landmarks.size(); ++k)
+        if (scene.landmarks[k].label == l.label) l.vessel = on_truth.landmark_vessel[k];
   } catch (const std::exception&) {
     result.device_iliac.clear();  // a truth the deformation refuses carries no iliac here
   }
-  for (LandmarkError& l : result.landmarks) {
-    double nearest = std::numeric_limits<double>::infinity();
-    for (const auto& lm : scene.landmarks) {
-      if (lm.label != l.label) continue;
-      for (const auto& v : scene.vessels)
-        if (const double d = geometry::closest_point_on_mesh(v.mesh.mesh, lm.position_lps).distance_mm; d < nearest) {
-          nearest = d;
-          l.vessel = v.name;
-        }
-    }
+  for (LandmarkError& l : result.landmarks)
     l.on_device_vessel = !result.device_iliac.empty() && l.vessel == result.device_iliac;
-  }
   result.model = model;
   result.recording = std::move(recording);
   result.scene = std::move(loaded);
