@@ -289,21 +289,25 @@ struct GigECameraSource::Impl {
     camera.reset();
   }
 
+  // A buffer that is not what the camera was set to send: counted and said, never delivered.
+  Outcome refuse(std::string why) {
+    refusal = std::move(why);
+    std::lock_guard lock(mutex);
+    ++stats.refused;
+    refused_since_delivery = true;
+    return Outcome::Refused;
+  }
+
   // One buffer from the stream, turned into a Frame when it is complete and is what the
   // camera was set to send. An incomplete frame (packets lost) is counted by the stream's
   // statistics; its block id is a gap the sequence tracker counts as a drop.
   Outcome handle(ArvBuffer* buffer) {
     const ArvBufferStatus status = arv_buffer_get_status(buffer);
-    if (status == ARV_BUFFER_STATUS_SIZE_MISMATCH) {
+    if (status == ARV_BUFFER_STATUS_SIZE_MISMATCH)
       // More data than the buffers sized for what the camera was set to: it sends a larger
       // region or a wider pixel format by itself (a reset, settings changed elsewhere).
-      refusal = std::string("frames larger than the ") + to_string(options.pixel_format) + " " + std::to_string(expected_width) +
-                " x " + std::to_string(expected_height) + " it was set to";
-      std::lock_guard lock(mutex);
-      ++stats.refused;
-      refused_since_delivery = true;
-      return Outcome::Refused;
-    }
+      return refuse(std::string("frames larger than the ") + to_string(options.pixel_format) + " " +
+                    std::to_string(expected_width) + " x " + std::to_string(expected_height) + " it was set to");
     if (status != ARV_BUFFER_STATUS_SUCCESS) return Outcome::Incomplete;
     Frame f;
     f.host_arrival = Clock::now();
@@ -313,13 +317,9 @@ struct GigECameraSource::Impl {
     const ArvPixelFormat sent = arv_buffer_get_image_pixel_format(buffer);
     if (sent != to_arv(options.pixel_format) || f.width != expected_width || f.height != expected_height) {
       // Pixels of another format or size under our label would be a wrong picture.
-      refusal = pixel_format_name(sent) + " " + std::to_string(f.width) + " x " + std::to_string(f.height) +
-                " frames, not the " + to_string(options.pixel_format) + " " + std::to_string(expected_width) + " x " +
-                std::to_string(expected_height) + " it was set to";
-      std::lock_guard lock(mutex);
-      ++stats.refused;
-      refused_since_delivery = true;
-      return Outcome::Refused;
+      return refuse(pixel_format_name(sent) + " " + std::to_string(f.width) + " x " + std::to_string(f.height) +
+                    " frames, not the " + to_string(options.pixel_format) + " " + std::to_string(expected_width) +
+                    " x " + std::to_string(expected_height) + " it was set to");
     }
     f.stride_bytes = f.width * bytes_per_pixel(f.format);
     size_t size = 0;
