@@ -63,8 +63,9 @@ DeviceError device_error(const geometry::Polyline& reconstructed, const geometry
   if (reconstructed.empty() || truth.size() < 2)
     throw std::invalid_argument("device_error: needs reconstructed points and a true curve of 2 or more points");
   DeviceError e;
+  const geometry::PolylineProjector onto_truth(truth);
   for (const Eigen::Vector3d& p : reconstructed) {
-    const double d = geometry::project_onto(truth, p).distance_mm;
+    const double d = onto_truth.project(p).distance_mm;
     e.mean_mm += d;
     e.max_mm = std::max(e.max_mm, d);
   }

@@ -74,6 +74,14 @@ struct RayCaster::Impl {
 };
 
 namespace {
+// The unit direction of a ray that can be traced: a finite, non-zero direction from a
+// finite origin (nullopt otherwise).
+std::optional<Eigen::Vector3d> unit_direction(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) {
+  const double len = direction.norm();
+  if (!(len > 0.0) || !std::isfinite(len) || !origin.allFinite()) return std::nullopt;
+  return Eigen::Vector3d(direction / len);
+}
+
 // A non-negative float bound for Embree from a double one (not NaN).
 float float_bound(double t) {
   if (t <= 0.0) return 0.0f;
@@ -117,10 +125,9 @@ RayCaster& RayCaster::operator=(RayCaster&&) noexcept = default;
 
 std::optional<RayHit> RayCaster::first_hit(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction,
                                            double t_max, double t_min) const {
-  const double len = direction.norm();
-  if (!(len > 0.0) || !std::isfinite(len) || !origin.allFinite() || std::isnan(t_min) || std::isnan(t_max))
-    return std::nullopt;
-  const Eigen::Vector3d d = direction / len;
+  const auto unit = unit_direction(origin, direction);
+  if (!unit || std::isnan(t_min) || std::isnan(t_max)) return std::nullopt;
+  const Eigen::Vector3d& d = *unit;
   const float lo = float_bound(t_min), hi = float_bound(t_max);
   if (!(lo <= hi)) return std::nullopt;
   const RTCRayHit rh = impl_->trace(origin, d, lo, hi);
@@ -139,17 +146,17 @@ std::optional<RayHit> RayCaster::first_hit(const Eigen::Vector3d& origin, const 
 }
 
 int RayCaster::crossings(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const {
-  const double len = direction.norm();
-  if (!(len > 0.0) || !std::isfinite(len) || !origin.allFinite()) return 0;
-  const Eigen::Vector3d d = direction / len;
+  const auto unit = unit_direction(origin, direction);
+  if (!unit) return 0;
   // Each next ray starts just past the last hit's distance as Embree computed it (the same
   // float ray each time), so no hit comes back; a distance recomputed in double would not
   // match Embree's rounding and could return the same hit again. Triangles meeting at the
-  // crossing point (a shared edge) are passed as one crossing.
+  // crossing point (a shared edge) usually give the same distance and count once; where
+  // they do not, the three-direction vote in contains() absorbs it.
   int count = 0;
   float t = 0.0f;
   for (int guard = 0; guard < 100000; ++guard) {
-    const RTCRayHit rh = impl_->trace(origin, d, t, std::numeric_limits<float>::infinity());
+    const RTCRayHit rh = impl_->trace(origin, *unit, t, std::numeric_limits<float>::infinity());
     if (rh.hit.geomID == RTC_INVALID_GEOMETRY_ID) break;
     ++count;
     t = std::nextafter(rh.ray.tfar, std::numeric_limits<float>::infinity());
