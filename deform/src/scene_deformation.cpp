@@ -352,18 +352,17 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
   // Each landmark follows the vessel surface it sits on, bound once here; one far from
   // every wall is in the wrong frame.
   for (const auto& lm : scene.landmarks) {
-    std::size_t best = 0;
-    SurfaceBinding binding;
-    binding.distance_mm = std::numeric_limits<double>::infinity();
+    LandmarkBinding lb;
+    double nearest_mm = std::numeric_limits<double>::infinity();
     for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
-      const auto b = bind_to_surface(scene.vessels[i].mesh.mesh, lm.position_lps);
-      if (b.distance_mm < binding.distance_mm) binding = b, best = i;
+      lb.on.push_back(bind_to_surface(scene.vessels[i].mesh.mesh, lm.position_lps));
+      if (lb.on.back().distance_mm < nearest_mm) nearest_mm = lb.on.back().distance_mm, lb.vessel = i;
     }
-    if (binding.distance_mm > kMaxLandmarkDistanceMm)
+    if (nearest_mm > kMaxLandmarkDistanceMm)
       throw geometry::InputError(scene.landmarks_path.string() + ": landmark '" + lm.label + "' is " +
-                                 std::to_string(binding.distance_mm) + " mm from the nearest vessel surface (at most " +
+                                 std::to_string(nearest_mm) + " mm from the nearest vessel surface (at most " +
                                  std::to_string(kMaxLandmarkDistanceMm) + " mm expected)");
-    landmark_bindings_.emplace_back(best, binding);
+    landmark_bindings_.push_back(std::move(lb));
   }
   precompute_ms_ = proxy_ms_ + ms_since(t0);
 }
@@ -604,11 +603,22 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
     apply_erasure(out.vessels[i], faces, scene.vessels[i].mesh.mesh.V, out.reports[i]);
   }
 
-  // 5. Landmarks follow the surface they were bound to.
+  // 5. Landmarks follow the surface they were bound to; one on the erased aortic stump
+  // follows the carrier iliac, which now represents that part of the aorta (the stump's
+  // vertices were solved with nothing inside them to hold).
   for (std::size_t k = 0; k < scene.landmarks.size(); ++k) {
-    const auto& [vessel, binding] = landmark_bindings_[k];
-    out.landmarks.push_back({scene.landmarks[k].label,
-                             evaluate_binding(binding, scene.vessels[vessel].mesh.mesh.F, out.vessels[vessel].mesh.V)});
+    const auto& lb = landmark_bindings_[k];
+    std::size_t vessel = lb.vessel;
+    if (device_iliac >= 0 && static_cast<int>(vessel) == aorta) {
+      const auto& erased = out.vessels[vessel].erased;
+      const auto& F = scene.vessels[vessel].mesh.mesh.F;
+      const int f = lb.on[vessel].face;
+      if (erased[static_cast<std::size_t>(F(f, 0))] || erased[static_cast<std::size_t>(F(f, 1))] ||
+          erased[static_cast<std::size_t>(F(f, 2))])
+        vessel = static_cast<std::size_t>(device_iliac);
+    }
+    out.landmarks.push_back({scene.landmarks[k].label, evaluate_binding(lb.on[vessel], scene.vessels[vessel].mesh.mesh.F,
+                                                                        out.vessels[vessel].mesh.V)});
     out.landmark_vessel.push_back(scene.vessels[vessel].name);
   }
   if (device_iliac >= 0) out.device_iliac = scene.vessels[static_cast<std::size_t>(device_iliac)].name;

@@ -233,6 +233,42 @@ TEST(SceneDeformation, ErasesOnlyTheAorticStumpInsideTheDeviceIliac) {
   EXPECT_GT(erased, 0);
 }
 
+// A landmark on the part of the aorta the carrier iliac replaces (an overlap between the
+// aortic and iliac segmentations) must follow the iliac: the erased stump's vertices had
+// nothing to hold them where the device bent the iliac (before session 15 it stayed on them).
+TEST(SceneDeformation, ALandmarkOnTheErasedStumpFollowsTheCarrierIliac) {
+  auto scene = sim::to_scene(example());
+  const auto first = deform::deform_scene(scene, example().device);
+  const auto& aorta = scene.vessels[0].mesh.mesh;
+  // The erased aortic vertex nearest the middle of the stump.
+  Eigen::Vector3d centre = Eigen::Vector3d::Zero();
+  int n = 0;
+  for (Eigen::Index k = 0; k < aorta.V.rows(); ++k)
+    if (first.vessels[0].erased[static_cast<std::size_t>(k)]) centre += aorta.V.row(k).transpose(), ++n;
+  ASSERT_GT(n, 0);
+  centre /= n;
+  Eigen::Index pick = -1;
+  for (Eigen::Index k = 0; k < aorta.V.rows(); ++k)
+    if (first.vessels[0].erased[static_cast<std::size_t>(k)] &&
+        (pick < 0 || (aorta.V.row(k).transpose() - centre).norm() < (aorta.V.row(pick).transpose() - centre).norm()))
+      pick = k;
+  const Eigen::Vector3d on_stump = aorta.V.row(pick).transpose();
+  scene.landmarks.push_back({"on_stump", on_stump});
+  const auto& iliac = scene.vessels[2];
+  ASSERT_EQ(iliac.name, "iliac_right");
+  const double from_iliac_mm = geometry::closest_point_on_mesh(iliac.mesh.mesh, on_stump).distance_mm;
+
+  const auto out = deform::deform_scene(scene, example().device);
+  ASSERT_EQ(out.landmarks.back().label, "on_stump");
+  EXPECT_EQ(out.landmark_vessel.back(), "iliac_right");
+  // It keeps its place relative to the iliac wall (a rigid-like neighbourhood: 0.2 mm),
+  const geometry::TriangleMesh bent{out.vessels[2].mesh.V, iliac.mesh.mesh.F};
+  EXPECT_NEAR(geometry::closest_point_on_mesh(bent, out.landmarks.back().position_lps).distance_mm, from_iliac_mm, 0.2);
+  // and every other landmark still follows the vessel it sits on.
+  for (std::size_t k = 0; k + 1 < out.landmarks.size(); ++k)
+    EXPECT_EQ(out.landmark_vessel[k], first.landmark_vessel[k]) << out.landmarks[k].label;
+}
+
 // A device that runs inside the carrier iliac's lumen all the way gives it no handles; it
 // still carries the device, so the aortic stump it replaces is erased as when it bends it
 // (before session 14 the erasure came and went with the handles, frame to frame).

@@ -96,7 +96,9 @@ struct DeformedVessel {
 struct SceneDeformation {
   std::vector<DeformedVessel> vessels;            ///< same order as scene.vessels
   std::vector<geometry::ControlPoint> landmarks;  ///< moved, labels kept
-  std::vector<std::string> landmark_vessel;       ///< the vessel each landmark follows
+  /// The vessel each landmark follows: the one it sits on, or the carrier iliac for one
+  /// on the erased aortic stump (the iliac now represents that part of the aorta).
+  std::vector<std::string> landmark_vessel;
   std::vector<VesselReport> reports;
   std::string device_iliac;                       ///< empty if the device reaches no iliac
   double total_ms = 0.0;
@@ -149,8 +151,13 @@ class SceneDeformer {
   std::unique_ptr<geometry::Scene> working_;       ///< the scene with the proxies (null: none)
   const geometry::Scene& scene_;                   ///< *working_ or original_
   std::vector<std::unique_ptr<VesselModel>> models_;
-  /// Per landmark: the vessel whose surface it sits on and its binding there (scene-only).
-  std::vector<std::pair<std::size_t, SurfaceBinding>> landmark_bindings_;
+  /// Per landmark: the vessel whose surface it sits on, and its binding to every vessel
+  /// (scene-only); the carrier iliac's is used when its aortic face is erased.
+  struct LandmarkBinding {
+    std::size_t vessel = 0;
+    std::vector<SurfaceBinding> on;  ///< per vessel
+  };
+  std::vector<LandmarkBinding> landmark_bindings_;
   double precompute_ms_ = 0.0;
 };
 
