@@ -210,7 +210,8 @@ void Decoder::accept(std::uint64_t& type_counter, std::uint16_t sequence, const 
   ++stats_.messages;
   ++type_counter;
   sequence_.observe(sequence);
-  stats_.sequence = sequence_.stats();
+  stats_.sequence = earlier_sequence_;
+  stats_.sequence += sequence_.stats();
   on_message(m);
 }
 

@@ -10,6 +10,13 @@ std::int64_t ns(GeometryTimeline::Clock::time_point t) {
   return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
 }
 double lerp(double a, double b, double w) { return a + (b - a) * w; }
+// From a to b the short way round (a primary angle of 180° is also −180°).
+double turn_deg(double a, double b) { return std::remainder(b - a, 360.0); }
+// Into (−180, 180].
+double wrap_deg(double a) {
+  const double r = std::remainder(a, 360.0);
+  return r == -180.0 ? 180.0 : r;
+}
 }  // namespace
 
 GeometryTimeline::GeometryTimeline(GeometryTimelineOptions options) : options_(options) {}
@@ -22,31 +29,53 @@ void GeometryTimeline::add(const CArmState& sample) {
     ++dropped_samples_;
     return;
   }
+  if (samples_.empty()) {
+    accept(sample);
+    return;
+  }
   const std::int64_t restart_ns = std::chrono::nanoseconds(options_.restart_after).count();
-  if (!samples_.empty() && sample.device_time_ns <= samples_.back().device_time_ns) {
-    const std::int64_t behind_ns = samples_.back().device_time_ns - sample.device_time_ns;
-    if (behind_ns <= restart_ns) {
-      ++dropped_samples_;  // interpolation needs increasing times; the newer samples already cover it
-      return;
-    }
-    // Far behind: a restarted C-arm clock, or one stray time (which would also spoil the
-    // clock offset). The next sample decides: one going on from this one confirms the restart.
-    if (!restart_candidate_ || sample.device_time_ns <= restart_candidate_->device_time_ns ||
-        sample.device_time_ns - restart_candidate_->device_time_ns > restart_ns) {
-      if (restart_candidate_) ++dropped_samples_;  // the one held before was a stray
-      restart_candidate_ = sample;
-      return;
-    }
+  const CArmState& newest = samples_.back();
+  // A sample cannot arrive before it was taken: by the clock offset so far, how much
+  // earlier than its own time it arrived (in double: the sum of two int64 can overflow).
+  const double early_ns = static_cast<double>(*clock_.offset_ns()) + static_cast<double>(sample.device_time_ns) -
+                          static_cast<double>(ns(sample.host_arrival));
+  const bool behind = sample.device_time_ns <= newest.device_time_ns;
+  if (behind && newest.device_time_ns - sample.device_time_ns <= restart_ns) {
+    ++dropped_samples_;  // late or repeated: interpolation needs increasing times, and the newer samples cover it
+    return;
+  }
+  const bool ahead = !behind && early_ns > static_cast<double>(std::chrono::nanoseconds(options_.ahead_after).count());
+  if (!behind && !ahead) {
+    if (jump_candidate_) ++dropped_samples_;  // the one held was a stray: the clock went on
+    jump_candidate_.reset();
+    accept(sample);
+    return;
+  }
+  // Far behind the newest, or far ahead of the C-arm clock as the host sees it: a C-arm
+  // clock that restarted or was set, or one stray time (which would spoil the clock offset
+  // and, ahead, be served as the newest geometry). The next sample decides: one going on
+  // from this one, as far as the host clock went on, confirms the jump.
+  if (jump_candidate_ && goes_on(*jump_candidate_, sample)) {
     ++restarts_;
     samples_.clear();
     clock_.reset();
-    clock_.add(restart_candidate_->device_time_ns, ns(restart_candidate_->host_arrival));
-    samples_.push_back(*restart_candidate_);
-    restart_candidate_.reset();
-  } else if (restart_candidate_) {
-    ++dropped_samples_;  // the far-behind sample held was a stray: the clock went on
-    restart_candidate_.reset();
+    accept(*jump_candidate_);
+    jump_candidate_.reset();
+    accept(sample);
+    return;
   }
+  if (jump_candidate_) ++dropped_samples_;  // the one held before was a stray
+  jump_candidate_ = sample;
+}
+
+bool GeometryTimeline::goes_on(const CArmState& from, const CArmState& next) const {
+  // Device times are within ±2^62 (add), so their difference fits.
+  const std::int64_t device_step = next.device_time_ns - from.device_time_ns;
+  const std::int64_t host_step = ns(next.host_arrival) - ns(from.host_arrival);
+  return device_step > 0 && device_step <= host_step + std::chrono::nanoseconds(options_.restart_after).count();
+}
+
+void GeometryTimeline::accept(const CArmState& sample) {
   clock_.add(sample.device_time_ns, ns(sample.host_arrival));
   samples_.push_back(sample);
   const std::int64_t oldest = sample.device_time_ns - std::chrono::nanoseconds(options_.window).count();
@@ -74,15 +103,20 @@ std::optional<FrameGeometry> GeometryTimeline::at(Clock::time_point t) const {
   const std::int64_t ta = a.device_time_ns, tb = b.device_time_ns;
   const double w = tb > ta ? static_cast<double>(tn - ta) / static_cast<double>(tb - ta) : 0.0;
   g.state = w < 0.5 ? a : b;  // flags and times of the nearer sample
-  g.state.primary_deg = lerp(a.primary_deg, b.primary_deg, w);
+  g.state.primary_deg = wrap_deg(a.primary_deg + w * turn_deg(a.primary_deg, b.primary_deg));
   g.state.secondary_deg = lerp(a.secondary_deg, b.secondary_deg, w);
   g.state.sid_mm = lerp(a.sid_mm, b.sid_mm, w);
   g.state.sod_mm = lerp(a.sod_mm, b.sod_mm, w);
   for (std::size_t k = 0; k < 3; ++k) g.state.table_mm[k] = lerp(a.table_mm[k], b.table_mm[k], w);
   g.age_ns = std::min(tn - ta, tb - tn);
-  const bool angles_changed = std::abs(a.primary_deg - b.primary_deg) > options_.settled_tolerance_deg ||
+  const bool angles_changed = std::abs(turn_deg(a.primary_deg, b.primary_deg)) > options_.settled_tolerance_deg ||
                               std::abs(a.secondary_deg - b.secondary_deg) > options_.settled_tolerance_deg;
-  g.moving = a.moving || b.moving || angles_changed;
+  // A table pan or a detector raised moves the image as much as a turn does.
+  bool distances_changed = std::abs(a.sid_mm - b.sid_mm) > options_.settled_tolerance_mm ||
+                           std::abs(a.sod_mm - b.sod_mm) > options_.settled_tolerance_mm;
+  for (std::size_t k = 0; k < 3; ++k)
+    distances_changed = distances_changed || std::abs(a.table_mm[k] - b.table_mm[k]) > options_.settled_tolerance_mm;
+  g.moving = a.moving || b.moving || angles_changed || distances_changed;
   g.stale = g.age_ns > stale_ns;
   return g;
 }

@@ -8,6 +8,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <chrono>
 #include <cstdio>
 #include <cstring>
 #include <stdexcept>
@@ -63,8 +64,22 @@ bool PseudoTerminal::write_or_drop(std::span<const std::uint8_t> bytes) {
   while (n < 0 && errno == EINTR);
   if (n < 0 && errno == EAGAIN) return false;  // nothing of it went out: dropped whole
   if (n < 0) throw std::runtime_error("pseudo-terminal " + slave_path_ + ": write failed: " + std::strerror(errno));
-  // Part of a message may be out: finish it (at most 255 bytes) rather than tear it.
-  if (static_cast<std::size_t>(n) < bytes.size()) write(bytes.subspan(static_cast<std::size_t>(n)));
+  // Part of a message may be out: finish it if the reader makes room soon. One that does
+  // not read at all gets a torn frame, which its decoder drops at the next delimiter;
+  // waiting for it would hang the sender (a replay nobody listens to).
+  auto done = static_cast<std::size_t>(n);
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::milliseconds(200);
+  while (done < bytes.size()) {
+    const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
+    if (left.count() <= 0) return false;
+    pollfd p{master_, POLLOUT, 0};
+    if (::poll(&p, 1, static_cast<int>(left.count())) < 0 && errno != EINTR)
+      throw std::runtime_error("pseudo-terminal " + slave_path_ + ": poll failed: " + std::strerror(errno));
+    n = ::write(master_, bytes.data() + done, bytes.size() - done);
+    if (n > 0) done += static_cast<std::size_t>(n);
+    else if (n < 0 && errno != EINTR && errno != EAGAIN)
+      throw std::runtime_error("pseudo-terminal " + slave_path_ + ": write failed: " + std::strerror(errno));
+  }
   return true;
 }
 

@@ -98,6 +98,9 @@ void SerialCArmSource::run() {
       receiver_.tick(CArmLinkReceiver::Clock::now());
     }
     if (!lost.empty()) {
+      // Closed before the wait: a USB-serial adapter plugged back in while its old node is
+      // still open comes back under another name (ttyUSB1 for ttyUSB0).
+      port.reset();
       receiver_.disconnected("serial " + options_.path + " lost (" + lost + "); reconnecting");
       if (wait_for_stop(options_.reconnect_interval)) break;
     }

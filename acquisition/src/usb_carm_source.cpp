@@ -7,6 +7,7 @@
 #include <cctype>
 #include <cstdio>
 #include <stdexcept>
+#include <thread>
 #include <tuple>
 #include <utility>
 
@@ -15,6 +16,7 @@ namespace evar::acquisition {
 namespace {
 
 using Clock = std::chrono::steady_clock;
+constexpr int kMaxStalls = 10;  // halts in a row, nothing read between, before the device counts as gone
 
 std::string hex4(std::uint16_t v) {
   char b[8];
@@ -251,6 +253,7 @@ struct UsbCArmSource::Impl {
     const int packet = std::max<int>(choice.endpoint.max_packet, 8);
     std::vector<unsigned char> buffer(static_cast<std::size_t>(packet * std::max(1, 4096 / packet)));
     const auto timeout = static_cast<unsigned>(options.transfer_timeout.count());
+    int stalls = 0;  // in a row, nothing read between them
     while (!stop) {
       int got = 0;
       const int rc = choice.endpoint.type == UsbTransferType::Interrupt
@@ -259,7 +262,10 @@ struct UsbCArmSource::Impl {
                          : libusb_bulk_transfer(handle.p, choice.endpoint.address, buffer.data(),
                                                 static_cast<int>(buffer.size()), &got, timeout);
       const auto now = Clock::now();
-      if (got > 0) receiver.received({buffer.data(), static_cast<std::size_t>(got)}, now);
+      if (got > 0) {
+        receiver.received({buffer.data(), static_cast<std::size_t>(got)}, now);
+        stalls = 0;
+      }
       switch (rc) {
         case 0:
         case LIBUSB_ERROR_TIMEOUT:
@@ -269,6 +275,11 @@ struct UsbCArmSource::Impl {
         case LIBUSB_ERROR_PIPE:  // the endpoint halted: clear it and go on
           if (const int c = libusb_clear_halt(handle.p, choice.endpoint.address); c != 0)
             return "endpoint " + hex2(choice.endpoint.address) + " stalled and cannot be cleared: " + usb_error(c);
+          // One that stalls at once every time would spin this thread: back off (20 to
+          // 320 ms), and after kMaxStalls in a row treat the device as gone (reopened).
+          if (++stalls >= kMaxStalls)
+            return "endpoint " + hex2(choice.endpoint.address) + " stalled " + std::to_string(stalls) + " times in a row";
+          std::this_thread::sleep_for(std::chrono::milliseconds(10 << std::min(stalls, 5)));
           break;
         default:
           return usb_error(rc);

@@ -150,3 +150,115 @@ TEST(GeometryTimeline, ALateRepeatedOrAbsurdSampleIsDroppedNotTakenForARestart) 
   EXPECT_DOUBLE_EQ(tl.at(sc.at(2.95))->state.primary_deg, before);
   EXPECT_FALSE(tl.at(sc.at(2.95))->stale);
 }
+
+// A stray time ahead of the clock (garbage that passed the CRC, an hour or 0.6 s ahead):
+// before session 15 it was taken at once, served as the newest geometry, spoiled the clock
+// offset by its lead and made the real samples after it look late, so they were dropped
+// and every frame for the next 25 s was stale. Now it is held, and dropped when the next
+// sample goes on from the real clock.
+TEST(GeometryTimeline, AStrayAheadSampleIsNeverServedAndSpoilsNothing) {
+  for (const std::int64_t lead_ns : {std::int64_t{3'600'000'000'000}, std::int64_t{600'000'000}}) {
+    Scenario sc;
+    const auto samples = sc.samples(4.0);
+    acq::GeometryTimeline tl, clean;
+    for (const auto& s : samples) clean.add(s);
+    std::size_t i = 0;
+    for (; i < 31; ++i) tl.add(samples[i]);  // up to 3.0 s
+    acq::CArmState stray = samples[i];
+    stray.device_time_ns += lead_ns;
+    stray.primary_deg = -90.0;
+    tl.add(stray);
+    const auto meanwhile = tl.at(sc.at(3.05));
+    ASSERT_TRUE(meanwhile);
+    EXPECT_NEAR(meanwhile->state.primary_deg, 20.0, 1e-9) << lead_ns;
+    for (; i < samples.size(); ++i) tl.add(samples[i]);
+    EXPECT_EQ(tl.restarts(), 0u) << lead_ns;
+    EXPECT_EQ(tl.dropped_samples(), 1u) << lead_ns;  // the stray only: no real sample lost
+    EXPECT_EQ(tl.size(), clean.size()) << lead_ns;
+    EXPECT_EQ(tl.carm_clock_offset_ns(), clean.carm_clock_offset_ns()) << lead_ns;
+    const auto later = tl.at(sc.at(3.55));
+    EXPECT_FALSE(later->stale) << lead_ns;
+    EXPECT_NEAR(later->state.primary_deg, 20.0, 1e-9) << lead_ns;
+  }
+}
+
+// A C-arm whose clock is set forward (an hour) goes on from the new time: the second sample
+// confirms it, and frames are timed by the new clock at once.
+TEST(GeometryTimeline, AClockSetForwardStartsAFreshHistory) {
+  Scenario sc;
+  acq::GeometryTimeline tl;
+  for (const auto& s : sc.samples(1.0)) tl.add(s);
+  auto later = sc.samples(3.0);
+  for (std::size_t i = 12; i < later.size(); ++i) {  // from 1.2 s on: the clock an hour ahead
+    later[i].device_time_ns += 3'600'000'000'000;
+    tl.add(later[i]);
+  }
+  EXPECT_EQ(tl.restarts(), 1u);
+  EXPECT_EQ(tl.dropped_samples(), 0u);
+  for (double s : {1.55, 1.85}) {
+    const auto g = tl.at(sc.at(s));
+    EXPECT_FALSE(g->stale) << s;
+    EXPECT_NEAR(g->state.primary_deg, Scenario::primary_at(s), 0.03) << s;
+  }
+}
+
+// After a reboot, a C-arm that sends only every 1.5 s (slower than the protocol asks, as
+// older recordings do) is still recognised: the second sample goes on from the first as
+// far as the host's clock did (before session 15 it had to come within 1 s).
+TEST(GeometryTimeline, ASlowSenderRestartIsConfirmedAndTimedByItsNewClock) {
+  Scenario sc;
+  acq::GeometryTimeline tl;
+  for (const auto& s : sc.samples(1.0)) tl.add(s);
+  for (int k = 0; k < 4; ++k) {
+    acq::CArmState c = sc.samples(0.0)[0];
+    c.device_time_ns = 1'000 + k * 1'500'000'000LL;  // rebooted: its clock starts near 0
+    c.host_arrival = sc.at(1.5 + 1.5 * k) + 3ms;
+    c.primary_deg = 30.0 + k;  // turning slowly
+    tl.add(c);
+  }
+  EXPECT_EQ(tl.restarts(), 1u);
+  EXPECT_EQ(tl.dropped_samples(), 0u);
+  // Half-way between the third and fourth samples (host 5.25 s): 32.5°.
+  EXPECT_NEAR(tl.at(sc.at(5.25))->state.primary_deg, 32.5, 0.01);
+}
+
+// The primary angle's ends meet: 180° and −180° are one position, and a turn through it is
+// 4°, not 356°.
+TEST(GeometryTimeline, ThePrimaryAngleIsInterpolatedTheShortWayRound) {
+  Scenario sc;
+  acq::GeometryTimeline tl;
+  auto samples = sc.samples(2.0);
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    samples[i].moving = false;
+    samples[i].primary_deg = i < 10 ? (i % 2 ? 180.0 : -180.0) : (i == 10 ? 178.0 : -178.0);
+    tl.add(samples[i]);
+  }
+  const auto parked = tl.at(sc.at(0.55));
+  EXPECT_NEAR(std::abs(parked->state.primary_deg), 180.0, 1e-9);
+  EXPECT_FALSE(parked->moving);
+  // Between 178° (1.0 s) and −178° (1.1 s).
+  EXPECT_NEAR(tl.at(sc.at(1.025))->state.primary_deg, 179.0, 0.05);
+  EXPECT_NEAR(tl.at(sc.at(1.075))->state.primary_deg, -179.0, 0.05);
+  EXPECT_TRUE(tl.at(sc.at(1.05))->moving);
+}
+
+// A table pan moves the image as a turn does: frames during it are marked moving even
+// when the C-arm does not set its flag.
+TEST(GeometryTimeline, ATablePanOrDetectorMoveIsMovement) {
+  Scenario sc;
+  auto samples = sc.samples(3.0);
+  for (auto& s : samples) s.moving = false;
+  acq::GeometryTimeline tl;
+  for (std::size_t i = 0; i < samples.size(); ++i) {
+    samples[i].primary_deg = 20.0;
+    if (i == 26) samples[i].table_mm[2] = 10.0;  // the table moves 10 mm between 2.5 and 2.6 s
+    if (i > 26) samples[i].table_mm[2] = 10.0;
+    if (i > 28) samples[i].sid_mm = 1100.0;      // and the detector comes down between 2.8 and 2.9 s
+    tl.add(samples[i]);
+  }
+  EXPECT_FALSE(tl.at(sc.at(2.45))->moving);
+  EXPECT_TRUE(tl.at(sc.at(2.55))->moving);
+  EXPECT_FALSE(tl.at(sc.at(2.65))->moving);
+  EXPECT_TRUE(tl.at(sc.at(2.85))->moving);
+  EXPECT_FALSE(tl.at(sc.at(2.95))->moving);
+}

@@ -62,7 +62,7 @@ struct LinkStats {
   std::uint64_t version_errors = 0;    ///< a protocol version this receiver does not speak
   std::uint64_t unknown_types = 0;
   std::uint64_t invalid_fields = 0;    ///< right CRC, impossible content (wrong length, range)
-  SequenceStats sequence;              ///< gaps in the sender's 16-bit sequence numbers
+  SequenceStats sequence;              ///< gaps in the sender's 16-bit sequence numbers, all connections
   std::uint64_t errors() const {
     return framing_errors + crc_errors + version_errors + unknown_types + invalid_fields;
   }
@@ -80,8 +80,12 @@ class Decoder {
   const std::string& last_error() const { return last_error_; }
   /// Forgets a partial frame (after a reconnect); counters are kept.
   void reset_partial();
-  /// A new connection: the sender may have restarted its sequence numbers.
-  void reset_sequence() { sequence_ = SequenceTracker(16, 64); }
+  /// A new connection: the sender may have restarted its sequence numbers. The counts of
+  /// the connections before are kept in the totals.
+  void reset_sequence() {
+    earlier_sequence_ += sequence_.stats();
+    sequence_ = SequenceTracker(16, 64);
+  }
 
  private:
   void finish_frame(const MessageCallback& on_message);
@@ -92,6 +96,7 @@ class Decoder {
   bool overflow_ = false;
   LinkStats stats_;
   SequenceTracker sequence_{16, 64};
+  SequenceStats earlier_sequence_;  // summed over the connections before this one
   std::string last_error_;
 };
 

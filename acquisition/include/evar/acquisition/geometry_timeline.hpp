@@ -17,11 +17,19 @@ namespace evar::acquisition {
 struct GeometryTimelineOptions {
   std::chrono::milliseconds window{10'000};     ///< samples kept
   std::chrono::milliseconds stale_after{250};   ///< nearest sample farther than this → stale
-  double settled_tolerance_deg = 0.05;          ///< neighbours differing more → moving
+  double settled_tolerance_deg = 0.05;          ///< neighbours' angles differing more → moving
+  double settled_tolerance_mm = 0.5;            ///< neighbours' table, SID or SOD differing more → moving
   /// Two samples in a row this far behind the newest, the second going on from the first,
   /// are a restarted C-arm clock (a reboot) and start a fresh history; a single one is a
   /// stray time and is dropped. One less far behind, or a repeat, arrived late and is dropped.
+  /// "Going on": its C-arm time is later, by no more than the host's time went on plus this.
   std::chrono::milliseconds restart_after{1'000};
+  /// A sample that, by the clock offset so far, arrived more than this before its own time
+  /// (impossible but for a clock that was set forward, or a stray time) is held likewise
+  /// until the next sample confirms it. Below this, it is taken and the offset follows it.
+  /// (An as-fast-as-possible replay whose C-arm samples are further apart than this gets
+  /// each one a sample late.)
+  std::chrono::milliseconds ahead_after{250};
 };
 
 struct FrameGeometry {
@@ -37,10 +45,11 @@ class GeometryTimeline {
   explicit GeometryTimeline(GeometryTimelineOptions options = {});
 
   /// A sample as a CArmGeometrySource delivers it (device time and host arrival set).
-  /// Two samples in a row whose device times go back by more than restart_after and then on
-  /// (a restarted C-arm clock) restart the history from them; the first is held until the
-  /// second says which it is. A single far-behind, late or repeated sample, or one with an
-  /// absurd time (beyond ±146 years), is dropped and counted.
+  /// Two samples in a row whose device times jump (back by more than restart_after, or
+  /// ahead of the clock by more than ahead_after) and then go on (a restarted or re-set
+  /// C-arm clock) restart the history from them; the first is held until the second says
+  /// which it is. A single jumping, late or repeated sample, or one with an absurd time
+  /// (beyond ±146 years), is dropped and counted.
   void add(const CArmState& sample);
   /// The geometry at host time `t` (a frame's device_time_on_host); empty before any sample.
   std::optional<FrameGeometry> at(Clock::time_point t) const;
@@ -48,13 +57,15 @@ class GeometryTimeline {
   std::optional<std::int64_t> carm_clock_offset_ns() const { return clock_.offset_ns(); }
   std::size_t size() const { return samples_.size(); }
   std::uint64_t dropped_samples() const { return dropped_samples_; }  ///< late, repeated or absurd
-  std::uint64_t restarts() const { return restarts_; }
+  std::uint64_t restarts() const { return restarts_; }  ///< C-arm clock jumps confirmed
 
  private:
   GeometryTimelineOptions options_;
   ClockOffsetEstimator clock_{256};
   std::deque<CArmState> samples_;  // in C-arm time; a query's host time is mapped onto it
-  std::optional<CArmState> restart_candidate_;  // a far-behind sample, until the next one says what it is
+  void accept(const CArmState& sample);
+  bool goes_on(const CArmState& from, const CArmState& next) const;
+  std::optional<CArmState> jump_candidate_;  // a far-behind or far-ahead sample, until the next one says what it is
   std::uint64_t dropped_samples_ = 0, restarts_ = 0;
 };
 

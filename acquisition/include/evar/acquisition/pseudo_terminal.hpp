@@ -21,8 +21,10 @@ class PseudoTerminal {
   const std::string& slave_path() const { return slave_path_; }
   /// Writes all of `bytes` to the master end (blocking until written); throws on error.
   void write(std::span<const std::uint8_t> bytes);
-  /// Writes what fits now without waiting; false when the pty's buffer was full and the
-  /// rest was dropped (as on a serial line that nobody reads). Throws on other errors.
+  /// Writes what fits now; false when the pty's buffer was full and the message was
+  /// dropped (as on a serial line that nobody reads). A message partly written is finished
+  /// if room comes within 200 ms, else the rest is dropped too (the reader's decoder
+  /// resynchronises at the next delimiter). Never waits longer. Throws on other errors.
   bool write_or_drop(std::span<const std::uint8_t> bytes);
 
  private:
