@@ -53,6 +53,7 @@ int run_eval(const EvalCommand& cmd) {
                {"device_points", c.model->reconstruction.points.size()},
                {"matched_fraction", {c.model->reconstruction.matched_fraction_1, c.model->reconstruction.matched_fraction_2}},
                {"reliable_fraction", c.model->reconstruction.reliable_fraction},
+               {"kept_fraction", c.model->reconstruction.kept_fraction},
                {"reconstruct_ms", c.model->reconstruct_ms},
                {"deform_ms", c.model->deform_ms}};
     nlohmann::json devices = nlohmann::json::array();

@@ -1,8 +1,12 @@
 #include "model_adaptation.hpp"
 
+#include <algorithm>
 #include <chrono>
 #include <cstdio>
+#include <limits>
+#include <numeric>
 
+#include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/input_error.hpp"
 
 namespace evar::app {
@@ -28,6 +32,39 @@ void show_adapted(overlay::RoadmapModel& roadmap, const AdaptedModel& adapted) {
   roadmap.device = adapted.reconstruction.points;
 }
 
+double mean_outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene) {
+  if (device.empty() || scene.vessels.empty()) return std::numeric_limits<double>::infinity();
+  double sum = 0.0;
+  for (const auto& p : device) {
+    const geometry::Vessel* nearest = nullptr;
+    geometry::PolylineProjection on{};
+    for (const auto& v : scene.vessels) {
+      const auto q = geometry::project_onto(v.centerline, p);
+      if (!nearest || q.distance_mm < on.distance_mm) nearest = &v, on = q;
+    }
+    const double radius_mm = geometry::closest_point_on_mesh(nearest->mesh.mesh, on.point).distance_mm;
+    sum += std::max(0.0, on.distance_mm - radius_mm);
+  }
+  return sum / static_cast<double>(device.size());
+}
+
+std::size_t reading_in_the_vessels(const std::vector<geometry::Reconstruction>& readings, const geometry::Scene& scene,
+                                   double margin_mm) {
+  if (readings.empty()) throw std::invalid_argument("reading_in_the_vessels: no reading");
+  std::vector<double> outside_mm;
+  for (const auto& r : readings) outside_mm.push_back(mean_outside_lumen_mm(r.points, scene));
+  std::vector<std::size_t> order(readings.size());
+  std::iota(order.begin(), order.end(), std::size_t{0});
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return outside_mm[a] < outside_mm[b]; });
+  if (readings.size() == 1 || outside_mm[order[1]] - outside_mm[order[0]] >= margin_mm) return order[0];
+  char why[256];
+  std::snprintf(why, sizeof why,
+                "the device reads two ways in these views and both lie in the vessels or near them (%.1f and %.1f mm "
+                "outside their lumen on average): take views turned about another axis",
+                outside_mm[order[0]], outside_mm[order[1]]);
+  throw AdaptationError(why);
+}
+
 AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& pair, const AdaptationOptions& options,
                          const deform::SceneDeformation* previous) {
   AdaptedModel m;
@@ -35,9 +72,12 @@ AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& 
   m.frame_later = pair.later.frame;
   auto t0 = std::chrono::steady_clock::now();
   try {
-    m.reconstruction = geometry::reconstruct_two_view(pair.earlier.curve_px, pair.earlier.geometry.P_ct,
-                                                      pair.later.curve_px, pair.later.geometry.P_ct,
-                                                      options.reconstruction);
+    auto readings = geometry::reconstruct_two_view_readings(pair.earlier.curve_px, pair.earlier.geometry.P_ct,
+                                                            pair.later.curve_px, pair.later.geometry.P_ct,
+                                                            options.reconstruction);
+    const std::size_t k =
+        readings.size() == 1 ? 0 : reading_in_the_vessels(readings, deformer.scene(), options.reading_margin_mm);
+    m.reconstruction = std::move(readings[k]);
   } catch (const geometry::ReconstructionError& e) {
     throw AdaptationError(std::string("reconstruction failed: ") + e.what());
   }

@@ -18,6 +18,11 @@ struct AdaptationOptions {
   /// a wrong match (two different wires, a false segmentation), not a measurement.
   double max_mean_residual_px = 4.0;
   double min_length_mm = 20.0;  ///< shorter reconstructions cannot place the vessels
+  /// When the curves read two ways (a device symmetric about the views' epipolar
+  /// geometry), the reading that runs outside the preoperative lumen by this much less
+  /// (mean over its points) is the device; closer ones are refused as ambiguous. The
+  /// device bends the vessels by a few mm, a wrong reading misses them by tens.
+  double reading_margin_mm = 5.0;
 };
 
 struct AdaptedModel {
@@ -43,6 +48,17 @@ void show_adapted(overlay::RoadmapModel& roadmap, const AdaptedModel& adapted);
 /// finite: the last guard before a model reaches the screen (a NaN vertex would draw a
 /// wrong roadmap as if it were right), whatever the solver below promised.
 void check_finite(const AdaptedModel& model);
+
+/// How far outside the vessels of `scene` a device runs, mean over its points: per point,
+/// its distance to the nearest centerline less the lumen radius there (the distance from
+/// that centerline point to its mesh), 0 inside.
+double mean_outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene);
+
+/// Of several readings of a view pair (geometry::reconstruct_two_view_readings), the index
+/// of the one in the vessels: the smallest mean_outside_lumen_mm, by at least `margin_mm`
+/// less than every other. AdaptationError when none stands out.
+std::size_t reading_in_the_vessels(const std::vector<geometry::Reconstruction>& readings, const geometry::Scene& scene,
+                                   double margin_mm);
 
 /// `previous`: the last model's deformation, to warm-start the solve (SceneDeformer::deform).
 /// The result has passed check_finite.

@@ -89,15 +89,16 @@ int run_reconstruct(const ReconstructCommand& cmd) {
   report["max_residual_px"] = r.max_residual_px;
   report["reliable_fraction"] = r.reliable_fraction;
   report["matched_fraction"] = {r.matched_fraction_1, r.matched_fraction_2};
+  report["kept_fraction"] = r.kept_fraction;
   report["residual_px"] = r.residual_px;
   report["reliable"] = r.reliable;
   report["coordinate_system"] = cmd.registration.empty() ? "C-arm LPS (isocenter at the origin)" : "CT LPS";
   report["output"] = cmd.out.string();
   write_report();
   log().info("device in 3D: {} points over {:.0f} mm, views {:.1f} degrees apart, reprojection residual mean {:.2f} px "
-             "(max {:.2f}), {:.0f} % reliable; {:.1f} ms segmentation + {:.1f} ms reconstruction; wrote {}",
+             "(max {:.2f}), {:.0f} % reliable, {:.0f} % of the matched curve kept; {:.1f} ms segmentation + {:.1f} ms reconstruction; wrote {}",
              points.size(), geometry::arc_lengths(points).back(), r.separation_deg, r.mean_residual_px, r.max_residual_px,
-             100.0 * r.reliable_fraction, segment_ms, reconstruct_ms, cmd.out.string());
+             100.0 * r.reliable_fraction, 100.0 * r.kept_fraction, segment_ms, reconstruct_ms, cmd.out.string());
   return 0;
 }
 

@@ -9,9 +9,21 @@ namespace evar::app {
 ViewPairSelector::ViewPairSelector(double min_separation_deg, ViewPairOptions options)
     : min_separation_deg_(min_separation_deg), options_(options) {
   if (!(options_.same_view_deg > 0 && options_.same_view_deg < min_separation_deg_ && min_separation_deg_ < 90) ||
-      options_.max_views < 2 || options_.max_gap_ns <= 0)
+      options_.max_views < 2 || options_.max_gap_ns <= 0 || options_.partner_failures < 1)
     throw std::invalid_argument(
-        "view pairs: need 0 < same_view_deg < min_separation_deg < 90, max_views >= 2 and a positive max_gap_ns");
+        "view pairs: need 0 < same_view_deg < min_separation_deg < 90, max_views >= 2, a positive max_gap_ns and "
+        "partner_failures >= 1");
+}
+
+void ViewPairSelector::retry() {
+  retry_ = true;
+  if (!last_partner_) return;
+  if (failed_partner_ == last_partner_) {
+    ++partner_failures_;
+  } else {
+    failed_partner_ = last_partner_;
+    partner_failures_ = 1;
+  }
 }
 
 std::optional<ViewPair> ViewPairSelector::add(ViewCandidate candidate) {
@@ -31,12 +43,18 @@ std::optional<ViewPair> ViewPairSelector::add(ViewCandidate candidate) {
     views_.push_back(candidate);
     if (views_.size() > options_.max_views) views_.erase(views_.begin());
   }
+  if (failed_partner_ && partner_failures_ >= options_.partner_failures) {
+    std::erase_if(views_, [&](const ViewCandidate& v) { return v.frame == *failed_partner_ && v.frame != candidate.frame; });
+    failed_partner_.reset();
+    partner_failures_ = 0;
+  }
   if (same_as_current && !retry_) return std::nullopt;
   // The partner: the newest earlier view far enough away.
   for (auto it = views_.rbegin() + 1; it != views_.rend(); ++it) {
     const double sep = separation(*it);
     if (sep >= min_separation_deg_ && sep <= 180.0 - min_separation_deg_) {
       retry_ = false;
+      last_partner_ = it->frame;
       return ViewPair{*it, candidate, sep};
     }
   }

@@ -6,7 +6,8 @@
 // the most recent view at least the reconstruction's minimum separation away
 // (geometry::ReconstructionOptions::min_separation_deg): a view pair, reconstructed and
 // adapted to in the background. Newer pairs supersede older ones; views older than
-// ViewPairOptions::max_gap_ns are not paired.
+// ViewPairOptions::max_gap_ns are not paired. A partner frame that failed repeatedly is
+// forgotten.
 #include <Eigen/Core>
 #include <cstdint>
 #include <optional>
@@ -37,6 +38,10 @@ struct ViewPairOptions {
   /// procedure. A candidate older than the ones remembered (a clock or a replay that
   /// started over) forgets them all.
   std::int64_t max_gap_ns = 120'000'000'000;
+  /// Pairs that failed in a row with the same partner frame before that frame is forgotten:
+  /// the newer frames of the current view were tried against it, so the fault is likely
+  /// the partner's (a false segmentation), and an older view may pair instead.
+  int partner_failures = 2;
 };
 
 class ViewPairSelector {
@@ -49,14 +54,18 @@ class ViewPairSelector {
   /// Takes a candidate; returns the pair it completes, if any.
   std::optional<ViewPair> add(ViewCandidate candidate);
   /// The last pair could not be used (reconstruction failed): the next candidate of the
-  /// current view tries again with its newer frame.
-  void retry() { retry_ = true; }
+  /// current view tries again with its newer frame; after ViewPairOptions::partner_failures
+  /// such failures with the same partner frame, with the next older view far enough.
+  void retry();
 
  private:
   double min_separation_deg_;
   ViewPairOptions options_;
   std::vector<ViewCandidate> views_;  // newest candidate per view, most recent view last
   bool retry_ = false;
+  std::optional<std::uint64_t> last_partner_;    // the earlier frame of the last pair given
+  std::optional<std::uint64_t> failed_partner_;  // and of the failures in a row counted here
+  int partner_failures_ = 0;
 };
 
 }  // namespace evar::app

@@ -162,12 +162,42 @@ XaFrame read_xa_dicom(const std::filesystem::path& path, int frame) {
   const Reader r(path, scopes);
 
   CArmView& v = out.view;
-  // A rotational run gives each frame's angles as increments (0018,1520/1521); their
-  // reference is not handled yet, so such frames are refused rather than misplaced.
-  for (const DcmTagKey& inc : {DCM_PositionerPrimaryAngleIncrement, DCM_PositionerSecondaryAngleIncrement})
-    if (const auto step = scopes.find(inc, static_cast<unsigned long>(frame)); step && *step != 0.0)
-      detail::fail(path, tag_name(inc) + ": frame " + std::to_string(frame) +
-                             " of a rotational run; per-frame angle increments are not supported yet");
+  // A rotational run gives each frame's angles as increments (0018,1520/1521), read by
+  // some as steps from the frame before and by others from the first frame: frames they
+  // may have moved are refused rather than placed at one reading's angle. Any non-zero
+  // increment up to this frame counts (a single value stands for every frame), as does a
+  // positioner that says it was moving.
+  for (const DcmTagKey& inc : {DCM_PositionerPrimaryAngleIncrement, DCM_PositionerSecondaryAngleIncrement}) {
+    for (unsigned long k = 0; k <= static_cast<unsigned long>(frame); ++k) {
+      const auto step = scopes.find(inc, k);
+      if (!step) break;
+      if (*step != 0.0)
+        detail::fail(path, tag_name(inc) + ": frame " + std::to_string(frame) +
+                               " of a rotational run (an angle increment up to it is not 0); its angles are not read");
+    }
+  }
+  for (const DcmTagKey& text_key : {DCM_PositionerMotion, DCM_PositionerType, DCM_FieldOfViewHorizontalFlip}) {
+    OFString value;
+    if (ds->findAndGetOFString(text_key, value, 0, true).bad()) continue;  // absent: nothing claimed
+    const std::string v(value.c_str());
+    if (text_key == DCM_PositionerMotion && v == "DYNAMIC" && frame > 0)
+      detail::fail(path, tag_name(text_key) + ": DYNAMIC; frame " + std::to_string(frame) +
+                             " of a run taken while the C-arm moved has no angles of its own");
+    if (text_key == DCM_PositionerType && !v.empty() && v != "CARM")
+      detail::fail(path, tag_name(text_key) + ": \"" + v + "\"; only a C-arm's angles place a view (expected CARM)");
+    if (text_key == DCM_FieldOfViewHorizontalFlip && v == "YES")
+      detail::fail(path, tag_name(text_key) + ": YES; a mirrored image would put the roadmap on the wrong side "
+                                              "(flipped fields of view are not supported)");
+  }
+  // A field of view turned relative to the detector does not fit the detector model.
+  {
+    Float64 turned = 0.0;
+    if (ds->findAndGetFloat64(DCM_FieldOfViewRotation, turned, 0, true).good() && turned != 0.0) {
+      char buf[160];
+      std::snprintf(buf, sizeof buf, ": %g degrees; an image turned relative to the detector is not supported", turned);
+      detail::fail(path, tag_name(DCM_FieldOfViewRotation) + buf);
+    }
+  }
   v.primary_angle_deg = r.require(DCM_PositionerPrimaryAngle, -180.0, 180.0, "degrees");
   v.secondary_angle_deg = r.require(DCM_PositionerSecondaryAngle, -90.0, 90.0, "degrees");
   v.source_to_detector_mm = r.require(DCM_DistanceSourceToDetector, 1.0, 5000.0, "mm");

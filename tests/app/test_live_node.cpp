@@ -397,6 +397,49 @@ TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView
   EXPECT_THROW(app::ViewPairSelector(10.0, {20.0, 8}), std::invalid_argument);
 }
 
+// A pair that keeps failing with the same partner frame (a false segmentation there) is
+// not retried with it for ever: after two failures in a row the partner is forgotten and
+// the next older view far enough pairs instead (before session 15 every frame of the
+// current view failed against the same partner until the C-arm moved).
+TEST(ViewPairSelector, APartnerThatKeepsFailingIsForgottenForAnOlderView) {
+  sim::DetectorSpec d{256, 256, 1.0, 1.0};
+  const auto candidate = [&](std::uint64_t frame, double primary) {
+    acquisition::CArmState s;
+    s.primary_deg = primary;
+    s.sid_mm = 1200;
+    s.sod_mm = 800;
+    app::ViewCandidate c;
+    c.frame = frame;
+    c.geometry = app::frame_view(d, Eigen::Matrix4d::Identity(), s);
+    return c;
+  };
+  app::ViewPairSelector selector(20.0);
+  EXPECT_FALSE(selector.add(candidate(1, 0)));    // AP
+  EXPECT_FALSE(selector.add(candidate(2, -10)));  // too close to AP
+  auto pair = selector.add(candidate(3, 30));     // LAO 30: the newest view far enough is frame 2 (40°)
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.frame, 2u);
+  selector.retry();
+  pair = selector.add(candidate(4, 30));          // a newer frame, the same partner
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.frame, 2u);
+  selector.retry();                               // failed again with frame 2: it goes
+  pair = selector.add(candidate(5, 30));
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.frame, 1u);             // AP, 30° away
+  selector.retry();
+  pair = selector.add(candidate(6, 30));
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.frame, 1u);
+  selector.retry();                               // AP fails twice too: nothing left to pair with
+  EXPECT_FALSE(selector.add(candidate(7, 30)));
+  // The C-arm goes back to a view: a new candidate there pairs again.
+  pair = selector.add(candidate(8, -10));
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.frame, 7u);
+  EXPECT_THROW(app::ViewPairSelector(20.0, {2.0, 8, 120'000'000'000, 0}), std::invalid_argument);
+}
+
 TEST(ViewPairSelector, AViewOlderThanTheGapOrFromBeforeATimeRestartIsNotPaired) {
   sim::DetectorSpec d{256, 256, 1.0, 1.0};
   const auto candidate = [&](std::uint64_t frame, double primary, double t_s) {

@@ -4,9 +4,13 @@
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <limits>
 #include <string>
+#include <vector>
 
+#include "evar/geometry/carm_projection.hpp"
+#include "evar/sim/example_scene.hpp"
 #include "model_adaptation.hpp"
 #include "support/error_message.hpp"
 
@@ -50,4 +54,58 @@ TEST(ModelAdaptation, ANonFiniteResultIsRefusedByName) {
   auto device = finite_model();
   device.reconstruction.points[1].x() = nan;
   EXPECT_THAT(refusal(device), HasSubstr("device point 1 is not finite"));
+}
+
+namespace {
+
+std::vector<Eigen::Vector2d> projected(const evar::geometry::ProjectionMatrix& P, const evar::geometry::Polyline& curve) {
+  std::vector<Eigen::Vector2d> out;
+  for (const auto& X : evar::geometry::resample(curve, 0.25)) out.push_back(*evar::geometry::project(P, X));
+  return out;
+}
+
+evar::geometry::CArmView lao(double primary_deg) {
+  evar::geometry::CArmView v;
+  v.primary_angle_deg = primary_deg;
+  v.source_to_detector_mm = 1200;
+  v.source_to_isocenter_mm = 800;
+  v.detector_cols = v.detector_rows = 1024;
+  v.row_spacing_mm = v.col_spacing_mm = 0.4;
+  return v;
+}
+
+}  // namespace
+
+// A crossover catheter (up the right iliac, over the bifurcation, down the left) in a
+// LAO/RAO pair reads two ways (its limbs at the same heights); the node takes the reading
+// that lies in the vessels, and refuses when both do.
+TEST(ModelAdaptation, OfTwoReadingsTheOneInTheVesselsIsTheDevice) {
+  namespace geo = evar::geometry;
+  const auto example = evar::sim::make_example_scene({});
+  const auto scene = evar::sim::to_scene(example);
+  const auto& right = example.vessel("iliac_right").centerline;
+  const auto& left = example.vessel("iliac_left").centerline;
+  geo::Polyline crossover(right.rbegin(), right.rend() - 10);  // access low on the right …
+  crossover.insert(crossover.end(), left.begin() + 10, left.end());  // … tip low on the left
+  const auto P1 = geo::projection_matrix(lao(30)), P2 = geo::projection_matrix(lao(-30));
+  auto c2 = projected(P2, crossover);
+  std::reverse(c2.begin(), c2.end());  // traced from the other end in view 2
+  const auto readings = geo::reconstruct_two_view_readings(projected(P1, crossover), P1, c2, P2);
+  ASSERT_EQ(readings.size(), 2u) << "the example's crossover is not symmetric enough to read two ways";
+  const auto chosen = evar::app::reading_in_the_vessels(readings, scene, 5.0);
+  double worst = 0.0;
+  for (const auto& p : readings[chosen].points) worst = std::max(worst, geo::project_onto(crossover, p).distance_mm);
+  EXPECT_LT(worst, 1.0);
+  // The same reading whichever order they come in.
+  const std::vector<geo::Reconstruction> swapped{readings[1], readings[0]};
+  EXPECT_EQ(evar::app::reading_in_the_vessels(swapped, scene, 5.0), 1 - chosen);
+  EXPECT_LT(evar::app::mean_outside_lumen_mm(readings[chosen].points, scene), 0.5);
+  EXPECT_GT(evar::app::mean_outside_lumen_mm(readings[1 - chosen].points, scene), 10.0);
+  // Two readings both in the vessels (2 mm apart) cannot be told apart: refused, saying why.
+  auto near = readings[chosen];
+  for (auto& p : near.points) p += Eigen::Vector3d(2.0, 0.0, 0.0);
+  const std::vector<geo::Reconstruction> both_inside{readings[chosen], near};
+  EXPECT_THAT(evar::test::error_message<AdaptationError>(
+                  [&] { evar::app::reading_in_the_vessels(both_inside, scene, 5.0); }, "accepted"),
+              HasSubstr("both lie in the vessels or near them"));
 }

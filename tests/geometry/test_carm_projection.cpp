@@ -81,6 +81,24 @@ TEST(CArmProjection, CranialTiltPutsTheDetectorTowardsTheHead) {
   EXPECT_LT(cau.direction.z(), -0.49);
 }
 
+// Both angles at once pin the order of the two turns (DICOM PS3.3 C.8.7.5: the primary
+// angle turns about the long axis, the secondary tilts within the plane it reached):
+// viewing direction (sin a cos b, −cos a cos b, sin b). Facts, not the code's own rotation:
+// swapping the turns (Rx·Rz) leaves LAO 90 / CRA 30 with no cranial component at all.
+TEST(CArmProjection, BothAnglesTogetherFollowDicomsOrderOfTurns) {
+  const double c30 = std::cos(M_PI / 6), s45 = std::sqrt(0.5);
+  const std::pair<std::pair<double, double>, Eigen::Vector3d> facts[] = {
+      {{90, 30}, Eigen::Vector3d(c30, 0, 0.5)},
+      {{45, 30}, Eigen::Vector3d(s45 * c30, -s45 * c30, 0.5)},
+      {{-45, -30}, Eigen::Vector3d(-s45 * c30, -s45 * c30, -0.5)},
+      {{30, -20}, Eigen::Vector3d(0.5 * std::cos(M_PI / 9), -std::cos(M_PI / 6) * std::cos(M_PI / 9), -std::sin(M_PI / 9))}};
+  for (const auto& [angles, direction] : facts) {
+    const auto cam = pinhole_camera(projection_matrix(view(angles.first, angles.second)));
+    EXPECT_LT((cam.direction - direction).norm(), 1e-12) << angles.first << "/" << angles.second;
+    EXPECT_LT((cam.source_mm + 800.0 * direction).norm(), 1e-9) << angles.first << "/" << angles.second;
+  }
+}
+
 TEST(CArmProjection, MagnificationAtTheIsocenterIsSidOverSod) {
   for (const double a : {0.0, 40.0, -70.0}) {
     const auto P = projection_matrix(view(a, 10));

@@ -1,5 +1,7 @@
 #include <gtest/gtest.h>
 
+#include <algorithm>
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -53,14 +55,34 @@ Outcome run(const Case& c, SegmentationOptions so = {}) {
   return o;
 }
 
+// Mean of (found point − its nearest point on the truth): a systematic shift of the
+// whole curve (a pixel-centre convention off by half a pixel) shows here even when the
+// mean distance stays small.
+Eigen::Vector2d mean_offset_px(const std::vector<Eigen::Vector2d>& found, const std::vector<Eigen::Vector2d>& truth) {
+  Eigen::Vector2d sum = Eigen::Vector2d::Zero();
+  for (const auto& p : found) {
+    Eigen::Vector2d nearest = truth.front();
+    for (std::size_t i = 1; i < truth.size(); ++i) {
+      const Eigen::Vector2d a = truth[i - 1], d = truth[i] - a;
+      const double t = d.squaredNorm() > 0 ? std::clamp((p - a).dot(d) / d.squaredNorm(), 0.0, 1.0) : 0.0;
+      if ((a + t * d - p).squaredNorm() < (nearest - p).squaredNorm()) nearest = a + t * d;
+    }
+    sum += p - nearest;
+  }
+  return sum / static_cast<double>(found.size());
+}
+
 }  // namespace
 
 // Tolerances are the issue's: mean distance to the true centreline under 1 px, more than
-// 90 % of the visible wire found.
+// 90 % of the visible wire found; and, so a half-pixel convention slip cannot hide in
+// them, the measured accuracy (0.05 px here) held to 0.25 px with no shift over 0.1 px.
 TEST(DeviceSegmentation, FindsAGuidewireOverSpineAndSoftTissueToSubPixelAccuracy) {
   const auto o = run({});
   ASSERT_TRUE(o.found.found) << o.found.reason;
   EXPECT_LT(o.match.mean_distance_px, 1.0);
+  EXPECT_LT(o.match.mean_distance_px, 0.25);
+  EXPECT_LT(mean_offset_px(o.found.points, o.frame.truth.front()).norm(), 0.1);
   EXPECT_GT(o.match.coverage, 0.9);
   EXPECT_TRUE(o.found.reaches_border);
   EXPECT_GT(o.found.confidence, 0.8);

@@ -206,4 +206,42 @@ TEST(XaDicom, RotationalRunFramesAreRefusedNotMisplaced) {
   rewrite(p, [](DcmDataset& ds) { ds.putAndInsertString(DCM_PositionerPrimaryAngleIncrement, "0\\1.5"); });
   EXPECT_NO_THROW(read_xa_dicom(p, 0));
   EXPECT_NE(error_of(p, 1).find("PositionerPrimaryAngleIncrement (0018,1520)"), std::string::npos) << error_of(p, 1);
+  // Increments read as steps from the first frame put frame 2 at base + 15 + 0: refused
+  // too (before session 15 only its own increment, 0, was looked at).
+  const fs::path three = dir.path / "rot3.dcm";
+  write_xa_dicom(three, view(), {ramp16(0), ramp16(1), ramp16(2)}, false, 12);
+  rewrite(three, [](DcmDataset& ds) { ds.putAndInsertString(DCM_PositionerSecondaryAngleIncrement, "0\\15\\0"); });
+  EXPECT_NO_THROW(read_xa_dicom(three, 0));
+  EXPECT_NE(error_of(three, 2).find("PositionerSecondaryAngleIncrement (0018,1521)"), std::string::npos) << error_of(three, 2);
+  // A positioner that says it moved.
+  const fs::path moving = dir.path / "dynamic.dcm";
+  write_xa_dicom(moving, view(), {ramp16(0), ramp16(1)}, false, 12);
+  rewrite(moving, [](DcmDataset& ds) { ds.putAndInsertString(DCM_PositionerMotion, "DYNAMIC"); });
+  EXPECT_NO_THROW(read_xa_dicom(moving, 0));
+  EXPECT_NE(error_of(moving, 1).find("DYNAMIC"), std::string::npos) << error_of(moving, 1);
+}
+
+// Attributes that would make the plain detector model place the roadmap wrongly (mirrored,
+// turned, not a C-arm) are refused by name; before session 15 they were ignored.
+TEST(XaDicom, AFlippedOrTurnedFieldOfViewOrAnotherPositionerIsRefusedByName) {
+  TempDir dir;
+  const std::pair<DcmTagKey, const char*> cases[] = {{DCM_FieldOfViewHorizontalFlip, "YES"},
+                                                     {DCM_FieldOfViewRotation, "90"},
+                                                     {DCM_PositionerType, "COLUMN"}};
+  for (const auto& [key, value] : cases) {
+    const fs::path p = dir.path / "fov.dcm";
+    write_xa_dicom(p, view(), {ramp16(0)}, false, 12);
+    rewrite(p, [&](DcmDataset& ds) { ds.putAndInsertString(key, value); });
+    const auto why = error_of(p);
+    EXPECT_NE(why.find(DcmTag(key).getTagName()), std::string::npos) << why;
+  }
+  // The harmless values are read as before.
+  const fs::path plain = dir.path / "plain.dcm";
+  write_xa_dicom(plain, view(), {ramp16(0)}, false, 12);
+  rewrite(plain, [](DcmDataset& ds) {
+    ds.putAndInsertString(DCM_FieldOfViewHorizontalFlip, "NO");
+    ds.putAndInsertString(DCM_FieldOfViewRotation, "0");
+    ds.putAndInsertString(DCM_PositionerType, "CARM");
+  });
+  EXPECT_NO_THROW(read_xa_dicom(plain));
 }

@@ -132,6 +132,8 @@ class SceneDeformer {
   /// stopping rule's distance to it.
   SceneDeformation deform(const geometry::Polyline& device, const SceneDeformation* previous = nullptr) const;
   double precompute_ms() const { return precompute_ms_; }
+  /// The scene it deforms (as given, fine meshes).
+  const geometry::Scene& scene() const { return original_; }
   /// The vessel's proxy (null when it is solved on its own mesh).
   const MeshProxy* proxy(std::size_t vessel) const { return proxies_[vessel] ? &*proxies_[vessel] : nullptr; }
   /// Why vessel i needed a proxy and has none ("" when it has one or needs none).
