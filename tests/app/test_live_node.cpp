@@ -367,18 +367,25 @@ TEST_F(LiveNodeReplay, ASilentCArmLinkAndAStalledVideoAreReportedWhileFramesAreS
   EXPECT_EQ(s.frames_composited + s.frames_held, shown->frames.size() + s.dropped_output);
 }
 
+namespace {
+// A view-pair candidate at these angles (degrees) and time (s) on a 256 px detector.
+app::ViewCandidate view_candidate(std::uint64_t frame, double primary, double secondary = 0.0, double t_s = 0.0) {
+  acquisition::CArmState s;
+  s.primary_deg = primary;
+  s.secondary_deg = secondary;
+  s.sid_mm = 1200;
+  s.sod_mm = 800;
+  app::ViewCandidate c;
+  c.frame = frame;
+  c.time_ns = static_cast<std::int64_t>(t_s * 1e9);
+  c.geometry = app::frame_view(sim::DetectorSpec{256, 256, 1.0, 1.0}, Eigen::Matrix4d::Identity(), s);
+  return c;
+}
+}  // namespace
+
 TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView) {
-  sim::DetectorSpec d{256, 256, 1.0, 1.0};
-  const auto candidate = [&](std::uint64_t frame, double primary, double secondary) {
-    acquisition::CArmState s;
-    s.primary_deg = primary;
-    s.secondary_deg = secondary;
-    s.sid_mm = 1200;
-    s.sod_mm = 800;
-    app::ViewCandidate c;
-    c.frame = frame;
-    c.geometry = app::frame_view(d, Eigen::Matrix4d::Identity(), s);
-    return c;
+  const auto candidate = [](std::uint64_t frame, double primary, double secondary) {
+    return view_candidate(frame, primary, secondary);
   };
   app::ViewPairSelector selector(20.0);
   EXPECT_FALSE(selector.add(candidate(1, 0, 0)));
@@ -402,17 +409,7 @@ TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView
 // the next older view far enough pairs instead (before session 15 every frame of the
 // current view failed against the same partner until the C-arm moved).
 TEST(ViewPairSelector, APartnerThatKeepsFailingIsForgottenForAnOlderView) {
-  sim::DetectorSpec d{256, 256, 1.0, 1.0};
-  const auto candidate = [&](std::uint64_t frame, double primary) {
-    acquisition::CArmState s;
-    s.primary_deg = primary;
-    s.sid_mm = 1200;
-    s.sod_mm = 800;
-    app::ViewCandidate c;
-    c.frame = frame;
-    c.geometry = app::frame_view(d, Eigen::Matrix4d::Identity(), s);
-    return c;
-  };
+  const auto candidate = [](std::uint64_t frame, double primary) { return view_candidate(frame, primary); };
   app::ViewPairSelector selector(20.0);
   EXPECT_FALSE(selector.add(candidate(1, 0)));    // AP
   EXPECT_FALSE(selector.add(candidate(2, -10)));  // too close to AP
@@ -441,18 +438,7 @@ TEST(ViewPairSelector, APartnerThatKeepsFailingIsForgottenForAnOlderView) {
 }
 
 TEST(ViewPairSelector, AViewOlderThanTheGapOrFromBeforeATimeRestartIsNotPaired) {
-  sim::DetectorSpec d{256, 256, 1.0, 1.0};
-  const auto candidate = [&](std::uint64_t frame, double primary, double t_s) {
-    acquisition::CArmState s;
-    s.primary_deg = primary;
-    s.sid_mm = 1200;
-    s.sod_mm = 800;
-    app::ViewCandidate c;
-    c.frame = frame;
-    c.time_ns = static_cast<std::int64_t>(t_s * 1e9);
-    c.geometry = app::frame_view(d, Eigen::Matrix4d::Identity(), s);
-    return c;
-  };
+  const auto candidate = [](std::uint64_t frame, double primary, double t_s) { return view_candidate(frame, primary, 0.0, t_s); };
   app::ViewPairOptions o;
   o.max_gap_ns = 60'000'000'000;
   app::ViewPairSelector selector(20.0, o);
