@@ -5,6 +5,7 @@
 
 #include "commands.hpp"
 #include "evar/geometry/input_error.hpp"
+#include "evar/sim/session_replay.hpp"
 #include "logging.hpp"
 
 namespace evar::app {
@@ -199,7 +200,7 @@ int run_cli(const std::vector<std::string>& args) {
       "as possible, and report what arrived: frames, drops, C-arm states, views, moving periods.");
   rp->add_option("session", replay.session, "session directory")->required();
   auto* speed = rp->add_option("--speed", replay.speed, "playback speed (1 = real time)")
-                    ->check(CLI::Range(0.01, 1000.0))
+                    ->check(CLI::Range(sim::kMinReplaySpeed, sim::kMaxReplaySpeed))
                     ->capture_default_str();
   rp->add_flag("--fast", replay.fast, "as fast as possible (no pacing)")->excludes(speed);
   rp->add_option("--loop", replay.loops, "times through the session; 0 = until interrupted")
@@ -222,12 +223,14 @@ int run_cli(const std::vector<std::string>& args) {
   ExportCommand export_cmd;
   auto* ex = app.add_subcommand(
       "export",
-      "Write a recorded session's frames as a PLUS toolkit sequence metafile (.seq.mha) for 3D\n"
-      "Slicer: drag it into Slicer (or File > Add Data) and its Sequences module plays it, with\n"
-      "each frame's timestamp and the C-arm angulation, SID and SOD in force as frame fields\n"
-      "(docs/SESSION_FORMAT.md). 16-bit grey levels as recorded; about 2 MB per 1024 x 1024 frame.");
+      "Write a recorded session's frames as a PLUS toolkit sequence metafile (.seq.mha), with\n"
+      "each frame's timestamp (whole milliseconds, strictly increasing) and the C-arm angulation,\n"
+      "SID and SOD in force as frame fields (docs/SESSION_FORMAT.md). PLUS reads it; 3D Slicer\n"
+      "loads it as an image sequence with the SlicerIGSIO extension installed (File > Add Data;\n"
+      "core Slicer reads a .seq.mha only as a transform sequence). 16-bit grey levels as\n"
+      "recorded; about 2 MB per 1024 x 1024 frame. --out must be outside the session.");
   ex->add_option("session", export_cmd.session, "session directory")->required();
-  ex->add_option("--out", export_cmd.out, "the sequence file to write (name it *.seq.mha)")->required();
+  ex->add_option("--out", export_cmd.out, "the sequence file to write (name it *.seq.mha), outside the session")->required();
   ex->add_flag("!--no-progress", export_cmd.progress, "no progress bar");
 
   DevicesCommand devices;
@@ -243,7 +246,9 @@ int run_cli(const std::vector<std::string>& args) {
   auto* rd = app.add_subcommand(
       "record",
       "Record a live session from a frame grabber and the C-arm link into the session format\n"
-      "(docs/SESSION_FORMAT.md), with live statistics; stop with Ctrl-C, --seconds or --frames.\n"
+      "(docs/SESSION_FORMAT.md), with live statistics; stop with Ctrl-C (or SIGTERM, SIGHUP),\n"
+      "--seconds or --frames. A recording that was killed instead (its --out holds journal/)\n"
+      "becomes a session with `evarnode record --recover OUT`.\n"
       "Frames are written as 16-bit PNG (8-bit grey x257, 12-bit x16); C-arm states are put on\n"
       "the frames' clock. The patient scene is copied in, so `evarnode replay` and `evarnode run`\n"
       "take the session as it is. A report of what arrived and what was lost goes beside it\n"
@@ -265,22 +270,34 @@ int run_cli(const std::vector<std::string>& args) {
   rd->add_option("--width", record.frames.width, "image width (pixels); default: the device's")->check(CLI::Range(16, 16384));
   rd->add_option("--height", record.frames.height, "image height (pixels); default: the device's")->check(CLI::Range(16, 16384));
   rd->add_option("--fps", record.frames.fps, "frame rate (Hz); default: the device's")->check(CLI::Range(0.1, 1000.0));
-  rd->add_option("--carm", record.carm,
-                 "the C-arm link (docs/CARM_LINK_PROTOCOL.md): serial:/dev/ttyUSB0[,baud=115200][,parity=none|even|odd][,stop=1|2]\n"
-                 "or usb:VID:PID[:SERIAL]")
-      ->required();
-  rd->add_option("--scene", record.scene, "the patient's scene.json (docs/FORMATS.md)")->required()->check(CLI::ExistingFile);
-  rd->add_option("--registration", record.registration, "CT-to-C-arm registration ({\"matrix\": 4x4})")
-      ->required()
-      ->check(CLI::ExistingFile);
-  rd->add_option("--pixel-spacing", record.pixel_spacing_mm, "detector pixel spacing (mm, at the detector)")
-      ->required()
-      ->check(CLI::Range(0.001, 10.0));
-  rd->add_option("--device-thickness", record.device_thickness_mm, "device thickness (mm); default: the scene's")
-      ->check(CLI::Range(0.0, 15.0));
-  rd->add_option("--seconds", record.seconds, "stop after this long")->check(CLI::PositiveNumber);
-  rd->add_option("--frames", record.frames_to_write, "stop after this many frames are written")->check(CLI::PositiveNumber);
-  rd->add_option("--out", record.out, "the new session directory (must not exist or be empty)")->required();
+  // Required for a recording, refused with --recover: checked once parsing is done.
+  const std::vector<CLI::Option*> recording_options{
+      rd->add_option("--carm", record.carm,
+                     "the C-arm link (docs/CARM_LINK_PROTOCOL.md): serial:/dev/ttyUSB0[,baud=115200][,parity=none|even|odd][,stop=1|2]\n"
+                     "or usb:VID:PID[:SERIAL] (required)"),
+      rd->add_option("--scene", record.scene, "the patient's scene.json (docs/FORMATS.md) (required)")->check(CLI::ExistingFile),
+      rd->add_option("--registration", record.registration, "CT-to-C-arm registration ({\"matrix\": 4x4}) (required)")
+          ->check(CLI::ExistingFile),
+      rd->add_option("--pixel-spacing", record.pixel_spacing_mm, "detector pixel spacing (mm, at the detector) (required)")
+          ->check(CLI::Range(0.001, 10.0)),
+      rd->add_option("--out", record.out, "the new session directory (must not exist or be empty) (required)")};
+  const std::vector<CLI::Option*> recording_extras{
+      cam, v4l,
+      rd->add_option("--device-thickness", record.device_thickness_mm, "device thickness (mm); default: the scene's")
+          ->check(CLI::Range(0.0, 15.0)),
+      rd->add_option("--seconds", record.seconds, "stop after this long")->check(CLI::PositiveNumber),
+      rd->add_option("--frames", record.frames_to_write, "stop after this many frames are written")->check(CLI::PositiveNumber)};
+  auto* recover = rd->add_option("--recover", record.recover,
+                                 "instead of recording: make the session of an unfinished recording (the --out of a\n"
+                                 "recorder that was killed, which holds journal/) from its journal, with every frame\n"
+                                 "whose PNG is whole and every C-arm state");
+  for (auto* o : recording_options) recover->excludes(o);
+  for (auto* o : recording_extras) recover->excludes(o);
+  rd->callback([recover, recording_options] {
+    if (recover->count() > 0) return;
+    for (const auto* o : recording_options)
+      if (o->count() == 0) throw CLI::RequiredError(o->get_name() + " (or --recover DIR)");
+  });
 
   RunCommand run;
   auto* rn = app.add_subcommand(
@@ -315,7 +332,9 @@ int run_cli(const std::vector<std::string>& args) {
   rn->add_option("--mode", run.mode, "roadmap: undeformed, adapted or both (both: preoperative faint, adapted over it)")
       ->check(CLI::IsMember({"undeformed", "adapted", "both"}))
       ->capture_default_str();
-  auto* rspeed = rn->add_option("--speed", run.speed, "replay speed (1 = real time)")->check(CLI::PositiveNumber)->capture_default_str();
+  auto* rspeed = rn->add_option("--speed", run.speed, "replay speed (1 = real time)")
+                     ->check(CLI::Range(sim::kMinReplaySpeed, sim::kMaxReplaySpeed))
+                     ->capture_default_str();
   rn->add_flag("--fast", run.fast, "replay as fast as the node takes the frames")->excludes(rspeed);
   rn->add_option("--loop", run.loops, "replay loops; 0 = until interrupted")->check(CLI::NonNegativeNumber)->capture_default_str();
   rn->add_flag("--preload", run.preload,

@@ -91,6 +91,7 @@ struct RecordCommand {
   std::optional<double> device_thickness_mm;
   std::optional<double> seconds;
   std::optional<int> frames_to_write;
+  std::filesystem::path recover;      ///< instead of recording: the unfinished recording to make a session of
 };
 int run_record(const RecordCommand& cmd);
 

@@ -1,7 +1,9 @@
 // `evarnode record`: a live session from the frame grabber and the C-arm link, written in
-// the session format (docs/SESSION_FORMAT.md) with live statistics on the terminal.
+// the session format (docs/SESSION_FORMAT.md) with live statistics on the terminal; and
+// `evarnode record --recover OUT`, the session of a recording that was killed.
 
 #include <cstdio>
+#include <cstring>
 #include <memory>
 #include <thread>
 
@@ -15,7 +17,24 @@
 
 namespace evar::app {
 
+namespace {
+
+int run_recover(const std::filesystem::path& directory) {
+  log().info("recovering the recording in {} from its journal", directory.string());
+  const sim::RecoveredRecording r = sim::recover_recording(directory);
+  log().info("{}: {} frames and {} C-arm states recovered", directory.string(), r.session.frames.size(), r.carm_samples);
+  if (r.frames_lost > 0)
+    log().warn("{} of the {} journaled frames were left out: their PNG is missing or was cut short by the end of the recorder",
+               r.frames_lost, r.frames_journaled);
+  if (r.cut_row_skipped) log().info("a journal row cut in half by the end of the recorder was skipped");
+  log().info("report: {}", (directory / "record_report.json").string());
+  return 0;
+}
+
+}  // namespace
+
 int run_record(const RecordCommand& cmd) {
+  if (!cmd.recover.empty()) return run_recover(cmd.recover);
   auto frames = make_frame_source(cmd.frames);
   auto carm = make_carm_source(cmd.carm);
   sim::RecorderOptions o;
@@ -26,10 +45,10 @@ int run_record(const RecordCommand& cmd) {
   o.device_thickness_mm = cmd.device_thickness_mm;
   sim::SessionRecorder recorder(o, *frames, *carm);
   log().info("recording {} and {} into {}", frames->description(), carm->description(), cmd.out.string());
-  log().info("stop with Ctrl-C{}{}", cmd.seconds ? fmt::format(", or after {:g} s", *cmd.seconds) : "",
+  log().info("stop with Ctrl-C or SIGTERM{}{}", cmd.seconds ? fmt::format(", or after {:g} s", *cmd.seconds) : "",
              cmd.frames_to_write ? fmt::format(", or after {} frames", *cmd.frames_to_write) : "");
 
-  const InterruptGuard ctrl_c;
+  const InterruptGuard interrupt;
   recorder.start();
   StatusLine status;
   std::uint64_t last_frames = 0;
@@ -47,20 +66,22 @@ int run_record(const RecordCommand& cmd) {
       const auto fs = frames->statistics();
       status.print(fmt::format("{:7.1f} s  frames {} written {} (dropped {}, not recorded {})  {:5.1f} fps  |  C-arm {} samples",
                                s.seconds, s.frames_received, s.frames_written, fs.dropped,
-                               s.frames_not_recorded + s.frames_refused,
+                               s.frames_not_recorded + s.frames_refused + s.frames_write_failed,
                                static_cast<double>(s.frames_received - last_frames) / *since, s.carm_samples));
       last_frames = s.frames_received;
     }
-    if (ctrl_c.interrupted() || (cmd.seconds && s.seconds >= *cmd.seconds) ||
+    if (interrupt.interrupted() || (cmd.seconds && s.seconds >= *cmd.seconds) ||
         (cmd.frames_to_write && s.frames_written >= static_cast<std::uint64_t>(*cmd.frames_to_write)))
       break;
   }
   status.finish();
+  if (interrupt.interrupted()) log().info("{}: finishing the recording", ::strsignal(interrupt.signal_received()));
   const sim::Session session = recorder.finish();
   s = recorder.statistics();
   log().info("{}: {} frames and {} C-arm states in {:.1f} s; {} frames dropped by the source, {} not recorded",
              cmd.out.string(), session.frames.size(), session.carm.size(), s.seconds, frames->statistics().dropped,
-             s.frames_not_recorded + s.frames_refused);
+             s.frames_not_recorded + s.frames_refused + s.frames_write_failed);
+  if (s.carm_refused > 0) log().warn("{} C-arm states had values the format refuses and were not recorded", s.carm_refused);
   if (!s.last_error.empty()) log().warn("last problem: {}", s.last_error);
   log().info("report: {}", (cmd.out / "record_report.json").string());
   return 0;

@@ -9,9 +9,12 @@
 
 namespace evar::geometry {
 
-cv::Mat read_image_file(const std::filesystem::path& file) {
+cv::Mat read_image_file(const std::filesystem::path& file, std::string_view only_format) {
   const std::string bytes = read_input_file(file, kImageLimit);
   const ImageHeader header = read_image_header(bytes, file.string());
+  if (!only_format.empty() && header.format != only_format)
+    throw InputError(file.string() + ": is a " + header.format + " file; only " + std::string(only_format) +
+                     " is accepted here");
   cv::Mat image;
   try {
     image = cv::imdecode(cv::Mat(1, static_cast<int>(bytes.size()), CV_8UC1, const_cast<char*>(bytes.data())),

@@ -1,7 +1,6 @@
 #include "evar/sim/session.hpp"
 
 #include <algorithm>
-#include <charconv>
 #include <cstdio>
 #include <cmath>
 #include <fstream>
@@ -18,13 +17,21 @@
 #include "evar/geometry/image_file.hpp"
 #include "evar/geometry/input_file.hpp"
 #include "evar/geometry/json_fields.hpp"
+#include "csv_table.hpp"
 
 namespace evar::sim {
 
 namespace {
 
 namespace fs = std::filesystem;
-using geometry::InputError;
+using detail::CutLastLine;
+using detail::exact;
+using detail::fail;
+using detail::flag;
+using detail::for_each_row;
+using detail::limited;
+using detail::number;
+using detail::quote;
 
 constexpr const char* kFormat = "evarnode-session";
 constexpr int kVersion = 1;
@@ -32,57 +39,7 @@ constexpr const char* kFramesHeader = "frame,timestamp_ns,source,file";
 constexpr const char* kOstiaHeader = "frame,label,u_px,v_px";
 constexpr const char* kCArmHeader =
     "timestamp_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving";
-
-[[noreturn]] void fail(const fs::path& file, std::size_t line, const std::string& what) {
-  throw InputError(file.string() + (line ? ":" + std::to_string(line) : std::string()) + ": " + what);
-}
-
-// Calls row(line number, fields) for every non-empty line after the header, checking the
-// header and the field count; lines end in LF or CRLF.
-template <class Row>
-void for_each_row(const fs::path& file, const char* header, std::size_t fields, Row row) {
-  const std::string text = geometry::read_input_file(file, geometry::kTableLimit);
-  std::size_t start = 0, line = 0;
-  while (start < text.size() || line == 0) {
-    std::size_t end = text.find('\n', start);
-    if (end == std::string::npos) end = text.size();
-    std::string content = text.substr(start, end - start);
-    if (!content.empty() && content.back() == '\r') content.pop_back();
-    start = end + 1;
-    if (++line == 1) {
-      if (content != header) fail(file, 1, std::string("header: expected '") + header + "'");
-      continue;
-    }
-    if (content.empty()) continue;
-    std::vector<std::string> f;
-    for (std::size_t from = 0;;) {
-      const std::size_t comma = content.find(',', from);
-      f.push_back(content.substr(from, comma == std::string::npos ? std::string::npos : comma - from));
-      if (comma == std::string::npos) break;
-      from = comma + 1;
-    }
-    if (f.size() != fields)
-      fail(file, line, "expected " + std::to_string(fields) + " fields, found " + std::to_string(f.size()));
-    row(line, f);
-  }
-}
-
-template <class T>
-T number(const fs::path& file, std::size_t line, const char* field, const std::string& text) {
-  T value{};
-  const auto [end, ec] = std::from_chars(text.data(), text.data() + text.size(), value);
-  if (ec != std::errc() || end != text.data() + text.size() || text.empty())
-    fail(file, line, std::string(field) + ": '" + text + "' is not a number");
-  if constexpr (std::is_floating_point_v<T>)
-    if (!std::isfinite(value)) fail(file, line, std::string(field) + ": '" + text + "' is not finite");
-  return value;
-}
-
-bool flag(const fs::path& file, std::size_t line, const char* field, const std::string& text) {
-  if (text == "0") return false;
-  if (text == "1") return true;
-  fail(file, line, std::string(field) + ": '" + text + "' (expected 0 or 1)");
-}
+constexpr int kMaxDetectorSidePx = 16384;
 
 bool plain_name(const std::string& s) {
   if (s.empty()) return false;
@@ -91,30 +48,107 @@ bool plain_name(const std::string& s) {
   return true;
 }
 
-// A path a session may name: relative, inside the session, not empty.
-bool inside_path(const std::string& p) {
-  return !p.empty() && !fs::path(p).is_absolute() && p.find("..") == std::string::npos;
+// What is wrong with a path a session names ("" when nothing): it must be relative, have no
+// ".." component (a..b.png is a fine name) and no character that would break a CSV row.
+std::string relative_path_problem(const std::string& p) {
+  if (p.empty()) return "empty";
+  if (fs::path(p).is_absolute()) return "absolute";
+  for (const auto& part : fs::path(p))
+    if (part == "..") return "has a '..' component";
+  for (const char c : p)
+    if (c == ',' || static_cast<unsigned char>(c) < 0x20 || c == 0x7f) return "holds a comma or a control character";
+  return {};
 }
 
-// The shortest text that reads back to the same double.
-std::string exact(double v) {
-  char buf[64];
-  const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
-  if (ec != std::errc()) throw std::runtime_error("cannot format a number");
-  return std::string(buf, end);
+// Whether `full` stays inside the directory whose canonical form is `root` once symbolic
+// links are followed: a link in the session must not lead a reader out of it.
+bool resolves_inside(const fs::path& root, const fs::path& full) {
+  std::error_code ec;
+  const fs::path real = fs::weakly_canonical(full, ec);
+  if (ec) return false;
+  const auto [r, f] = std::mismatch(root.begin(), root.end(), real.begin(), real.end());
+  return r == root.end();
+}
+
+fs::path canonical_root(const fs::path& directory) {
+  std::error_code ec;
+  fs::path root = fs::weakly_canonical(directory, ec);
+  if (ec) throw geometry::InputError(directory.string() + ": cannot resolve the session directory (" + ec.message() + ")");
+  return root;
+}
+
+std::string timestamp_problem(std::int64_t t) {
+  if (t < 0 || t >= kMaxTimestampNs)
+    return "timestamp_ns: " + std::to_string(t) + " is outside 0 to 2^62 ns";
+  return {};
+}
+
+std::string frame_order_problem(const FrameRecord& previous, const FrameRecord& r) {
+  if (r.frame <= previous.frame) return "frame: " + std::to_string(r.frame) + " does not increase";
+  if (r.timestamp_ns < previous.timestamp_ns) return "timestamp_ns: goes back in time";
+  return {};
+}
+
+std::string detector_problem(const DetectorSpec& d) {
+  if (d.cols < 1 || d.cols > kMaxDetectorSidePx) return "detector.cols: expected an integer from 1 to 16384";
+  if (d.rows < 1 || d.rows > kMaxDetectorSidePx) return "detector.rows: expected an integer from 1 to 16384";
+  if (std::int64_t{d.cols} * d.rows > geometry::kMaxImagePixels)
+    return "detector: " + std::to_string(d.cols) + " x " + std::to_string(d.rows) + " pixels; at most " +
+           std::to_string(geometry::kMaxImagePixels) + " in all";
+  if (!(std::isfinite(d.row_spacing_mm) && d.row_spacing_mm > 0.0)) return "detector.row_spacing_mm: expected a positive number";
+  if (!(std::isfinite(d.col_spacing_mm) && d.col_spacing_mm > 0.0)) return "detector.col_spacing_mm: expected a positive number";
+  return {};
+}
+
+std::string ostium_problem(const OstiumTruth& o) {
+  if (!plain_name(o.label)) return "label: " + quote(o.label) + " (letters, digits, '_', '-', '.')";
+  if (!std::isfinite(o.pixel.x())) return "u_px: " + exact(o.pixel.x()) + " is not finite";
+  if (!std::isfinite(o.pixel.y())) return "v_px: " + exact(o.pixel.y()) + " is not finite";
+  return {};
+}
+
+bool has_frame(const std::vector<FrameRecord>& frames, std::int64_t frame) {
+  const auto at = std::lower_bound(frames.begin(), frames.end(), frame,
+                                   [](const FrameRecord& r, std::int64_t f) { return r.frame < f; });
+  return at != frames.end() && at->frame == frame;
 }
 
 void write_text(const fs::path& file, const std::string& text) {
   std::ofstream out(file, std::ios::binary);
   out << text;
-  if (!out) throw std::runtime_error(file.string() + ": cannot write");
+  out.close();
+  if (!out) throw std::runtime_error(file.string() + ": cannot write (disk full?)");
 }
 
 }  // namespace
 
+std::string frame_record_problem(const FrameRecord& r) {
+  if (auto p = timestamp_problem(r.timestamp_ns); !p.empty()) return p;
+  if (!plain_name(r.source)) return "source: " + quote(r.source) + " (letters, digits, '_', '-', '.')";
+  if (const auto p = relative_path_problem(r.file.generic_string()); !p.empty())
+    return "file: " + quote(r.file.generic_string()) + " must be a relative path inside the frames folder (" + p + ")";
+  return {};
+}
+
+std::string carm_sample_problem(const CArmSample& c) {
+  if (auto p = timestamp_problem(c.timestamp_ns); !p.empty()) return p;
+  const std::pair<const char*, double> values[] = {{"primary_deg", c.primary_deg}, {"secondary_deg", c.secondary_deg},
+                                                   {"sid_mm", c.sid_mm},           {"sod_mm", c.sod_mm},
+                                                   {"table_x_mm", c.table_mm.x()}, {"table_y_mm", c.table_mm.y()},
+                                                   {"table_z_mm", c.table_mm.z()}};
+  for (const auto& [field, v] : values)
+    if (!std::isfinite(v)) return std::string(field) + ": " + exact(v) + " is not finite";
+  if (std::abs(c.primary_deg) > 180.0) return "primary_deg: " + exact(c.primary_deg) + " is outside -180 to 180";
+  if (std::abs(c.secondary_deg) > 90.0) return "secondary_deg: " + exact(c.secondary_deg) + " is outside -90 to 90";
+  if (!(c.sod_mm > 0.0 && c.sod_mm < c.sid_mm && c.sid_mm <= 5000.0))
+    return "sid_mm, sod_mm: need 0 < SOD < SID <= 5000, found SID " + exact(c.sid_mm) + ", SOD " + exact(c.sod_mm);
+  return {};
+}
+
 Session read_session(const std::filesystem::path& directory) {
   Session s;
   s.directory = directory;
+  const fs::path root = canonical_root(directory);
   const fs::path json_path = directory / "session.json";
   const nlohmann::json j = geometry::detail::parse_json_file(json_path);
   const auto field = [&](const char* key) -> const nlohmann::json& {
@@ -123,65 +157,59 @@ Session read_session(const std::filesystem::path& directory) {
   };
   if (field("format") != kFormat) fail(json_path, 0, std::string("format: expected \"") + kFormat + "\"");
   if (!field("version").is_number_integer() || field("version").get<long long>() != kVersion)
-    fail(json_path, 0, "version: unsupported " + field("version").dump() + " (this build reads version 1)");
-  const auto path_field = [&](const char* key) {
-    if (!field(key).is_string() || !inside_path(field(key).get<std::string>()))
-      fail(json_path, 0, std::string(key) + ": expected a relative file name inside the session");
-    return fs::path(field(key).get<std::string>());
+    fail(json_path, 0, "version: unsupported " + limited(field("version").dump()) + " (this build reads version 1)");
+  // A file the session names: relative, and inside the session once links are followed.
+  const auto inside = [&](const std::string& name, const nlohmann::json& value) {
+    if (!value.is_string()) fail(json_path, 0, name + ": expected a relative file name inside the session");
+    const std::string p = value.get<std::string>();
+    if (const auto problem = relative_path_problem(p); !problem.empty())
+      fail(json_path, 0, name + ": " + quote(p) + " must be a relative file name inside the session (" + problem + ")");
+    if (!resolves_inside(root, directory / p))
+      fail(json_path, 0, name + ": " + quote(p) + " leads out of the session directory (a symbolic link)");
+    return fs::path(p);
   };
-  s.scene = path_field("scene");
-  s.ct_to_carm = geometry::read_registration(directory / path_field("registration"));
+  s.scene = inside("scene", field("scene"));
+  s.ct_to_carm = geometry::read_registration(directory / inside("registration", field("registration")));
   if (!field("device_thickness_mm").is_number()) fail(json_path, 0, "device_thickness_mm: expected a number");
   s.device_thickness_mm = field("device_thickness_mm").get<double>();
   if (!(s.device_thickness_mm >= 0.0 && s.device_thickness_mm <= 15.0))
     fail(json_path, 0, "device_thickness_mm: must be 0 to 15 (mm)");
   const auto& det = field("detector");
-  const auto positive = [&](const char* key) {
-    if (!det.is_object() || !det.contains(key) || !det[key].is_number() || !(det[key].get<double>() > 0.0))
-      fail(json_path, 0, std::string("detector.") + key + ": expected a positive number");
-    return det[key].get<double>();
-  };
   for (const char* key : {"cols", "rows"})
     if (!det.is_object() || !det.contains(key) || !det[key].is_number_integer() || det[key].get<long long>() <= 0 ||
-        det[key].get<long long>() > 16384)
+        det[key].get<long long>() > kMaxDetectorSidePx)
       fail(json_path, 0, std::string("detector.") + key + ": expected an integer from 1 to 16384");
-  s.detector.cols = det["cols"].get<int>();
-  s.detector.rows = det["rows"].get<int>();
-  if (std::int64_t{s.detector.cols} * s.detector.rows > geometry::kMaxImagePixels)
-    fail(json_path, 0, "detector: " + std::to_string(s.detector.cols) + " x " + std::to_string(s.detector.rows) +
-                           " pixels; at most " + std::to_string(geometry::kMaxImagePixels) + " in all");
-  s.detector.row_spacing_mm = positive("row_spacing_mm");
-  s.detector.col_spacing_mm = positive("col_spacing_mm");
+  for (const char* key : {"row_spacing_mm", "col_spacing_mm"})
+    if (!det.contains(key) || !det[key].is_number()) fail(json_path, 0, std::string("detector.") + key + ": expected a positive number");
+  s.detector = {det["cols"].get<int>(), det["rows"].get<int>(), det["row_spacing_mm"].get<double>(),
+                det["col_spacing_mm"].get<double>()};
+  if (const auto problem = detector_problem(s.detector); !problem.empty()) fail(json_path, 0, problem);
   const auto& streams = field("streams");
-  if (!streams.is_object() || !streams.contains("frames") || !streams.contains("carm") || !streams["frames"].is_string() ||
-      !streams["carm"].is_string() || !inside_path(streams["frames"].get<std::string>()) ||
-      !inside_path(streams["carm"].get<std::string>()))
+  if (!streams.is_object() || !streams.contains("frames") || !streams.contains("carm"))
     fail(json_path, 0, "streams: expected {\"frames\": \"frames/index.csv\", \"carm\": \"carm.csv\"} (relative paths inside the session)");
-  s.frames_index = streams["frames"].get<std::string>();
+  s.frames_index = inside("streams.frames", streams["frames"]);
+  const fs::path carm_name = inside("streams.carm", streams["carm"]);
 
   // Frames.
-  const fs::path index = directory / streams["frames"].get<std::string>();
-  for_each_row(index, kFramesHeader, 4, [&](std::size_t line, const std::vector<std::string>& f) {
+  const fs::path index = directory / s.frames_index;
+  for_each_row(index, kFramesHeader, 4, CutLastLine::Refuse, [&](std::size_t line, const std::vector<std::string>& f) {
     FrameRecord r;
     r.frame = number<std::int64_t>(index, line, "frame", f[0]);
     r.timestamp_ns = number<std::int64_t>(index, line, "timestamp_ns", f[1]);
-    if (!plain_name(f[2])) fail(index, line, "source: '" + f[2] + "' (letters, digits, '_', '-', '.')");
     r.source = f[2];
-    const fs::path file(f[3]);
-    if (f[3].empty() || file.is_absolute() || f[3].find("..") != std::string::npos)
-      fail(index, line, "file: '" + f[3] + "' must be a relative path inside the frames folder");
-    r.file = file;
-    if (!s.frames.empty()) {
-      if (r.frame <= s.frames.back().frame) fail(index, line, "frame: " + f[0] + " does not increase");
-      if (r.timestamp_ns < s.frames.back().timestamp_ns) fail(index, line, "timestamp_ns: goes back in time");
-    }
-    if (!fs::is_regular_file(index.parent_path() / file)) fail(index, line, "file: " + f[3] + " is missing");
+    r.file = f[3];
+    if (const auto problem = frame_record_problem(r); !problem.empty()) fail(index, line, problem);
+    if (!s.frames.empty())
+      if (const auto problem = frame_order_problem(s.frames.back(), r); !problem.empty()) fail(index, line, problem);
+    const fs::path full = index.parent_path() / r.file;
+    if (!fs::is_regular_file(full)) fail(index, line, "file: " + limited(f[3]) + " is missing");
+    if (!resolves_inside(root, full)) fail(index, line, "file: " + quote(f[3]) + " leads out of the session directory (a symbolic link)");
     s.frames.push_back(std::move(r));
   });
 
   // C-arm geometry stream.
-  const fs::path carm = directory / streams["carm"].get<std::string>();
-  for_each_row(carm, kCArmHeader, 10, [&](std::size_t line, const std::vector<std::string>& f) {
+  const fs::path carm = directory / carm_name;
+  for_each_row(carm, kCArmHeader, 10, CutLastLine::Refuse, [&](std::size_t line, const std::vector<std::string>& f) {
     CArmSample c;
     c.timestamp_ns = number<std::int64_t>(carm, line, "timestamp_ns", f[0]);
     c.primary_deg = number<double>(carm, line, "primary_deg", f[1]);
@@ -192,10 +220,7 @@ Session read_session(const std::filesystem::path& directory) {
       c.table_mm(k) = number<double>(carm, line, k == 0 ? "table_x_mm" : k == 1 ? "table_y_mm" : "table_z_mm", f[5 + static_cast<std::size_t>(k)]);
     c.fluoro_on = flag(carm, line, "fluoro_on", f[8]);
     c.moving = flag(carm, line, "moving", f[9]);
-    if (std::abs(c.primary_deg) > 180.0) fail(carm, line, "primary_deg: " + f[1] + " is outside -180 to 180");
-    if (std::abs(c.secondary_deg) > 90.0) fail(carm, line, "secondary_deg: " + f[2] + " is outside -90 to 90");
-    if (!(c.sod_mm > 0.0 && c.sod_mm < c.sid_mm && c.sid_mm <= 5000.0))
-      fail(carm, line, "sid_mm, sod_mm: need 0 < SOD < SID <= 5000");
+    if (const auto problem = carm_sample_problem(c); !problem.empty()) fail(carm, line, problem);
     if (!s.carm.empty() && c.timestamp_ns < s.carm.back().timestamp_ns) fail(carm, line, "timestamp_ns: goes back in time");
     s.carm.push_back(c);
   });
@@ -205,28 +230,23 @@ Session read_session(const std::filesystem::path& directory) {
     const auto& g = j["ground_truth"];
     SessionTruth truth;
     const auto truth_file = [&](const char* key) {
-      if (!g.is_object() || !g.contains(key) || !g[key].is_string() || !inside_path(g[key].get<std::string>()))
-        fail(json_path, 0, std::string("ground_truth.") + key + ": expected a relative file name inside the session");
-      const fs::path p = g[key].get<std::string>();
-      if (!fs::is_regular_file(directory / p)) fail(json_path, 0, std::string("ground_truth.") + key + ": " + p.string() + " is missing");
+      const std::string name = std::string("ground_truth.") + key;
+      if (!g.is_object() || !g.contains(key)) fail(json_path, 0, name + ": expected a relative file name inside the session");
+      const fs::path p = inside(name, g[key]);
+      if (!fs::is_regular_file(directory / p)) fail(json_path, 0, name + ": " + limited(p.generic_string()) + " is missing");
       return p;
     };
     truth.scene = truth_file("scene");
     truth.device = truth_file("device");
     truth.ostia_2d = truth_file("ostia_2d");
     const fs::path ostia = directory / truth.ostia_2d;
-    for_each_row(ostia, kOstiaHeader, 4, [&](std::size_t line, const std::vector<std::string>& f) {
+    for_each_row(ostia, kOstiaHeader, 4, CutLastLine::Refuse, [&](std::size_t line, const std::vector<std::string>& f) {
       OstiumTruth o;
       o.frame = number<std::int64_t>(ostia, line, "frame", f[0]);
-      const bool known = std::binary_search(s.frames.begin(), s.frames.end(), o.frame,
-                                            [](const auto& a, const auto& b) {
-                                              if constexpr (std::is_same_v<std::decay_t<decltype(a)>, FrameRecord>) return a.frame < b;
-                                              else return a < b.frame;
-                                            });
-      if (!known) fail(ostia, line, "frame: " + f[0] + " is not in the frames index");
-      if (!plain_name(f[1])) fail(ostia, line, "label: '" + f[1] + "' (letters, digits, '_', '-', '.')");
+      if (!has_frame(s.frames, o.frame)) fail(ostia, line, "frame: " + std::to_string(o.frame) + " is not in the frames index");
       o.label = f[1];
       o.pixel = {number<double>(ostia, line, "u_px", f[2]), number<double>(ostia, line, "v_px", f[3])};
+      if (const auto problem = ostium_problem(o); !problem.empty()) fail(ostia, line, problem);
       truth.ostia.push_back(std::move(o));
     });
     s.truth = std::move(truth);
@@ -237,7 +257,10 @@ Session read_session(const std::filesystem::path& directory) {
 cv::Mat read_session_frame(const Session& session, std::size_t index) {
   if (index >= session.frames.size()) throw std::out_of_range("read_session_frame: no frame " + std::to_string(index));
   const fs::path file = (session.directory / session.frames_index).parent_path() / session.frames[index].file;
-  const cv::Mat image = geometry::read_image_file(file);
+  // Checked again here: the file may have been replaced since read_session.
+  if (!resolves_inside(canonical_root(session.directory), file))
+    fail(file, 0, "leads out of the session directory (a symbolic link)");
+  const cv::Mat image = geometry::read_image_file(file, "PNG");
   if (image.type() != CV_16UC1) fail(file, 0, "expected a 16-bit single-channel PNG");
   if (image.cols != session.detector.cols || image.rows != session.detector.rows)
     fail(file, 0, std::to_string(image.cols) + " x " + std::to_string(image.rows) + " pixels, but the detector is " +
@@ -247,27 +270,63 @@ cv::Mat read_session_frame(const Session& session, std::size_t index) {
 
 void write_session_frame(const std::filesystem::path& directory, const FrameRecord& f, const cv::Mat& image) {
   if (image.type() != CV_16UC1) throw std::invalid_argument("write_session: frames must be CV_16UC1");
-  if (!plain_name(f.source) || f.file.empty() || f.file.is_absolute())
-    throw std::invalid_argument("write_session: frame " + std::to_string(f.frame) + " has a bad source or file name");
+  if (const auto problem = frame_record_problem(f); !problem.empty())
+    throw std::invalid_argument("write_session: frame " + std::to_string(f.frame) + ": " + problem);
   const fs::path out = directory / "frames" / f.file;
   fs::create_directories(out.parent_path());
   if (!cv::imwrite(out.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 1})) throw std::runtime_error(out.string() + ": cannot write");
 }
 
 void write_session_files(const std::filesystem::path& directory, const Session& session) {
-  const DetectorSpec& d = session.detector;
-  if (d.cols <= 0 || d.rows <= 0 || d.cols > 16384 || d.rows > 16384 || !(d.row_spacing_mm > 0.0) || !(d.col_spacing_mm > 0.0))
-    throw std::invalid_argument("write_session: the detector needs a positive size and spacing");
-  fs::create_directories(directory / "frames");
-  std::string index = std::string(kFramesHeader) + "\n";
+  // Everything is checked before anything is written, by the reader's own rules.
+  const auto refuse = [](const std::string& what) { throw std::invalid_argument("write_session: " + what); };
+  if (const auto problem = detector_problem(session.detector); !problem.empty()) refuse(problem);
+  if (!(session.device_thickness_mm >= 0.0 && session.device_thickness_mm <= 15.0))
+    refuse("device_thickness_mm: must be 0 to 15 (mm)");
+  if (const auto problem = relative_path_problem(session.scene.generic_string()); !problem.empty())
+    refuse("scene: " + quote(session.scene.generic_string()) + " must be a relative file name inside the session (" + problem + ")");
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const auto& f = session.frames[i];
-    if (i > 0 && (f.frame <= session.frames[i - 1].frame || f.timestamp_ns < session.frames[i - 1].timestamp_ns))
-      throw std::invalid_argument("write_session: frames must have increasing numbers and non-decreasing times");
-    if (!fs::is_regular_file(directory / "frames" / f.file))
-      throw std::invalid_argument("write_session: frame " + std::to_string(f.frame) + " has no image written");
-    index += std::to_string(f.frame) + "," + std::to_string(f.timestamp_ns) + "," + f.source + "," + f.file.generic_string() + "\n";
+    const std::string which = "frame " + std::to_string(f.frame) + ": ";
+    if (const auto problem = frame_record_problem(f); !problem.empty()) refuse(which + problem);
+    if (i > 0)
+      if (const auto problem = frame_order_problem(session.frames[i - 1], f); !problem.empty()) refuse(which + problem);
+    if (!fs::is_regular_file(directory / "frames" / f.file)) refuse(which + "has no image written");
   }
+  for (std::size_t i = 0; i < session.carm.size(); ++i) {
+    const auto& c = session.carm[i];
+    const std::string which = "C-arm sample " + std::to_string(i) + ": ";
+    if (const auto problem = carm_sample_problem(c); !problem.empty()) refuse(which + problem);
+    if (i > 0 && c.timestamp_ns < session.carm[i - 1].timestamp_ns) refuse(which + "timestamp_ns: goes back in time");
+  }
+  if (session.truth) {
+    const SessionTruth& t = *session.truth;
+    for (const fs::path& p : {t.scene, t.device, t.ostia_2d})
+      if (const auto problem = relative_path_problem(p.generic_string()); !problem.empty())
+        refuse("ground truth: " + quote(p.generic_string()) + " must be a relative file name inside the session (" + problem + ")");
+    for (const fs::path& p : {t.scene, t.device})
+      if (!fs::is_regular_file(directory / p)) refuse("ground truth " + quote(p.generic_string()) + " is missing");
+    for (const auto& o : t.ostia) {
+      if (const auto problem = ostium_problem(o); !problem.empty()) refuse("ostium of frame " + std::to_string(o.frame) + ": " + problem);
+      if (!has_frame(session.frames, o.frame))
+        refuse("ostium for frame " + std::to_string(o.frame) + ", which is not in the session");
+    }
+  }
+
+  fs::create_directories(directory / "frames");
+  // The registration is checked by its reader: written, then read back.
+  nlohmann::json rows = nlohmann::json::array();
+  for (int r = 0; r < 4; ++r)
+    rows.push_back({session.ct_to_carm(r, 0), session.ct_to_carm(r, 1), session.ct_to_carm(r, 2), session.ct_to_carm(r, 3)});
+  write_text(directory / "registration.json", nlohmann::json{{"matrix", rows}}.dump(2) + "\n");
+  try {
+    geometry::read_registration(directory / "registration.json");
+  } catch (const geometry::InputError& e) {
+    refuse(std::string("registration: ") + e.what());
+  }
+  std::string index = std::string(kFramesHeader) + "\n";
+  for (const auto& f : session.frames)
+    index += std::to_string(f.frame) + "," + std::to_string(f.timestamp_ns) + "," + f.source + "," + f.file.generic_string() + "\n";
   write_text(directory / "frames" / "index.csv", index);
   std::string carm = std::string(kCArmHeader) + "\n";
   for (const auto& c : session.carm)
@@ -275,10 +334,7 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
             "," + exact(c.sod_mm) + "," + exact(c.table_mm.x()) + "," + exact(c.table_mm.y()) + "," + exact(c.table_mm.z()) +
             "," + (c.fluoro_on ? "1" : "0") + "," + (c.moving ? "1" : "0") + "\n";
   write_text(directory / "carm.csv", carm);
-  nlohmann::json rows = nlohmann::json::array();
-  for (int r = 0; r < 4; ++r)
-    rows.push_back({session.ct_to_carm(r, 0), session.ct_to_carm(r, 1), session.ct_to_carm(r, 2), session.ct_to_carm(r, 3)});
-  write_text(directory / "registration.json", nlohmann::json{{"matrix", rows}}.dump(2) + "\n");
+  const DetectorSpec& d = session.detector;
   nlohmann::ordered_json j{{"format", kFormat},
                            {"version", kVersion},
                            {"scene", session.scene.generic_string()},
@@ -289,17 +345,9 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
                            {"streams", {{"frames", "frames/index.csv"}, {"carm", "carm.csv"}}}};
   if (session.truth) {
     const SessionTruth& t = *session.truth;
-    for (const fs::path& p : {t.scene, t.device, t.ostia_2d})
-      if (!inside_path(p.generic_string())) throw std::invalid_argument("write_session: ground-truth paths must be relative, inside the session");
-    for (const fs::path& p : {t.scene, t.device})
-      if (!fs::is_regular_file(directory / p)) throw std::invalid_argument("write_session: ground truth " + p.generic_string() + " is missing");
     std::string ostia = std::string(kOstiaHeader) + "\n";
-    for (const auto& o : t.ostia) {
-      if (!plain_name(o.label)) throw std::invalid_argument("write_session: bad ostium label '" + o.label + "'");
-      if (std::none_of(session.frames.begin(), session.frames.end(), [&](const FrameRecord& f) { return f.frame == o.frame; }))
-        throw std::invalid_argument("write_session: ostium for frame " + std::to_string(o.frame) + ", which is not in the session");
+    for (const auto& o : t.ostia)
       ostia += std::to_string(o.frame) + "," + o.label + "," + exact(o.pixel.x()) + "," + exact(o.pixel.y()) + "\n";
-    }
     fs::create_directories((directory / t.ostia_2d).parent_path());
     write_text(directory / t.ostia_2d, ostia);
     j["ground_truth"] = {{"scene", t.scene.generic_string()}, {"device", t.device.generic_string()}, {"ostia_2d", t.ostia_2d.generic_string()}};
@@ -353,24 +401,51 @@ const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns) {
   return after == session.carm.begin() ? &session.carm.front() : &*(after - 1);
 }
 
-void export_plus_sequence(const Session& session, const std::filesystem::path& mha,
-                          const std::function<void(std::size_t, std::size_t)>& progress) {
+ExportSummary export_plus_sequence(const Session& session, const std::filesystem::path& mha,
+                                   const std::function<void(std::size_t, std::size_t)>& progress) {
   if (session.frames.empty()) throw std::invalid_argument("export_plus_sequence: the session has no frames");
+  // Every file the export reads is inside the session directory (read_session sees to it),
+  // so an output anywhere inside could overwrite one of them.
+  if (!session.directory.empty() && resolves_inside(canonical_root(session.directory), mha))
+    throw std::invalid_argument(mha.string() + ": is inside the session directory " + session.directory.string() +
+                                ", among the files the export reads; write it outside the session");
+  for (const auto& f : session.frames)
+    if (const auto problem = frame_record_problem(f); !problem.empty())
+      throw std::invalid_argument("export_plus_sequence: frame " + std::to_string(f.frame) + ": " + problem);
   // The frames are streamed one at a time (an hour's recording does not fit in memory);
   // read_session_frame refuses any frame that is not the detector's size.
   const int W = session.detector.cols, H = session.detector.rows;
+  const auto spacing = [](double mm) { return std::isfinite(mm) && mm > 0.0 ? exact(mm) : std::string("1"); };
+  // PLUS's own header, in its order (its writer keeps the fields in a sorted map). X-ray
+  // frames are 2-D grey images like B-mode ones: type BRIGHTNESS, orientation MF (row 0 at
+  // the top, as stored), which PLUS reads without reorienting.
   std::ostringstream h;
-  h << "ObjectType = Image\nNDims = 3\nBinaryData = True\nBinaryDataByteOrderMSB = False\nCompressedData = False\n"
-    << "Kinds = domain domain list\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nDimSize = " << W << " " << H << " "
-    << session.frames.size() << "\nOffset = 0 0 0\nCenterOfRotation = 0 0 0\nAnatomicalOrientation = RAI\n"
-    << "ElementSpacing = 1 1 1\nElementType = MET_USHORT\nUltrasoundImageOrientation = MFA\n";
+  h << "ObjectType = Image\nNDims = 3\nAnatomicalOrientation = RAI\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
+    << "CenterOfRotation = 0 0 0\nCompressedData = False\nDimSize = " << W << " " << H << " " << session.frames.size()
+    << "\nElementNumberOfChannels = 1\nElementSpacing = " << spacing(session.detector.col_spacing_mm) << " "
+    << spacing(session.detector.row_spacing_mm) << " 1\nElementType = MET_USHORT\nKinds = domain domain list\n"
+    << "Offset = 0 0 0\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nUltrasoundImageOrientation = MF\n"
+    << "UltrasoundImageType = BRIGHTNESS\n";
+  ExportSummary summary;
+  summary.frames = session.frames.size();
+  // Slicer's importer keys each frame by its Timestamp printed with 3 decimals, so frames
+  // less than 1 ms apart would collapse into one: whole milliseconds, each at least 1 ms
+  // after the one before (differences cannot overflow: timestamps are below 2^62).
   const std::int64_t t0 = session.frames.front().timestamp_ns;
-  char name[32];
+  std::int64_t previous_ms = -1;
+  char name[32], stamp[48];
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const auto& f = session.frames[i];
+    std::int64_t ms = (f.timestamp_ns - t0 + 500'000) / 1'000'000;
+    if (ms <= previous_ms) {
+      ms = previous_ms + 1;
+      ++summary.timestamps_nudged;
+    }
+    previous_ms = ms;
     std::snprintf(name, sizeof name, "Seq_Frame%04zu_", i);
+    std::snprintf(stamp, sizeof stamp, "%lld.%03lld", static_cast<long long>(ms / 1000), static_cast<long long>(ms % 1000));
     h << name << "FrameNumber = " << f.frame << "\n";
-    h << name << "Timestamp = " << exact(static_cast<double>(f.timestamp_ns - t0) * 1e-9) << "\n";
+    h << name << "Timestamp = " << stamp << "\n";
     h << name << "ImageStatus = OK\n";
     h << name << "Source = " << f.source << "\n";
     if (const CArmSample* c = carm_at(session, f.timestamp_ns)) {
@@ -411,6 +486,7 @@ void export_plus_sequence(const Session& session, const std::filesystem::path& m
     std::filesystem::remove(partial, ignored);
     throw;
   }
+  return summary;
 }
 
 }  // namespace evar::sim

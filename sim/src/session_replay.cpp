@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <cstring>
+#include <limits>
 #include <stdexcept>
 
 #include "evar/acquisition/sequence_tracker.hpp"
@@ -167,8 +168,18 @@ class SessionReplay::Frames final : public acquisition::FrameSource {
 
 SessionReplay::SessionReplay(Session session, ReplayOptions options, std::shared_ptr<ReplayClock> clock)
     : session_(std::move(session)), options_(options), clock_(std::move(clock)) {
-  if (!(options_.speed >= 0.0) || options_.loops < 0)
-    throw std::invalid_argument("SessionReplay: speed must be >= 0 (0 = as fast as possible) and loops >= 0 (0 = forever)");
+  if (!(options_.speed == 0.0 || (options_.speed >= kMinReplaySpeed && options_.speed <= kMaxReplaySpeed)) ||
+      options_.loops < 0)
+    throw std::invalid_argument("SessionReplay: speed must be 0.01 to 1000 (or 0 = as fast as possible) and loops >= 0 (0 = forever)");
+  // The loop arithmetic below relies on the format's timestamp range; a session built in
+  // memory has not been through read_session.
+  const auto check_time = [](std::int64_t t, const char* what) {
+    if (t < 0 || t >= kMaxTimestampNs)
+      throw std::invalid_argument(std::string("SessionReplay: a ") + what + " timestamp of " + std::to_string(t) +
+                                  " ns is outside 0 to 2^62");
+  };
+  for (const auto& f : session_.frames) check_time(f.timestamp_ns, "frame");
+  for (const auto& c : session_.carm) check_time(c.timestamp_ns, "C-arm");
   if (!clock_) throw std::invalid_argument("SessionReplay: no clock");
   frames_ = std::make_unique<Frames>(*this);
   carm_ = std::make_unique<CArm>(*this);
@@ -274,10 +285,20 @@ void SessionReplay::run() {
     if (session_.frames.size() >= 2)
       gap = std::max<std::int64_t>(1, (session_.frames.back().timestamp_ns - session_.frames.front().timestamp_ns) /
                                           static_cast<std::int64_t>(session_.frames.size() - 1));
+    // Timestamps are below 2^62 (checked on construction), so span, gap and period fit.
     const std::int64_t period = events.back().t - t0 + gap;
+    // The largest offset for which every device time (t + offset) stays below 2^63.
+    const std::int64_t last_offset = std::numeric_limits<std::int64_t>::max() - kMaxTimestampNs;
+    // No wait is longer than this (about 31 years), so a due time never overflows the clock.
+    constexpr double kLongestWaitNs = 1e18;
     const auto start = clock_->now();
     std::uint64_t sequence = 0;
-    for (int loop = 0; options_.loops == 0 || loop < options_.loops; ++loop) {
+    for (std::int64_t loop = 0; options_.loops == 0 || loop < options_.loops; ++loop) {
+      if (loop > last_offset / period) {
+        std::lock_guard lock(mutex_);
+        error_ = "device time would pass 2^63 ns after " + std::to_string(loop) + " loops; the replay stops here";
+        break;
+      }
       {
         std::lock_guard lock(mutex_);
         progress_.loop = loop;
@@ -286,8 +307,9 @@ void SessionReplay::run() {
       for (const Event& e : events) {
         if (cancel_) break;
         if (options_.speed > 0.0) {
+          const double wait_ns = std::min(static_cast<double>(e.t + offset - t0) / options_.speed, kLongestWaitNs);
           const auto due = start + std::chrono::duration_cast<std::chrono::steady_clock::duration>(
-                                       std::chrono::duration<double, std::nano>(static_cast<double>(e.t + offset - t0) / options_.speed));
+                                       std::chrono::duration<double, std::nano>(wait_ns));
           clock_->sleep_until(due, cancel_);
           if (cancel_) break;
         }

@@ -22,7 +22,10 @@
 #include <iterator>
 #include <map>
 #include "evar/sim/example_scene.hpp"
+#include "evar/sim/session.hpp"
 #include "geometry/synthetic_fluoro.hpp"
+#include "support/killed_recording.hpp"
+#include "support/ramp_frames.hpp"
 
 namespace fs = std::filesystem;
 using evar::app::run_cli;
@@ -660,4 +663,74 @@ TEST_F(Cli, ReplayOfACorruptSessionNamesTheFileAndLine) {
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("carm.csv:"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("sod_mm: '80x0' is not a number"), std::string::npos) << r.err;
+}
+
+// `export --out SESSION/carm.csv` overwrote the session's own C-arm stream with the sequence.
+TEST_F(Cli, ExportRefusesAnOutputInsideTheSession) {
+  const auto out = scratch("export_inside");
+  ASSERT_EQ(evarnode({"sim", "session", "--seed", "2", "--out", (out / "s").string(), "--detector-px", "64",
+                      "--fluoro-seconds", "0.1", "--no-progress"}).code, 0);
+  std::ifstream in(out / "s" / "carm.csv", std::ios::binary);
+  const std::string carm((std::istreambuf_iterator<char>(in)), {});
+  const auto r = evarnode({"export", (out / "s").string(), "--out", (out / "s" / "carm.csv").string(), "--no-progress"});
+  EXPECT_EQ(r.code, 1);
+  EXPECT_NE(r.err.find("carm.csv: is inside the session directory"), std::string::npos) << r.err;
+  std::ifstream again(out / "s" / "carm.csv", std::ios::binary);
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(again)), {}), carm);
+  EXPECT_EQ(evarnode({"export", (out / "s").string(), "--out", (out / "s" / "frames" / "run.seq.mha").string(),
+                      "--no-progress"}).code, 1);
+  EXPECT_FALSE(fs::exists(out / "s" / "frames" / "run.seq.mha"));
+}
+
+// `run --speed` had no lower bound: at 1e-12 the wait for a frame overflowed the clock.
+TEST_F(Cli, RunTakesTheReplaysSpeedRange) {
+  const auto out = scratch("run_speed");
+  ASSERT_EQ(evarnode({"sim", "session", "--seed", "2", "--out", (out / "s").string(), "--detector-px", "64",
+                      "--fluoro-seconds", "0.1", "--no-progress"}).code, 0);
+  for (const std::string speed : {"1e-12", "0.001", "5000"})
+    EXPECT_EQ(evarnode({"run", "--replay", (out / "s").string(), "--speed", speed, "--out", (out / "run").string(),
+                        "--no-video", "--no-igtl", "--seconds", "1", "--no-progress"}).code, 2)
+        << speed;
+}
+
+// A recorder killed mid-recording (here by SIGKILL) leaves frames and its journal; `record
+// --recover` makes them a session `replay` takes.
+TEST_F(Cli, RecordRecoverMakesASessionOfAKilledRecording) {
+  const auto out = scratch("record_recover");
+  evar::sim::Session original;
+  original.scene = "scene.json";
+  original.detector = {32, 24, 0.3, 0.3};
+  const auto images = evar::test::add_ramp_frames(original, 6, 50'000'000LL, {3000, 11, 7, 2});
+  for (int k = 0; k < 3; ++k) {
+    evar::sim::CArmSample c;
+    c.timestamp_ns = 990'000'000LL + k * 100'000'000LL;
+    c.primary_deg = 15.0 * k;
+    c.sid_mm = 1200;
+    c.sod_mm = 800;
+    c.fluoro_on = true;
+    original.carm.push_back(c);
+  }
+  evar::sim::write_session(out / "original", original, images);
+  evar::sim::RecorderOptions o;
+  o.out = out / "recorded";
+  o.scene = scene();
+  o.pixel_spacing_mm = 0.2;
+  const int status = evar::test::record_then_kill(o, evar::sim::read_session(out / "original"));
+  ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "child status " << status;
+
+  const auto r = evarnode({"record", "--recover", o.out.string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("6 frames and 3 C-arm states recovered"), std::string::npos) << r.err;
+  const auto replayed = evarnode({"replay", o.out.string(), "--fast", "--no-progress"});
+  EXPECT_EQ(replayed.code, 0) << replayed.err;
+  EXPECT_NE(replayed.err.find("6 frames (0 dropped) and 3 C-arm states"), std::string::npos) << replayed.err;
+
+  const auto again = evarnode({"record", "--recover", o.out.string()});
+  EXPECT_EQ(again.code, 1);
+  EXPECT_NE(again.err.find("a finished session"), std::string::npos) << again.err;
+  // --recover stands alone; a recording needs its options.
+  EXPECT_EQ(evarnode({"record", "--recover", o.out.string(), "--carm", "serial:/dev/null"}).code, 2);
+  const auto missing = evarnode({"record", "--scene", scene().string(), "--out", (out / "x").string()});
+  EXPECT_EQ(missing.code, 2);
+  EXPECT_NE(missing.err.find("--carm"), std::string::npos) << missing.err;
 }

@@ -4,11 +4,16 @@
 
 #include <filesystem>
 #include <fstream>
+#include <functional>
+#include <limits>
+#include <map>
+#include <regex>
 #include <unistd.h>
 
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/input_file.hpp"
 #include "evar/sim/session.hpp"
+#include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
 
 using namespace evar;
@@ -177,23 +182,51 @@ TEST(Session, CorruptFilesAreNamedWithTheirLine) {
       << error_reading(dir.path);
 }
 
+// A file cut at any byte gives an error naming it (and, in a table, the line) or a valid,
+// shorter session: a cut at a line end (tables) or in trailing whitespace (JSON). A table
+// cut inside its last number once read as a different number (ostia_2d.csv's last u_px
+// "40.6" as 40.).
 TEST(Session, TruncatedFilesAreClearErrorsAtEveryLength) {
   TempDir dir;
   std::vector<cv::Mat> images;
-  const auto s = small_session(images);
+  auto s = small_session(images);
+  fs::create_directories(dir.path / "patient" / "truth");
+  std::ofstream(dir.path / "patient" / "truth" / "scene.json") << "{}";
+  std::ofstream(dir.path / "patient" / "device.mrk.json") << "{}";
+  s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
+                              {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 40.625}}}};
   sim::write_session(dir.path, s, images);
-  for (const char* name : {"session.json", "carm.csv", "frames/index.csv"}) {
+  for (const char* name : {"session.json", "carm.csv", "frames/index.csv", "truth/ostia_2d.csv"}) {
+    const bool table = std::string(name) != "session.json";
     std::ifstream in(dir.path / name, std::ios::binary);
     const std::string bytes((std::istreambuf_iterator<char>(in)), {});
-    for (std::size_t n = 0; n < bytes.size(); n += 7) {
+    const std::string file = fs::path(name).filename().string();
+    std::vector<std::size_t> lengths;
+    for (std::size_t n = 0; n < bytes.size(); n += 7) lengths.push_back(n);
+    lengths.push_back(bytes.size() - 2);  // inside the last number (tables) or the closing brace
+    for (const std::size_t n : lengths) {
       std::ofstream(dir.path / name, std::ios::binary | std::ios::trunc) << bytes.substr(0, n);
-      try {
-        sim::read_session(dir.path);  // a cut at a line end may still be a valid, shorter session
-      } catch (const geometry::InputError&) {
+      const std::string error = error_reading(dir.path);
+      const bool at_line_end = n > 0 && bytes[n - 1] == '\n';
+      if (error == "no error") {
+        EXPECT_TRUE(table ? at_line_end : bytes.find_first_not_of(" \n", n) == std::string::npos)
+            << name << " cut to " << n << " bytes read as a valid session";
+      } else if (table && !at_line_end) {  // the cut row itself is named
+        EXPECT_TRUE(std::regex_search(error, std::regex(file + ":[0-9]+: "))) << name << " cut to " << n << ": " << error;
+      } else if (table) {  // rows lost whole: a file that refers to them may be the one named
+        EXPECT_TRUE(std::regex_search(error, std::regex("\\.csv:[0-9]+: "))) << name << " cut to " << n << ": " << error;
+      } else {
+        EXPECT_NE(error.find(file + ": "), std::string::npos) << name << " cut to " << n << ": " << error;
       }
     }
     std::ofstream(dir.path / name, std::ios::binary | std::ios::trunc) << bytes;
   }
+  // The message for a cut inside the last row says so.
+  std::ifstream in(dir.path / "truth" / "ostia_2d.csv", std::ios::binary);
+  const std::string ostia((std::istreambuf_iterator<char>(in)), {});
+  std::ofstream(dir.path / "truth" / "ostia_2d.csv", std::ios::binary | std::ios::trunc) << ostia.substr(0, ostia.size() - 3);
+  EXPECT_NE(error_reading(dir.path).find("ostia_2d.csv:3: cut short"), std::string::npos) << error_reading(dir.path);
+  std::ofstream(dir.path / "truth" / "ostia_2d.csv", std::ios::binary | std::ios::trunc) << ostia;
   std::ofstream(dir.path / "frames" / "f0.png", std::ios::binary | std::ios::trunc) << "\x89PNG garbage";
   const auto r = sim::read_session(dir.path);
   EXPECT_THROW(sim::read_session_frame(r, 0), geometry::InputError);
@@ -214,7 +247,8 @@ TEST(Session, ExportsAPlusSequenceMetafileForSlicer) {
   const std::string header = bytes.substr(0, header_end);
   EXPECT_NE(header.find("DimSize = 60 40 3\n"), std::string::npos);
   EXPECT_NE(header.find("ElementType = MET_USHORT\n"), std::string::npos);
-  EXPECT_NE(header.find("Seq_Frame0001_Timestamp = 0.066666667\n"), std::string::npos) << header;
+  EXPECT_NE(header.find("Seq_Frame0000_Timestamp = 0.000\n"), std::string::npos) << header;
+  EXPECT_NE(header.find("Seq_Frame0001_Timestamp = 0.067\n"), std::string::npos) << header;
   EXPECT_NE(header.find("Seq_Frame0002_Source = dsa\n"), std::string::npos);
   // Frame 0 (t = 1.0 s) falls under the sample at 0.99 s; frame 2 (1.133 s) under 1.089 s.
   EXPECT_NE(header.find("Seq_Frame0000_CArmMoving = 0\n"), std::string::npos);
@@ -259,4 +293,218 @@ TEST(Session, AnOversizedTableOrFrameIsRefusedByNameBeforeItIsRead) {
               std::string::npos)
         << e.what();
   }
+}
+
+// The writers took what read_session refuses (SID beyond 5000 mm, angles out of range,
+// numbers that are not finite, C-arm time going back, file names that break a CSV row or
+// leave frames/, more pixels than the detector limit, non-finite ostia), so a session could
+// be written that no reader takes. They share the reader's rules now, and write nothing.
+TEST(Session, WritersRefuseWhatTheReaderRefuses) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  const auto good = small_session(images);
+  const auto refused = [&](const std::function<void(sim::Session&)>& spoil, const std::string& expected) {
+    fs::remove_all(dir.path);
+    for (std::size_t i = 0; i < good.frames.size(); ++i) sim::write_session_frame(dir.path, good.frames[i], images[i]);
+    auto s = good;
+    spoil(s);
+    std::string what = "no error";
+    try {
+      sim::write_session_files(dir.path, s);
+    } catch (const std::invalid_argument& e) {
+      what = e.what();
+    }
+    EXPECT_NE(what.find(expected), std::string::npos) << what;
+    EXPECT_FALSE(fs::exists(dir.path / "session.json")) << expected;
+  };
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  refused([](sim::Session& s) { s.carm[1].sid_mm = 5000.5; }, "C-arm sample 1: sid_mm, sod_mm: need 0 < SOD < SID <= 5000");
+  refused([](sim::Session& s) { s.carm[1].sod_mm = s.carm[1].sid_mm; }, "sid_mm, sod_mm");
+  refused([](sim::Session& s) { s.carm[2].primary_deg = 180.5; }, "primary_deg: 180.5 is outside -180 to 180");
+  refused([](sim::Session& s) { s.carm[2].secondary_deg = -91; }, "secondary_deg: -91 is outside -90 to 90");
+  refused([&](sim::Session& s) { s.carm[0].table_mm.y() = nan; }, "table_y_mm: nan is not finite");
+  refused([](sim::Session& s) { s.carm[3].timestamp_ns = s.carm[2].timestamp_ns - 1; }, "C-arm sample 3: timestamp_ns: goes back in time");
+  refused([](sim::Session& s) { s.frames[1].file = "f,1.png"; }, "frame 2: file: 'f,1.png' must be a relative path");
+  refused([](sim::Session& s) { s.frames[1].file = "f\n1.png"; }, "holds a comma or a control character");
+  refused([](sim::Session& s) { s.frames[1].file = "../f1.png"; }, "has a '..' component");
+  refused([](sim::Session& s) { s.frames[1].source = "fluoro,dsa"; }, "frame 2: source: 'fluoro,dsa'");
+  refused([](sim::Session& s) { s.frames[2].timestamp_ns = -5; }, "frame 3: timestamp_ns: -5 is outside 0 to 2^62 ns");
+  refused([](sim::Session& s) { s.detector.cols = s.detector.rows = 9000; }, "detector: 9000 x 9000 pixels; at most 67108864");
+  refused([](sim::Session& s) { s.scene = "/etc/scene.json"; }, "scene: '/etc/scene.json' must be a relative file name");
+  refused([](sim::Session& s) { s.device_thickness_mm = 16; }, "device_thickness_mm: must be 0 to 15");
+  refused([](sim::Session& s) { s.ct_to_carm(0, 0) = -1; }, "registration: ");
+  refused([&](sim::Session& s) { s.truth = sim::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}}; },
+          "ground truth 't.json' is missing");
+  refused(
+      [&](sim::Session& s) {
+        std::ofstream(dir.path / "t.json") << "{}";
+        std::ofstream(dir.path / "d.json") << "{}";
+        s.truth = sim::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}};
+      },
+      "ostium of frame 1: u_px: nan is not finite");
+  // And what the writers take, the reader takes.
+  fs::remove_all(dir.path);
+  sim::write_session(dir.path, good, images);
+  EXPECT_EQ(sim::read_session(dir.path).carm.size(), good.carm.size());
+}
+
+// Timestamps are held to 0 <= t < 2^62 ns, so their differences (replay loops, the export)
+// cannot overflow 64 bits; any int64 was read before.
+TEST(Session, TimestampsOutsideTheFormatsRangeAreRefusedByFileAndLine) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  const auto fresh = [&] {
+    fs::remove_all(dir.path);
+    sim::write_session(dir.path, s, images);
+  };
+  fresh();
+  replace_in(dir.path / "frames" / "index.csv", "1,1000000000,", "1,-1,");
+  EXPECT_NE(error_reading(dir.path).find("index.csv:2: timestamp_ns: -1 is outside 0 to 2^62 ns"), std::string::npos)
+      << error_reading(dir.path);
+  fresh();
+  replace_in(dir.path / "carm.csv", "1089999999,", "9223372036854775807,");
+  EXPECT_NE(error_reading(dir.path).find("carm.csv:5: timestamp_ns: 9223372036854775807 is outside"), std::string::npos)
+      << error_reading(dir.path);
+  fresh();
+  replace_in(dir.path / "carm.csv", "1089999999,", "4611686018427387904,");  // 2^62
+  EXPECT_NE(error_reading(dir.path).find("carm.csv:5: timestamp_ns"), std::string::npos) << error_reading(dir.path);
+}
+
+// A bad field is quoted up to 40 characters (a 200 MB field made a 200 MB log line), and a
+// line longer than any real row is refused before it is split.
+TEST(Session, ALongFieldIsQuotedShortAndAHugeLineIsRefused) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  sim::write_session(dir.path, s, images);
+  replace_in(dir.path / "carm.csv", ",785.5,", "," + std::string(3000, 'x') + ",");
+  std::string error = error_reading(dir.path);
+  EXPECT_NE(error.find("carm.csv:2: sod_mm: '" + std::string(40, 'x') + "...' is not a number"), std::string::npos) << error;
+  EXPECT_LT(error.size(), 300u);
+  sim::write_session(dir.path, s, images);
+  replace_in(dir.path / "frames" / "index.csv", ",f1.png", "," + std::string(1'000'000, 'a') + ".png");
+  error = error_reading(dir.path);
+  EXPECT_NE(error.find("index.csv:3: a line of 1000024 bytes; rows are at most 4096"), std::string::npos) << error;
+  EXPECT_LT(error.size(), 300u);
+}
+
+TEST(Session, AFrameThatIsNotAPngIsRefusedWhateverItsName) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  sim::write_session(dir.path, s, images);
+  cv::imwrite((dir.path / "f1.tiff").string(), images[1]);  // 16-bit TIFF: OpenCV would decode it
+  fs::rename(dir.path / "f1.tiff", dir.path / "frames" / "f1.png");
+  const auto r = sim::read_session(dir.path);
+  const std::string error = evar::test::error_message([&] { sim::read_session_frame(r, 1); });
+  EXPECT_NE(error.find("f1.png: is a TIFF file; only PNG is accepted here"), std::string::npos) << error;
+  EXPECT_EQ(cv::norm(sim::read_session_frame(r, 0), images[0], cv::NORM_INF), 0.0);
+}
+
+// A symbolic link inside the session passed the "inside the session" check wherever it
+// led (a frame linked to /etc/passwd); and a name with two dots, a..b.png, was refused.
+TEST(Session, SymbolicLinksOutOfTheSessionAreRefusedAndDotsInANameAreNot) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  const fs::path session = dir.path / "s";
+  sim::write_session(session, s, images);
+  cv::imwrite((dir.path / "outside.png").string(), images[1]);
+  fs::remove(session / "frames" / "f1.png");
+  fs::create_symlink(dir.path / "outside.png", session / "frames" / "f1.png");
+  EXPECT_NE(error_reading(session).find("index.csv:3: file: 'f1.png' leads out of the session directory"), std::string::npos)
+      << error_reading(session);
+  // One replaced by a link after the session was read is refused when it is read.
+  fs::remove(session / "frames" / "f1.png");
+  cv::imwrite((session / "frames" / "f1.png").string(), images[1]);
+  const auto r = sim::read_session(session);
+  fs::remove(session / "frames" / "f1.png");
+  fs::create_symlink(dir.path / "outside.png", session / "frames" / "f1.png");
+  EXPECT_NE(evar::test::error_message([&] { sim::read_session_frame(r, 1); }).find("leads out of the session directory"),
+            std::string::npos);
+  // A link that stays inside is fine, and so is a file of session.json's.
+  fs::remove(session / "frames" / "f1.png");
+  cv::imwrite((session / "f1-elsewhere.png").string(), images[1]);
+  fs::create_symlink("../f1-elsewhere.png", session / "frames" / "f1.png");
+  EXPECT_EQ(cv::norm(sim::read_session_frame(sim::read_session(session), 1), images[1], cv::NORM_INF), 0.0);
+  fs::rename(session / "registration.json", dir.path / "registration.json");
+  fs::create_symlink(dir.path / "registration.json", session / "registration.json");
+  EXPECT_NE(error_reading(session).find("session.json: registration: 'registration.json' leads out of the session"),
+            std::string::npos)
+      << error_reading(session);
+
+  auto dotted = s;
+  dotted.frames[1].file = "a..b.png";
+  sim::write_session(dir.path / "dotted", dotted, images);
+  EXPECT_EQ(sim::read_session(dir.path / "dotted").frames[1].file, "a..b.png");
+}
+
+// PLUS reads a sequence with no UltrasoundImageType as B-mode and needs its orientation MF
+// (it has no MFA to MF conversion and refused MFA files); its header fields come in its own
+// order, with one channel and the detector's pixel spacing.
+TEST(Session, TheExportHeaderIsTheOnePlusWrites) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  sim::write_session(dir.path / "s", s, images);
+  const auto r = sim::read_session(dir.path / "s");
+  sim::export_plus_sequence(r, dir.path / "run.seq.mha");
+  std::ifstream in(dir.path / "run.seq.mha", std::ios::binary);
+  std::vector<std::string> keys;
+  std::map<std::string, std::string> value;
+  for (std::string line; std::getline(in, line) && line.rfind("Seq_Frame", 0) != 0;) {
+    const auto eq = line.find(" = ");
+    ASSERT_NE(eq, std::string::npos) << line;
+    keys.push_back(line.substr(0, eq));
+    value[keys.back()] = line.substr(eq + 3);
+  }
+  const std::vector<std::string> expected{"ObjectType",       "NDims",          "AnatomicalOrientation", "BinaryData",
+                                          "BinaryDataByteOrderMSB", "CenterOfRotation", "CompressedData", "DimSize",
+                                          "ElementNumberOfChannels", "ElementSpacing", "ElementType",    "Kinds",
+                                          "Offset",           "TransformMatrix", "UltrasoundImageOrientation",
+                                          "UltrasoundImageType"};
+  EXPECT_EQ(keys, expected);
+  EXPECT_EQ(value["UltrasoundImageOrientation"], "MF");
+  EXPECT_EQ(value["UltrasoundImageType"], "BRIGHTNESS");
+  EXPECT_EQ(value["ElementNumberOfChannels"], "1");
+  EXPECT_EQ(value["ElementSpacing"], "0.30000000000001 0.3 1");  // columns (x), rows (y), time
+  EXPECT_EQ(value["ElementType"], "MET_USHORT");
+}
+
+// Slicer's importer keys frames by their Timestamp printed with 3 decimals: frames at the
+// same time, or under 1 ms apart, collapsed into one. Each is at least 1 ms after the last.
+TEST(Session, ExportedTimestampsRiseByAtLeastAMillisecond) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  auto s = small_session(images);
+  s.frames[1].timestamp_ns = s.frames[0].timestamp_ns;            // the same time
+  s.frames[2].timestamp_ns = s.frames[0].timestamp_ns + 400'000;  // 0.4 ms later
+  sim::write_session(dir.path / "s", s, images);
+  const auto summary = sim::export_plus_sequence(sim::read_session(dir.path / "s"), dir.path / "run.seq.mha");
+  EXPECT_EQ(summary.frames, 3u);
+  EXPECT_EQ(summary.timestamps_nudged, 2u);
+  std::ifstream in(dir.path / "run.seq.mha", std::ios::binary);
+  const std::string bytes((std::istreambuf_iterator<char>(in)), {});
+  EXPECT_NE(bytes.find("Seq_Frame0000_Timestamp = 0.000\n"), std::string::npos);
+  EXPECT_NE(bytes.find("Seq_Frame0001_Timestamp = 0.001\n"), std::string::npos);
+  EXPECT_NE(bytes.find("Seq_Frame0002_Timestamp = 0.002\n"), std::string::npos);
+}
+
+TEST(Session, TheExportRefusesAnOutputInsideTheSession) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  sim::write_session(dir.path / "s", s, images);
+  const auto r = sim::read_session(dir.path / "s");
+  std::ifstream in(dir.path / "s" / "carm.csv", std::ios::binary);
+  const std::string carm((std::istreambuf_iterator<char>(in)), {});
+  for (const fs::path& out : {dir.path / "s" / "carm.csv", dir.path / "s" / "frames" / "run.seq.mha", dir.path / "s" / "." / "x.seq.mha"}) {
+    const std::string error = evar::test::error_message<std::invalid_argument>([&] { sim::export_plus_sequence(r, out); });
+    EXPECT_NE(error.find("is inside the session directory"), std::string::npos) << out << ": " << error;
+  }
+  std::ifstream again(dir.path / "s" / "carm.csv", std::ios::binary);
+  EXPECT_EQ(std::string((std::istreambuf_iterator<char>(again)), {}), carm);
+  EXPECT_FALSE(fs::exists(dir.path / "s" / "frames" / "run.seq.mha"));
+  EXPECT_NO_THROW(sim::export_plus_sequence(r, dir.path / "run.seq.mha"));
 }

@@ -8,13 +8,17 @@
 
 #include <filesystem>
 #include <fstream>
+#include <limits>
 #include <random>
 #include <nlohmann/json.hpp>
 
+#include "evar/geometry/input_error.hpp"
 #include "evar/geometry/scene.hpp"
 #include "evar/sim/example_scene.hpp"
 #include "evar/sim/session_recorder.hpp"
 #include "evar/sim/session_replay.hpp"
+#include "support/error_message.hpp"
+#include "support/killed_recording.hpp"
 #include "support/ramp_frames.hpp"
 
 namespace evar::sim {
@@ -175,6 +179,8 @@ TEST_F(Recording, FramesAtTheStartOfAStreamAreTimedAsExactlyAsTheRest) {
       c.device_time_ns = 5'000'000'000 + (captured - host0);
       c.host_arrival = std::chrono::steady_clock::time_point(std::chrono::nanoseconds(captured));
       c.primary_deg = k;
+      c.sid_mm = 1200;
+      c.sod_mm = 800;
       carm.deliver(c);
     }
   }
@@ -186,6 +192,147 @@ TEST_F(Recording, FramesAtTheStartOfAStreamAreTimedAsExactlyAsTheRest) {
     EXPECT_GE(off_ms, 0.0) << "frame " << k;
     EXPECT_LT(off_ms, 3.0) << "frame " << k;
   }
+  // What was written is what finish() returned, and reads back.
+  const Session back = read_session(root_ / "recorded");
+  ASSERT_EQ(back.frames.size(), truth.size());
+  for (std::size_t k = 0; k < truth.size(); ++k) EXPECT_EQ(back.frames[k].timestamp_ns, s.frames[k].timestamp_ns) << k;
+  ASSERT_EQ(back.carm.size(), 8u);
+  for (std::size_t k = 0; k < back.carm.size(); ++k) {
+    EXPECT_EQ(back.carm[k].primary_deg, 10.0 * static_cast<double>(k));
+    EXPECT_EQ(back.carm[k].timestamp_ns, s.carm[k].timestamp_ns);
+  }
+}
+
+acquisition::Frame grey_frame(std::uint64_t k) {
+  acquisition::Frame f;
+  f.format = acquisition::PixelFormat::Mono8;
+  f.width = f.height = f.stride_bytes = 4;
+  f.pixels.assign(16, static_cast<std::uint8_t>(k));
+  f.sequence = k;
+  f.host_arrival = std::chrono::steady_clock::now();
+  f.device_time_on_host = f.host_arrival;
+  return f;
+}
+
+acquisition::CArmState carm_state(double primary_deg, double sid_mm, double sod_mm) {
+  acquisition::CArmState c;
+  c.host_arrival = std::chrono::steady_clock::now();
+  c.device_time_ns = c.host_arrival.time_since_epoch().count();
+  c.primary_deg = primary_deg;
+  c.sid_mm = sid_mm;
+  c.sod_mm = sod_mm;
+  return c;
+}
+
+// A C-arm sending a state the format refuses (SID beyond 5000 mm, an angle out of range or
+// not a number, SOD beyond SID) once cost the whole recording: the session was written and
+// then refused by every reader. Such states are counted and left out.
+TEST_F(Recording, CArmStatesTheFormatRefusesAreLeftOutAndCounted) {
+  ScriptedFrames frames;
+  ScriptedCArm carm;
+  SessionRecorder recorder(options(), frames, carm);
+  recorder.start();
+  carm.deliver(carm_state(10, 1200, 800));
+  carm.deliver(carm_state(10, 6000, 800));
+  carm.deliver(carm_state(200, 1200, 800));
+  carm.deliver(carm_state(std::numeric_limits<double>::quiet_NaN(), 1200, 800));
+  carm.deliver(carm_state(12, 700, 800));
+  carm.deliver(carm_state(14, 1200, 800));
+  for (std::uint64_t k = 0; k < 3; ++k) frames.deliver(grey_frame(k));
+  const Session s = recorder.finish();
+  EXPECT_EQ(s.carm.size(), 2u);
+  EXPECT_EQ(recorder.statistics().carm_samples, 2u);
+  EXPECT_EQ(recorder.statistics().carm_refused, 4u);
+  const Session back = read_session(root_ / "recorded");
+  ASSERT_EQ(back.carm.size(), 2u);
+  EXPECT_EQ(back.carm[1].primary_deg, 14.0);
+  const auto report = nlohmann::json::parse(std::ifstream(root_ / "recorded" / "record_report.json"));
+  EXPECT_EQ(report["carm"]["refused_invalid"], 4);
+  EXPECT_EQ(report["carm"]["samples"], 2);
+}
+
+// A frame the disk refused was only the last error: received, written, not recorded and
+// refused did not add up. And when the session files could not be written, no report was.
+TEST_F(Recording, FramesTheDiskRefusesAreCountedAndTheReportIsWrittenWhenTheSessionIsNot) {
+  ScriptedFrames frames;
+  ScriptedCArm carm;
+  SessionRecorder recorder(options(), frames, carm);
+  recorder.start();
+  const fs::path out = root_ / "recorded";
+  fs::create_directories(out / "frames" / "f0000002.png");  // the second frame's PNG cannot be written
+  carm.deliver(carm_state(10, 1200, 800));
+  for (std::uint64_t k = 0; k < 4; ++k) frames.deliver(grey_frame(k));
+  fs::create_directories(out / "carm.csv");  // nor can the C-arm stream
+  try {
+    recorder.finish();
+    ADD_FAILURE() << "finish() wrote a session over a directory where carm.csv goes";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("record --recover"), std::string::npos) << e.what();
+  }
+  const RecorderStatistics st = recorder.statistics();
+  EXPECT_EQ(st.frames_write_failed, 1u);
+  EXPECT_EQ(st.frames_written, 3u);
+  EXPECT_EQ(st.frames_received, st.frames_written + st.frames_not_recorded + st.frames_refused + st.frames_write_failed);
+  ASSERT_TRUE(fs::exists(out / "record_report.json"));
+  const auto report = nlohmann::json::parse(std::ifstream(out / "record_report.json"));
+  EXPECT_EQ(report["frames"]["write_failed"], 1);
+  EXPECT_EQ(report["session_written"], false);
+  EXPECT_NE(report["last_error"].get<std::string>().find("carm.csv"), std::string::npos) << report.dump(2);
+
+  // The journal stayed: with room for carm.csv, the recording is recovered in full.
+  fs::remove(out / "carm.csv");
+  const RecoveredRecording r = recover_recording(out);
+  EXPECT_EQ(r.frames_journaled, 3u);
+  EXPECT_EQ(r.frames_lost, 0u);
+  const Session back = read_session(out);
+  EXPECT_EQ(back.frames.size(), 3u);
+  EXPECT_EQ(back.carm.size(), 1u);
+}
+
+// The whole recording lived in memory until finish(): a recorder killed by SIGKILL (the OOM
+// killer, a crash) left PNGs and nothing a reader could take. Its journal now becomes a
+// session with every frame whose PNG is whole and every C-arm state, timed as finish() would.
+TEST_F(Recording, ARecordingKilledMidwayIsRecoveredFromItsJournal) {
+  const fs::path out = root_ / "recorded";
+  const int status = evar::test::record_then_kill(options(), original_);
+  ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "child status " << status;
+  EXPECT_THROW(read_session(out), geometry::InputError);  // no session.json: nothing a reader takes
+  const auto report = nlohmann::json::parse(std::ifstream(out / "record_report.json"));
+  EXPECT_EQ(report["in_progress"], true);
+
+  // The kill may also cut the PNG being written and the journal row after it.
+  const fs::path last_png = out / "frames" / "f0000012.png";
+  fs::resize_file(last_png, fs::file_size(last_png) - 5);
+  std::ofstream(out / "journal" / "frames.csv", std::ios::app) << "13,2000000000,fluoro,f00000";
+
+  const RecoveredRecording r = recover_recording(out);
+  EXPECT_EQ(r.frames_journaled, 12u);
+  EXPECT_EQ(r.frames_lost, 1u);
+  EXPECT_TRUE(r.cut_row_skipped);
+  EXPECT_EQ(r.carm_samples, 5u);
+  EXPECT_FALSE(fs::exists(out / "journal"));
+
+  const Session back = read_session(out);
+  ASSERT_EQ(back.frames.size(), 11u);
+  ASSERT_EQ(back.carm.size(), 5u);
+  EXPECT_DOUBLE_EQ(back.detector.col_spacing_mm, 0.154);
+  EXPECT_DOUBLE_EQ(back.ct_to_carm(0, 3), 12.5);
+  for (std::size_t k = 0; k < back.frames.size(); ++k) {
+    EXPECT_EQ(cv::norm(read_session_frame(back, k), images_[k], cv::NORM_INF), 0.0) << "frame " << k;
+    const CArmSample* was = carm_at(original_, original_.frames[k].timestamp_ns);
+    const CArmSample* now = carm_at(back, back.frames[k].timestamp_ns);
+    ASSERT_TRUE(was && now);
+    EXPECT_DOUBLE_EQ(now->primary_deg, was->primary_deg) << "frame " << k;
+  }
+  const auto recovered = nlohmann::json::parse(std::ifstream(out / "record_report.json"));
+  EXPECT_EQ(recovered["session_written"], true);
+  EXPECT_EQ(recovered["recovered"]["frames"], 11);
+  EXPECT_EQ(recovered["recovered"]["frames_lost"], 1);
+
+  // A finished session, or a directory that never held a recording, has nothing to recover.
+  EXPECT_NE(evar::test::error_message([&] { recover_recording(out); }).find("a finished session"), std::string::npos);
+  EXPECT_NE(evar::test::error_message([&] { recover_recording(root_ / "plan"); }).find("no recording journal"),
+            std::string::npos);
 }
 
 TEST_F(Recording, GreyLevelsOfEightAndTwelveBitFramesKeepTheirMeaning) {

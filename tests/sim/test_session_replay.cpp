@@ -3,8 +3,11 @@
 
 #include <string>
 
+#include <chrono>
 #include <filesystem>
+#include <limits>
 #include <mutex>
+#include <thread>
 
 #include "evar/sim/session_replay.hpp"
 
@@ -65,6 +68,18 @@ struct Received {
   std::vector<double> primary_in_force;  // the C-arm angle last received when each frame came
   std::vector<acquisition::StreamState> states;
 };
+
+// Whether `done()` came true within 20 s: a replay that stalls fails the test instead of
+// hanging it.
+template <class Done>
+bool eventually(Done done) {
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::seconds(20);
+  while (!done()) {
+    if (std::chrono::steady_clock::now() > deadline) return false;
+    std::this_thread::yield();
+  }
+  return true;
+}
 
 void attach(SessionReplay& replay, Received& r) {
   replay.carm().start(
@@ -175,10 +190,10 @@ TEST_F(Replay, PreloadedFramesAreTheSameAndAnUnreadableOneStopsItBeforeTheFirstF
 }
 
 TEST_F(Replay, NoCallbackAfterStopReturns) {
+  Received r;  // outlives the replay, whose thread calls into it
   SessionReplay replay(session_, {0.0, 0}, std::make_shared<FakeClock>());  // forever
-  Received r;
   attach(replay, r);
-  while (replay.progress().frames < 20) std::this_thread::yield();
+  ASSERT_TRUE(eventually([&] { return replay.progress().frames >= 20; })) << replay.progress().frames << " frames";
   replay.frames().stop();
   replay.carm().stop();
   std::size_t n;
@@ -194,13 +209,12 @@ TEST_F(Replay, NoCallbackAfterStopReturns) {
 }
 
 TEST_F(Replay, StartingAgainRestartsTheReplayAndIsLiveAgain) {
+  Received r, again;  // outlive the replay, whose thread calls into them
   SessionReplay replay(session_, {0.0, 0}, std::make_shared<FakeClock>());  // forever
-  Received r;
   attach(replay, r);
-  while (replay.progress().frames < 12) std::this_thread::yield();
-  Received again;
+  ASSERT_TRUE(eventually([&] { return replay.progress().frames >= 12; })) << replay.progress().frames << " frames";
   attach(replay, again);  // stops the running replay first
-  while (replay.progress().frames < 3) std::this_thread::yield();
+  ASSERT_TRUE(eventually([&] { return replay.progress().frames >= 3; })) << replay.progress().frames << " frames";
   EXPECT_EQ(replay.frames().state(), acquisition::StreamState::Streaming);
   EXPECT_EQ(replay.carm().state(), acquisition::StreamState::Streaming);
   replay.frames().stop();
@@ -222,6 +236,47 @@ TEST_F(Replay, ACallbackThatStopsItsSourceEndsTheReplayWithAnError) {
 TEST(ReplayOptions, NegativeSpeedOrLoopsAreRefused) {
   EXPECT_THROW(SessionReplay(Session{}, {-1.0, 1}), std::invalid_argument);
   EXPECT_THROW(SessionReplay(Session{}, {1.0, -1}), std::invalid_argument);
+}
+
+// At 1e-12 the wait for a frame 1 s in (1e21 ns) overflowed the clock's 64-bit duration
+// (undefined behaviour); speeds are held to what `replay --speed` takes.
+TEST(ReplayOptions, SpeedsOutsideTheReplayRangeAreRefused) {
+  for (const double speed : {1e-12, 0.009, 1000.5, std::numeric_limits<double>::infinity(),
+                             std::numeric_limits<double>::quiet_NaN()})
+    EXPECT_THROW(SessionReplay(Session{}, {speed, 1}), std::invalid_argument) << speed;
+  EXPECT_NO_THROW(SessionReplay(Session{}, {kMinReplaySpeed, 1}));
+  EXPECT_NO_THROW(SessionReplay(Session{}, {kMaxReplaySpeed, 1}));
+  EXPECT_NO_THROW(SessionReplay(Session{}, {0.0, 1}));
+}
+
+TEST_F(Replay, ASessionWithTimestampsOutsideTheFormatsRangeIsRefused) {
+  Session s = session_;
+  s.frames[4].timestamp_ns = kMaxTimestampNs;
+  EXPECT_THROW(SessionReplay(s, {0.0, 1}), std::invalid_argument);
+  s = session_;
+  s.carm[0].timestamp_ns = -1;
+  EXPECT_THROW(SessionReplay(s, {0.0, 1}), std::invalid_argument);
+}
+
+// Looping forever adds a loop's length to every device time each time round. With
+// timestamps at the ends of the format's range, the second loop would pass 2^63 ns (signed
+// overflow, undefined; in practice device times wrapped negative and the replay went on):
+// it ends with an error instead, after the frames whose times fit.
+TEST_F(Replay, LoopingForeverEndsBeforeDeviceTimesOverflow) {
+  Session s = session_;
+  s.frames.resize(2);
+  s.frames[0].timestamp_ns = 0;
+  s.frames[1].timestamp_ns = kMaxTimestampNs - 1;
+  s.carm.clear();
+  Received r;
+  SessionReplay replay(s, {0.0, 0}, std::make_shared<FakeClock>());  // forever, as fast as it goes
+  attach(replay, r);
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(20))) << "still looping after " << replay.progress().frames << " frames";
+  EXPECT_NE(replay.error().find("device time would pass 2^63 ns after 1 loops"), std::string::npos) << replay.error();
+  std::lock_guard lock(r.m);
+  ASSERT_EQ(r.frames.size(), 2u);
+  EXPECT_EQ(r.frames[1].device_time_ns, kMaxTimestampNs - 1);
+  EXPECT_EQ(replay.frames().state(), acquisition::StreamState::Disconnected);
 }
 
 }  // namespace

@@ -9,7 +9,8 @@
 //                      table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving
 //                      (the C-arm geometry stream);
 //   optionally a ground truth (distorted vessels, true device, true 2D ostia per frame).
-// Readers check everything and name the file and line of any problem.
+// Readers check everything and name the file and line of any problem; writers refuse what
+// readers would (the same checks), so a written session always reads back.
 #include <Eigen/Core>
 #include <cstdint>
 #include <filesystem>
@@ -24,15 +25,19 @@
 
 namespace evar::sim {
 
+/// Timestamps are 0 <= t < 2^62 ns (146 years), so differences and a replay's loop offsets
+/// cannot overflow 64 bits.
+inline constexpr std::int64_t kMaxTimestampNs = std::int64_t{1} << 62;
+
 struct FrameRecord {
   std::int64_t frame = 0;         ///< strictly increasing
-  std::int64_t timestamp_ns = 0;  ///< acquisition time, non-decreasing
-  std::string source;             ///< e.g. "fluoro", "dsa"; letters, digits, '_' and '-'
-  std::filesystem::path file;     ///< relative to frames/
+  std::int64_t timestamp_ns = 0;  ///< acquisition time, non-decreasing, 0 <= t < kMaxTimestampNs
+  std::string source;             ///< e.g. "fluoro", "dsa"; letters, digits, '_', '-' and '.'
+  std::filesystem::path file;     ///< relative to frames/; no ".." component, no ',' or control character
 };
 
 struct CArmSample {
-  std::int64_t timestamp_ns = 0;  ///< non-decreasing
+  std::int64_t timestamp_ns = 0;  ///< non-decreasing, 0 <= t < kMaxTimestampNs
   double primary_deg = 0.0, secondary_deg = 0.0;  ///< DICOM conventions (+ LAO, + CRA)
   double sid_mm = 0.0, sod_mm = 0.0;
   Eigen::Vector3d table_mm = Eigen::Vector3d::Zero();
@@ -42,8 +47,8 @@ struct CArmSample {
 
 /// The flat-panel detector every frame comes from (frames must have its size).
 struct DetectorSpec {
-  int cols = 0, rows = 0;                              ///< pixels
-  double row_spacing_mm = 0.0, col_spacing_mm = 0.0;   ///< at the detector
+  int cols = 0, rows = 0;  ///< pixels: 1 to 16384 each, at most 8192 x 8192 in all (geometry/image_header.hpp)
+  double row_spacing_mm = 0.0, col_spacing_mm = 0.0;  ///< at the detector
 };
 
 /// Where a true ostium projects in one frame (ground truth of simulated sessions).
@@ -73,17 +78,29 @@ struct Session {
   std::optional<SessionTruth> truth;
 };
 
+/// What breaks the format's rules for one frames/index.csv row ("" when nothing does): the
+/// timestamp range, the source's characters, a file name inside frames/ that a CSV row holds.
+std::string frame_record_problem(const FrameRecord& record);
+
+/// What breaks the format's rules for one C-arm sample ("" when nothing does): finite
+/// numbers, |primary| <= 180, |secondary| <= 90, 0 < SOD < SID <= 5000 mm, the timestamp
+/// range. The reader, the writers and the recorder (which drops such samples) share it.
+std::string carm_sample_problem(const CArmSample& sample);
+
 /// Reads and checks a session directory (not the frame images: see read_session_frame).
-/// Throws geometry::InputError "<file>:<line>: <field>: <problem>".
+/// Throws geometry::InputError "<file>:<line>: <field>: <problem>" (session.json, which has
+/// no rows: "<file>: <field>: <problem>"). Files must stay inside the directory, symbolic
+/// links followed.
 Session read_session(const std::filesystem::path& directory);
 
-/// A frame's image (CV_16UC1), checked to be a 16-bit single-channel PNG of the detector's size.
+/// A frame's image (CV_16UC1), checked to be a 16-bit single-channel PNG (by its signature,
+/// whatever its name) of the detector's size, inside the session directory.
 cv::Mat read_session_frame(const Session& session, std::size_t index);
 
 /// Writes session.json, registration.json, frames/index.csv, carm.csv (and the ostia CSV of
 /// the ground truth, when present) into `directory` (created), and `images[i]` as
 /// frames/<file of frames[i]> (CV_16UC1). Numbers are written so they read back
-/// bit-exactly. std::invalid_argument for inconsistent input.
+/// bit-exactly. std::invalid_argument for anything read_session would refuse.
 void write_session(const std::filesystem::path& directory, const Session& session, const std::vector<cv::Mat>& images);
 
 /// The same in two steps, for sessions too long to hold in memory: each frame's image as it
@@ -107,14 +124,23 @@ Eigen::Matrix4d patient_to_carm(const Session& session, const CArmSample& sample
 /// earlier than all). nullptr when the session has none.
 const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns);
 
+struct ExportSummary {
+  std::size_t frames = 0;
+  /// Frames less than 1 ms after the one before, whose Timestamp was moved to 1 ms after it.
+  std::size_t timestamps_nudged = 0;
+};
+
 /// Writes the session's frames as a PLUS toolkit sequence metafile (an uncompressed .mha
-/// whose third axis is time) that 3D Slicer's Sequences module loads: per frame its
-/// Timestamp (seconds from the first frame), FrameNumber, ImageStatus, and the C-arm
-/// geometry in force then (PrimaryAngleDeg, SecondaryAngleDeg, SidMm, SodMm, CArmMoving) as
-/// custom frame fields. A frame not of the detector's size is an InputError naming it. The
-/// frames are streamed, one in memory at a time, and the file appears
-/// only when complete. Name it *.seq.mha for Slicer. `progress(done, total)` after each frame.
-void export_plus_sequence(const Session& session, const std::filesystem::path& mha,
-                          const std::function<void(std::size_t, std::size_t)>& progress = {});
+/// whose third axis is time, 2-D B-mode-like frames in MF orientation, the detector's pixel
+/// spacing) that PLUS and 3D Slicer with the SlicerIGSIO extension load: per frame its
+/// Timestamp (seconds from the first frame, in whole milliseconds, strictly increasing: the
+/// importer keys frames by it), FrameNumber, ImageStatus, and the C-arm geometry in force
+/// then (PrimaryAngleDeg, SecondaryAngleDeg, SidMm, SodMm, CArmMoving) as custom frame
+/// fields. A frame not of the detector's size is an InputError naming it;
+/// std::invalid_argument for an `mha` inside the session directory (it would be written
+/// among the files being read). The frames are streamed, one in memory at a time, and the
+/// file appears only when complete. Name it *.seq.mha. `progress(done, total)` after each frame.
+ExportSummary export_plus_sequence(const Session& session, const std::filesystem::path& mha,
+                                   const std::function<void(std::size_t, std::size_t)>& progress = {});
 
 }  // namespace evar::sim

@@ -5,6 +5,13 @@
 // by 16, so grey levels keep their meaning), the C-arm states on the frames' clock (the
 // C-arm's own clock mapped onto the host's through a minimum-delay offset estimate), the
 // patient scene copied in, and a JSON report of what arrived and what was lost.
+//
+// While it records, a journal (out/journal/) holds what finish() needs to write the session
+// files: a row per frame once its PNG is written, the raw C-arm states (flushed about every
+// second) and the settings; the report is rewritten every second too. A recording that never
+// reaches finish() (SIGKILL, out of memory, a crash) becomes a session with
+// recover_recording() (`evarnode record --recover OUT`). Rows are handed to the kernel, not
+// synced: a power cut can lose the last seconds the kernel had not yet written.
 #include <Eigen/Core>
 #include <chrono>
 #include <cstdint>
@@ -30,14 +37,17 @@ struct RecorderOptions {
   std::size_t max_queued_frames = 64;         ///< waiting for the disk; beyond, frames are not recorded
 };
 
+/// received = written + not_recorded + refused + write_failed (+ still queued, while recording).
 struct RecorderStatistics {
   std::uint64_t frames_received = 0, frames_written = 0;
   std::uint64_t frames_not_recorded = 0;  ///< the disk fell behind (queue full)
   std::uint64_t frames_refused = 0;       ///< a size other than the first frame's
-  std::uint64_t carm_samples = 0;
+  std::uint64_t frames_write_failed = 0;  ///< their PNG could not be written (disk full, ...)
+  std::uint64_t carm_samples = 0;         ///< recorded
+  std::uint64_t carm_refused = 0;         ///< not recorded: values the format refuses (carm_sample_problem)
   acquisition::StreamState video = acquisition::StreamState::Stopped, carm = acquisition::StreamState::Stopped;
   std::string video_reason, carm_reason;  ///< the sources' last words
-  std::string last_error;                 ///< the last frame that could not be written, named
+  std::string last_error;                 ///< the last frame or sample that could not be recorded, named
   double seconds = 0.0;                   ///< since start()
 };
 
@@ -54,15 +64,34 @@ class SessionRecorder {
   void start();
   RecorderStatistics statistics() const;
   /// Stops the sources, writes what is queued and the session files and report
-  /// (out/record_report.json). Throws std::runtime_error when no frame arrived (the
-  /// directory then holds the report and the copied scene) or no C-arm sample did (the
-  /// session is written with its frames and no geometry, so nothing recorded is lost).
+  /// (out/record_report.json), and removes the journal. Throws std::runtime_error when no
+  /// frame arrived (the directory then holds the report and the copied scene) or no C-arm
+  /// sample did (the session is written with its frames and no geometry, so nothing
+  /// recorded is lost). When the session files cannot be written (disk full), the report
+  /// says so, the journal stays for recover_recording(), and the error is rethrown.
   Session finish();
 
  private:
   struct Impl;
   std::unique_ptr<Impl> impl_;
 };
+
+/// What recover_recording() made of a journal.
+struct RecoveredRecording {
+  Session session;
+  std::uint64_t frames_journaled = 0;  ///< rows in the frame journal
+  std::uint64_t frames_lost = 0;       ///< of those, PNG missing, cut short or of another size (left out)
+  std::uint64_t carm_samples = 0;      ///< in the session
+  bool cut_row_skipped = false;        ///< a journal row the end of the recorder cut in half
+};
+
+/// Turns an unfinished recording (the --out of a recorder that never reached finish()) into
+/// a session from its journal: every frame whose PNG is whole, every C-arm state, timed as
+/// finish() would; the report gains a "recovered" part; the journal is removed.
+/// geometry::InputError naming the file and line for a directory that holds no journal or
+/// a damaged one; std::runtime_error, as finish(), when it holds no frame or no C-arm
+/// sample (the latter after writing the session).
+RecoveredRecording recover_recording(const std::filesystem::path& directory);
 
 /// C-arm states on the host's steady clock: per sample, C-arm time plus the smallest
 /// arrival delay among the samples within ±30 s of C-arm time around it; a clock that goes

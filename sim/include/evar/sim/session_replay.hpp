@@ -39,8 +39,11 @@ class ReplayClock {
 /// The steady clock.
 std::shared_ptr<ReplayClock> steady_replay_clock();
 
+/// The paced speeds a replay takes (besides 0, as fast as possible).
+inline constexpr double kMinReplaySpeed = 0.01, kMaxReplaySpeed = 1000.0;
+
 struct ReplayOptions {
-  double speed = 1.0;  ///< 1 = real time, 2 = twice as fast; 0 = as fast as possible
+  double speed = 1.0;  ///< 1 = real time, 2 = twice as fast (kMinReplaySpeed to kMaxReplaySpeed); 0 = as fast as possible
   int loops = 1;       ///< times through the session; 0 = until stopped
   /// Decode every frame before the first is played and keep them in memory (frames x
   /// width x height x 2 bytes), so each is delivered on time and the decoding does not
@@ -55,13 +58,16 @@ std::uint64_t preload_bytes(const Session& session);
 struct ReplayProgress {
   std::size_t frames = 0, carm_states = 0;  ///< delivered so far (all loops)
   std::size_t frames_per_loop = 0;
-  int loop = 0;                             ///< 0-based
+  std::int64_t loop = 0;                    ///< 0-based
   bool finished = false;
 };
 
 class SessionReplay {
  public:
-  /// Throws std::invalid_argument for a negative speed or loop count.
+  /// Throws std::invalid_argument for a speed other than 0 or kMinReplaySpeed to
+  /// kMaxReplaySpeed, a negative loop count, or a timestamp outside the format's range
+  /// (0 to kMaxTimestampNs). Looping forever ends with an error() once device times would
+  /// pass 2^63 ns, instead of wrapping.
   SessionReplay(Session session, ReplayOptions options, std::shared_ptr<ReplayClock> clock = steady_replay_clock());
   ~SessionReplay();
   SessionReplay(const SessionReplay&) = delete;
