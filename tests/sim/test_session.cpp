@@ -59,6 +59,21 @@ void replace_in(const fs::path& file, const std::string& from, const std::string
   std::ofstream(file) << text;
 }
 
+// The session written afresh into `dir` (what a test altered before is gone).
+void write_afresh(const fs::path& dir, const sim::Session& s, const std::vector<cv::Mat>& images) {
+  fs::remove_all(dir);
+  sim::write_session(dir, s, images);
+}
+
+// The small session written to dir/s and exported to dir/run.seq.mha; its frames.
+std::vector<cv::Mat> export_small_session(const fs::path& dir) {
+  std::vector<cv::Mat> images;
+  const auto s = small_session(images);
+  sim::write_session(dir / "s", s, images);
+  sim::export_plus_sequence(sim::read_session(dir / "s"), dir / "run.seq.mha");
+  return images;
+}
+
 std::string error_reading(const fs::path& dir) {
   try {
     sim::read_session(dir);
@@ -147,10 +162,7 @@ TEST(Session, CorruptFilesAreNamedWithTheirLine) {
   TempDir dir;
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
-  const auto fresh = [&] {
-    fs::remove_all(dir.path);
-    sim::write_session(dir.path, s, images);
-  };
+  const auto fresh = [&] { write_afresh(dir.path, s, images); };
   fresh();
   replace_in(dir.path / "carm.csv", "785.5", "78x5.5");
   EXPECT_NE(error_reading(dir.path).find("carm.csv:2: sod_mm: '78x5.5' is not a number"), std::string::npos)
@@ -234,11 +246,7 @@ TEST(Session, TruncatedFilesAreClearErrorsAtEveryLength) {
 
 TEST(Session, ExportsAPlusSequenceMetafileForSlicer) {
   TempDir dir;
-  std::vector<cv::Mat> images;
-  const auto s = small_session(images);
-  sim::write_session(dir.path / "s", s, images);
-  const auto r = sim::read_session(dir.path / "s");
-  sim::export_plus_sequence(r, dir.path / "run.seq.mha");
+  const auto images = export_small_session(dir.path);
   std::ifstream in(dir.path / "run.seq.mha", std::ios::binary);
   const std::string bytes((std::istreambuf_iterator<char>(in)), {});
   const std::string marker = "ElementDataFile = LOCAL\n";
@@ -354,10 +362,7 @@ TEST(Session, TimestampsOutsideTheFormatsRangeAreRefusedByFileAndLine) {
   TempDir dir;
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
-  const auto fresh = [&] {
-    fs::remove_all(dir.path);
-    sim::write_session(dir.path, s, images);
-  };
+  const auto fresh = [&] { write_afresh(dir.path, s, images); };
   fresh();
   replace_in(dir.path / "frames" / "index.csv", "1,1000000000,", "1,-1,");
   EXPECT_NE(error_reading(dir.path).find("index.csv:2: timestamp_ns: -1 is outside 0 to 2^62 ns"), std::string::npos)
@@ -445,11 +450,7 @@ TEST(Session, SymbolicLinksOutOfTheSessionAreRefusedAndDotsInANameAreNot) {
 // order, with one channel and the detector's pixel spacing.
 TEST(Session, TheExportHeaderIsTheOnePlusWrites) {
   TempDir dir;
-  std::vector<cv::Mat> images;
-  const auto s = small_session(images);
-  sim::write_session(dir.path / "s", s, images);
-  const auto r = sim::read_session(dir.path / "s");
-  sim::export_plus_sequence(r, dir.path / "run.seq.mha");
+  export_small_session(dir.path);
   std::ifstream in(dir.path / "run.seq.mha", std::ios::binary);
   std::vector<std::string> keys;
   std::map<std::string, std::string> value;
