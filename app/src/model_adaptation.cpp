@@ -32,9 +32,9 @@ void show_adapted(overlay::RoadmapModel& roadmap, const AdaptedModel& adapted) {
   roadmap.device = adapted.reconstruction.points;
 }
 
-double mean_outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene) {
-  if (device.empty() || scene.vessels.empty()) return std::numeric_limits<double>::infinity();
-  double sum = 0.0;
+std::vector<double> outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene) {
+  std::vector<double> out;
+  if (scene.vessels.empty()) return std::vector<double>(device.size(), std::numeric_limits<double>::infinity());
   for (const auto& p : device) {
     const geometry::Vessel* nearest = nullptr;
     geometry::PolylineProjection on{};
@@ -43,9 +43,28 @@ double mean_outside_lumen_mm(const geometry::Polyline& device, const geometry::S
       if (!nearest || q.distance_mm < on.distance_mm) nearest = &v, on = q;
     }
     const double radius_mm = geometry::closest_point_on_mesh(nearest->mesh.mesh, on.point).distance_mm;
-    sum += std::max(0.0, on.distance_mm - radius_mm);
+    out.push_back(std::max(0.0, on.distance_mm - radius_mm));
   }
-  return sum / static_cast<double>(device.size());
+  return out;
+}
+
+double mean_outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene) {
+  const auto outside = outside_lumen_mm(device, scene);
+  if (outside.empty()) return std::numeric_limits<double>::infinity();
+  return std::accumulate(outside.begin(), outside.end(), 0.0) / static_cast<double>(outside.size());
+}
+
+void check_in_the_vessels(const geometry::Polyline& device, const geometry::Scene& scene, const AdaptationOptions& o) {
+  const auto outside = outside_lumen_mm(device, scene);
+  const auto far = std::count_if(outside.begin(), outside.end(), [&](double d) { return d > o.outside_limit_mm; });
+  const double share = outside.empty() ? 0.0 : static_cast<double>(far) / static_cast<double>(outside.size());
+  if (share <= o.max_share_outside) return;
+  char why[256];
+  std::snprintf(why, sizeof why,
+                "reconstruction refused: %.0f %% of the device runs more than %.0f mm outside the preoperative vessels "
+                "(another structure segmented, e.g. an ECG lead or a second wire, or a wrong registration?)",
+                100.0 * share, o.outside_limit_mm);
+  throw AdaptationError(why);
 }
 
 std::size_t reading_in_the_vessels(const std::vector<geometry::Reconstruction>& readings, const geometry::Scene& scene,
@@ -95,6 +114,7 @@ AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& 
                   length, options.min_length_mm);
     throw AdaptationError(why);
   }
+  check_in_the_vessels(r.points, deformer.scene(), options);
   t0 = std::chrono::steady_clock::now();
   try {
     m.deformation = deformer.deform(r.points, previous);

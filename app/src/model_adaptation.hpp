@@ -23,6 +23,12 @@ struct AdaptationOptions {
   /// (mean over its points) is the device; closer ones are refused as ambiguous. The
   /// device bends the vessels by a few mm, a wrong reading misses them by tens.
   double reading_margin_mm = 5.0;
+  /// A device with more than `max_share_outside` of its points farther than
+  /// `outside_limit_mm` outside every preoperative lumen is not this patient's device in
+  /// these vessels but another structure the segmentation followed (an ECG lead, a second
+  /// wire) or a wrong registration. The device bends the iliacs by a few tens of mm at most.
+  double outside_limit_mm = 50.0;
+  double max_share_outside = 0.2;
 };
 
 struct AdaptedModel {
@@ -49,10 +55,16 @@ void show_adapted(overlay::RoadmapModel& roadmap, const AdaptedModel& adapted);
 /// wrong roadmap as if it were right), whatever the solver below promised.
 void check_finite(const AdaptedModel& model);
 
-/// How far outside the vessels of `scene` a device runs, mean over its points: per point,
-/// its distance to the nearest centerline less the lumen radius there (the distance from
-/// that centerline point to its mesh), 0 inside.
+/// How far outside the vessels of `scene` each point of a device lies: its distance to the
+/// nearest centerline less the lumen radius there (the distance from that centerline point
+/// to its mesh), 0 inside.
+std::vector<double> outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene);
+/// outside_lumen_mm's mean (infinite for an empty device).
 double mean_outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene);
+
+/// AdaptationError when more than options.max_share_outside of the device's points lie
+/// farther than options.outside_limit_mm outside every lumen of `scene`.
+void check_in_the_vessels(const geometry::Polyline& device, const geometry::Scene& scene, const AdaptationOptions& options);
 
 /// Of several readings of a view pair (geometry::reconstruct_two_view_readings), the index
 /// of the one in the vessels: the smallest mean_outside_lumen_mm, by at least `margin_mm`

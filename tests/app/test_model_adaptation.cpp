@@ -109,3 +109,24 @@ TEST(ModelAdaptation, OfTwoReadingsTheOneInTheVesselsIsTheDevice) {
                   [&] { evar::app::reading_in_the_vessels(both_inside, scene, 5.0); }, "accepted"),
               HasSubstr("both lie in the vessels or near them"));
 }
+
+// A curve that follows another structure for part of its length (an ECG lead crossing the
+// wire in both views reconstructs with no residual) is refused before it bends the
+// vessels; a device the vessels must move a few cm to contain is not.
+TEST(ModelAdaptation, ADeviceRunningFarOutsideTheVesselsIsRefused) {
+  const auto example = evar::sim::make_example_scene({});
+  const auto scene = evar::sim::to_scene(example);
+  const evar::app::AdaptationOptions options;
+  EXPECT_NO_THROW(evar::app::check_in_the_vessels(example.device, scene, options));
+  auto moved = example.device;  // the whole device 30 mm to the side: a strong deformation, still plausible
+  for (auto& p : moved) p.y() += 30.0;
+  EXPECT_NO_THROW(evar::app::check_in_the_vessels(moved, scene, options));
+  auto hijacked = example.device;  // its last third leaves along a lead, 3 mm forwards per point
+  const std::size_t from = hijacked.size() * 2 / 3;
+  for (std::size_t k = from; k < hijacked.size(); ++k)
+    hijacked[k] = hijacked[from] + Eigen::Vector3d(0.0, -3.0 * static_cast<double>(k - from), 0.0);
+  std::reverse(hijacked.begin(), hijacked.end());
+  EXPECT_THAT(evar::test::error_message<AdaptationError>(
+                  [&] { evar::app::check_in_the_vessels(hijacked, scene, options); }, "accepted"),
+              HasSubstr("outside the preoperative vessels"));
+}
