@@ -6,7 +6,6 @@
 #include <limits>
 #include <numeric>
 
-#include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/input_error.hpp"
 
 namespace evar::app {
@@ -32,30 +31,29 @@ void show_adapted(overlay::RoadmapModel& roadmap, const AdaptedModel& adapted) {
   roadmap.device = adapted.reconstruction.points;
 }
 
-std::vector<double> outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene) {
+std::vector<double> outside_lumen_mm(const geometry::Polyline& device, const deform::SceneDeformer& deformer) {
+  const auto& vessels = deformer.scene().vessels;
   std::vector<double> out;
-  if (scene.vessels.empty()) return std::vector<double>(device.size(), std::numeric_limits<double>::infinity());
   for (const auto& p : device) {
-    const geometry::Vessel* nearest = nullptr;
-    geometry::PolylineProjection on{};
-    for (const auto& v : scene.vessels) {
-      const auto q = geometry::project_onto(v.centerline, p);
-      if (!nearest || q.distance_mm < on.distance_mm) nearest = &v, on = q;
+    double outside = std::numeric_limits<double>::infinity();
+    for (std::size_t v = 0; v < vessels.size(); ++v) {
+      const auto q = geometry::project_onto(vessels[v].centerline, p);
+      outside = std::min(outside, std::max(0.0, q.distance_mm - deformer.lumen_radius_mm(v, q.arc_length_mm)));
     }
-    const double radius_mm = geometry::closest_point_on_mesh(nearest->mesh.mesh, on.point).distance_mm;
-    out.push_back(std::max(0.0, on.distance_mm - radius_mm));
+    out.push_back(outside);
   }
   return out;
 }
 
-double mean_outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene) {
-  const auto outside = outside_lumen_mm(device, scene);
+double mean_outside_lumen_mm(const geometry::Polyline& device, const deform::SceneDeformer& deformer) {
+  const auto outside = outside_lumen_mm(device, deformer);
   if (outside.empty()) return std::numeric_limits<double>::infinity();
   return std::accumulate(outside.begin(), outside.end(), 0.0) / static_cast<double>(outside.size());
 }
 
-void check_in_the_vessels(const geometry::Polyline& device, const geometry::Scene& scene, const AdaptationOptions& o) {
-  const auto outside = outside_lumen_mm(device, scene);
+void check_in_the_vessels(const geometry::Polyline& device, const deform::SceneDeformer& deformer,
+                          const AdaptationOptions& o) {
+  const auto outside = outside_lumen_mm(device, deformer);
   const auto far = std::count_if(outside.begin(), outside.end(), [&](double d) { return d > o.outside_limit_mm; });
   const double share = outside.empty() ? 0.0 : static_cast<double>(far) / static_cast<double>(outside.size());
   if (share <= o.max_share_outside) return;
@@ -67,11 +65,11 @@ void check_in_the_vessels(const geometry::Polyline& device, const geometry::Scen
   throw AdaptationError(why);
 }
 
-std::size_t reading_in_the_vessels(const std::vector<geometry::Reconstruction>& readings, const geometry::Scene& scene,
-                                   double margin_mm) {
+std::size_t reading_in_the_vessels(const std::vector<geometry::Reconstruction>& readings,
+                                   const deform::SceneDeformer& deformer, double margin_mm) {
   if (readings.empty()) throw std::invalid_argument("reading_in_the_vessels: no reading");
   std::vector<double> outside_mm;
-  for (const auto& r : readings) outside_mm.push_back(mean_outside_lumen_mm(r.points, scene));
+  for (const auto& r : readings) outside_mm.push_back(mean_outside_lumen_mm(r.points, deformer));
   std::vector<std::size_t> order(readings.size());
   std::iota(order.begin(), order.end(), std::size_t{0});
   std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) { return outside_mm[a] < outside_mm[b]; });
@@ -95,7 +93,7 @@ AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& 
                                                             pair.later.curve_px, pair.later.geometry.P_ct,
                                                             options.reconstruction);
     const std::size_t k =
-        readings.size() == 1 ? 0 : reading_in_the_vessels(readings, deformer.scene(), options.reading_margin_mm);
+        readings.size() == 1 ? 0 : reading_in_the_vessels(readings, deformer, options.reading_margin_mm);
     m.reconstruction = std::move(readings[k]);
   } catch (const geometry::ReconstructionError& e) {
     throw AdaptationError(std::string("reconstruction failed: ") + e.what());
@@ -114,7 +112,7 @@ AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& 
                   length, options.min_length_mm);
     throw AdaptationError(why);
   }
-  check_in_the_vessels(r.points, deformer.scene(), options);
+  check_in_the_vessels(r.points, deformer, options);
   t0 = std::chrono::steady_clock::now();
   try {
     m.deformation = deformer.deform(r.points, previous);

@@ -55,22 +55,23 @@ void show_adapted(overlay::RoadmapModel& roadmap, const AdaptedModel& adapted);
 /// wrong roadmap as if it were right), whatever the solver below promised.
 void check_finite(const AdaptedModel& model);
 
-/// How far outside the vessels of `scene` each point of a device lies: its distance to the
-/// nearest centerline less the lumen radius there (the distance from that centerline point
-/// to its mesh), 0 inside.
-std::vector<double> outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene);
+/// How far outside the preoperative vessels each point of a device lies: its distance to
+/// the nearest centerline less the lumen radius there (the deformer's radius profile; no
+/// mesh is searched, so this costs a few hundred point-to-polyline projections), 0 inside.
+std::vector<double> outside_lumen_mm(const geometry::Polyline& device, const deform::SceneDeformer& deformer);
 /// outside_lumen_mm's mean (infinite for an empty device).
-double mean_outside_lumen_mm(const geometry::Polyline& device, const geometry::Scene& scene);
+double mean_outside_lumen_mm(const geometry::Polyline& device, const deform::SceneDeformer& deformer);
 
 /// AdaptationError when more than options.max_share_outside of the device's points lie
-/// farther than options.outside_limit_mm outside every lumen of `scene`.
-void check_in_the_vessels(const geometry::Polyline& device, const geometry::Scene& scene, const AdaptationOptions& options);
+/// farther than options.outside_limit_mm outside every preoperative lumen.
+void check_in_the_vessels(const geometry::Polyline& device, const deform::SceneDeformer& deformer,
+                          const AdaptationOptions& options);
 
 /// Of several readings of a view pair (geometry::reconstruct_two_view_readings), the index
 /// of the one in the vessels: the smallest mean_outside_lumen_mm, by at least `margin_mm`
 /// less than every other. AdaptationError when none stands out.
-std::size_t reading_in_the_vessels(const std::vector<geometry::Reconstruction>& readings, const geometry::Scene& scene,
-                                   double margin_mm);
+std::size_t reading_in_the_vessels(const std::vector<geometry::Reconstruction>& readings,
+                                   const deform::SceneDeformer& deformer, double margin_mm);
 
 /// `previous`: the last model's deformation, to warm-start the solve (SceneDeformer::deform).
 /// The result has passed check_finite.

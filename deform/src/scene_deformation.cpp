@@ -369,6 +369,10 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
 
 SceneDeformer::~SceneDeformer() = default;
 
+double SceneDeformer::lumen_radius_mm(std::size_t vessel, double arc_length_mm) const {
+  return models_.at(vessel)->radius.at(arc_length_mm);
+}
+
 SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Polyline& device, const DeformOptions& options) {
   const SceneDeformer deformer(scene, options);
   SceneDeformation out = deformer.deform(device);

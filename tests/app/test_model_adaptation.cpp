@@ -83,6 +83,7 @@ TEST(ModelAdaptation, OfTwoReadingsTheOneInTheVesselsIsTheDevice) {
   namespace geo = evar::geometry;
   const auto example = evar::sim::make_example_scene({});
   const auto scene = evar::sim::to_scene(example);
+  const evar::deform::SceneDeformer deformer(scene);
   const auto& right = example.vessel("iliac_right").centerline;
   const auto& left = example.vessel("iliac_left").centerline;
   geo::Polyline crossover(right.rbegin(), right.rend() - 10);  // access low on the right …
@@ -92,21 +93,21 @@ TEST(ModelAdaptation, OfTwoReadingsTheOneInTheVesselsIsTheDevice) {
   std::reverse(c2.begin(), c2.end());  // traced from the other end in view 2
   const auto readings = geo::reconstruct_two_view_readings(projected(P1, crossover), P1, c2, P2);
   ASSERT_EQ(readings.size(), 2u) << "the example's crossover is not symmetric enough to read two ways";
-  const auto chosen = evar::app::reading_in_the_vessels(readings, scene, 5.0);
+  const auto chosen = evar::app::reading_in_the_vessels(readings, deformer, 5.0);
   double worst = 0.0;
   for (const auto& p : readings[chosen].points) worst = std::max(worst, geo::project_onto(crossover, p).distance_mm);
   EXPECT_LT(worst, 1.0);
   // The same reading whichever order they come in.
   const std::vector<geo::Reconstruction> swapped{readings[1], readings[0]};
-  EXPECT_EQ(evar::app::reading_in_the_vessels(swapped, scene, 5.0), 1 - chosen);
-  EXPECT_LT(evar::app::mean_outside_lumen_mm(readings[chosen].points, scene), 0.5);
-  EXPECT_GT(evar::app::mean_outside_lumen_mm(readings[1 - chosen].points, scene), 10.0);
+  EXPECT_EQ(evar::app::reading_in_the_vessels(swapped, deformer, 5.0), 1 - chosen);
+  EXPECT_LT(evar::app::mean_outside_lumen_mm(readings[chosen].points, deformer), 0.5);
+  EXPECT_GT(evar::app::mean_outside_lumen_mm(readings[1 - chosen].points, deformer), 10.0);
   // Two readings both in the vessels (2 mm apart) cannot be told apart: refused, saying why.
   auto near = readings[chosen];
   for (auto& p : near.points) p += Eigen::Vector3d(2.0, 0.0, 0.0);
   const std::vector<geo::Reconstruction> both_inside{readings[chosen], near};
   EXPECT_THAT(evar::test::error_message<AdaptationError>(
-                  [&] { evar::app::reading_in_the_vessels(both_inside, scene, 5.0); }, "accepted"),
+                  [&] { evar::app::reading_in_the_vessels(both_inside, deformer, 5.0); }, "accepted"),
               HasSubstr("both lie in the vessels or near them"));
 }
 
@@ -116,17 +117,18 @@ TEST(ModelAdaptation, OfTwoReadingsTheOneInTheVesselsIsTheDevice) {
 TEST(ModelAdaptation, ADeviceRunningFarOutsideTheVesselsIsRefused) {
   const auto example = evar::sim::make_example_scene({});
   const auto scene = evar::sim::to_scene(example);
+  const evar::deform::SceneDeformer deformer(scene);
   const evar::app::AdaptationOptions options;
-  EXPECT_NO_THROW(evar::app::check_in_the_vessels(example.device, scene, options));
+  EXPECT_NO_THROW(evar::app::check_in_the_vessels(example.device, deformer, options));
   auto moved = example.device;  // the whole device 30 mm to the side: a strong deformation, still plausible
   for (auto& p : moved) p.y() += 30.0;
-  EXPECT_NO_THROW(evar::app::check_in_the_vessels(moved, scene, options));
+  EXPECT_NO_THROW(evar::app::check_in_the_vessels(moved, deformer, options));
   auto hijacked = example.device;  // its last third leaves along a lead, 3 mm forwards per point
   const std::size_t from = hijacked.size() * 2 / 3;
   for (std::size_t k = from; k < hijacked.size(); ++k)
     hijacked[k] = hijacked[from] + Eigen::Vector3d(0.0, -3.0 * static_cast<double>(k - from), 0.0);
   std::reverse(hijacked.begin(), hijacked.end());
   EXPECT_THAT(evar::test::error_message<AdaptationError>(
-                  [&] { evar::app::check_in_the_vessels(hijacked, scene, options); }, "accepted"),
+                  [&] { evar::app::check_in_the_vessels(hijacked, deformer, options); }, "accepted"),
               HasSubstr("outside the preoperative vessels"));
 }

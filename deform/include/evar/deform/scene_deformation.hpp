@@ -134,6 +134,9 @@ class SceneDeformer {
   double precompute_ms() const { return precompute_ms_; }
   /// The scene it deforms (as given, fine meshes).
   const geometry::Scene& scene() const { return original_; }
+  /// Lumen radius of vessel `vessel` (scene order) at `arc_length_mm` along its centerline:
+  /// the radius profile of its skeleton, as the control points use it (precomputed).
+  double lumen_radius_mm(std::size_t vessel, double arc_length_mm) const;
   /// The vessel's proxy (null when it is solved on its own mesh).
   const MeshProxy* proxy(std::size_t vessel) const { return proxies_[vessel] ? &*proxies_[vessel] : nullptr; }
   /// Why vessel i needed a proxy and has none ("" when it has one or needs none).
