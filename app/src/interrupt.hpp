@@ -4,9 +4,10 @@
 // closed) set a flag the command polls, so it stops its sources and writes its files and
 // report instead of dying with them half written. The previous handlers come back when it
 // goes.
+#include <signal.h>
+
 #include <array>
 #include <atomic>
-#include <csignal>
 
 namespace evar::app {
 
@@ -14,12 +15,24 @@ class InterruptGuard {
  public:
   static constexpr std::array<int, 3> kSignals{SIGINT, SIGTERM, SIGHUP};
 
+  /// A signal someone set to be ignored stays ignored (`nohup` ignores SIGHUP so a
+  /// recording outlives its terminal; a background job's shell may ignore SIGINT).
   InterruptGuard() {
     received() = 0;
-    for (std::size_t i = 0; i < kSignals.size(); ++i) previous_[i] = std::signal(kSignals[i], &InterruptGuard::on_signal);
+    for (std::size_t i = 0; i < kSignals.size(); ++i) {
+      struct sigaction current {};
+      ::sigaction(kSignals[i], nullptr, &current);
+      if (current.sa_handler == SIG_IGN) continue;
+      struct sigaction ours {};
+      ours.sa_handler = &InterruptGuard::on_signal;
+      sigemptyset(&ours.sa_mask);
+      ours.sa_flags = SA_RESTART;  // system calls interrupted by it carry on; the flag is polled
+      if (::sigaction(kSignals[i], &ours, &previous_[i]) == 0) installed_[i] = true;
+    }
   }
   ~InterruptGuard() {
-    for (std::size_t i = 0; i < kSignals.size(); ++i) std::signal(kSignals[i], previous_[i]);
+    for (std::size_t i = 0; i < kSignals.size(); ++i)
+      if (installed_[i]) ::sigaction(kSignals[i], &previous_[i], nullptr);
   }
   InterruptGuard(const InterruptGuard&) = delete;
   InterruptGuard& operator=(const InterruptGuard&) = delete;
@@ -34,7 +47,8 @@ class InterruptGuard {
     return signal;
   }
   static void on_signal(int signal) { received() = signal; }
-  std::array<void (*)(int), kSignals.size()> previous_{};
+  std::array<struct sigaction, kSignals.size()> previous_{};
+  std::array<bool, kSignals.size()> installed_{};
 };
 
 }  // namespace evar::app

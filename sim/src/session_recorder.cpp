@@ -1,5 +1,8 @@
 #include "evar/sim/session_recorder.hpp"
 
+#include <fcntl.h>
+#include <unistd.h>
+
 #include <algorithm>
 #include <array>
 #include <condition_variable>
@@ -29,6 +32,19 @@ using acquisition::CArmState;
 using acquisition::Frame;
 using acquisition::PixelFormat;
 using acquisition::StreamState;
+
+// The session's own files and their directories on the disk (fsync) before the journal that
+// could rebuild them goes: a power cut right after finishing must not leave them empty.
+// Frames are not synced one by one (an hour of them would take minutes).
+void sync_session_files(const fs::path& dir) {
+  for (const fs::path& p : {dir / "session.json", dir / "carm.csv", dir / "frames" / "index.csv",
+                            dir / "record_report.json", dir / "frames", dir}) {
+    const int fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC);
+    if (fd < 0) continue;  // a file the session does not have
+    ::fsync(fd);
+    ::close(fd);
+  }
+}
 
 cv::Mat to_session_image(const Frame& f) {
   if (f.width <= 0 || f.height <= 0) throw std::invalid_argument("frame has no size");
@@ -273,8 +289,14 @@ struct SessionRecorder::Impl {
       return;
     }
     FrameRecord r;
-    r.frame = next_frame++;
     r.timestamp_ns = std::max(ns_of(f.device_time_on_host), last_frame_ns);
+    if (r.timestamp_ns < 0 || r.timestamp_ns >= kMaxTimestampNs) {
+      // Refused here, before it raises every later frame's time out of range too.
+      ++stats.frames_refused;
+      stats.last_error = "frame not recorded: its time " + std::to_string(r.timestamp_ns) + " ns is outside 0 to 2^62";
+      return;
+    }
+    r.frame = next_frame++;
     last_frame_ns = r.timestamp_ns;
     r.source = options.source;
     if (f.device_clock) streams.device_clock_frames.push_back({r.frame, {f.device_time_ns, ns_of(f.host_arrival)}});
@@ -318,7 +340,18 @@ struct SessionRecorder::Impl {
     } catch (const std::exception& e) {
       error = "frame " + std::to_string(record.frame) + ": " + e.what();
     }
-    if (error.empty()) append(journal_frames, journal_frame_row(record, frame));  // its PNG is on disk
+    if (error.empty()) {
+      // The C-arm states that came before this frame go into the journal first: a frame
+      // recovered after a kill must not be paired with an older state than it was seen with
+      // (the periodic flush alone left the last second's states out).
+      std::string rows;
+      {
+        std::lock_guard lock(mutex);
+        rows.swap(carm_rows);
+      }
+      if (!rows.empty()) append(journal_carm, rows);
+      append(journal_frames, journal_frame_row(record, frame));  // its PNG is on disk
+    }
     std::lock_guard lock(mutex);
     if (error.empty()) {
       streams.frames.push_back(record);
@@ -429,7 +462,11 @@ SessionRecorder::SessionRecorder(RecorderOptions options, acquisition::FrameSour
                                  acquisition::CArmGeometrySource& carm) {
   if (options.out.empty()) throw std::invalid_argument("record: no output directory");
   if (fs::exists(options.out) && !(fs::is_directory(options.out) && fs::is_empty(options.out)))
-    throw std::invalid_argument(options.out.string() + ": exists and is not an empty directory; choose a new session directory");
+    throw std::invalid_argument(options.out.string() + ": exists and is not an empty directory; choose a new session directory" +
+                                (fs::is_directory(journal_of(options.out))
+                                     ? " (it holds an unfinished recording: `evarnode record --recover " + options.out.string() +
+                                           "` makes a session of it)"
+                                     : std::string()));
   if (!(options.pixel_spacing_mm > 0.0 && options.pixel_spacing_mm < 10.0))
     throw std::invalid_argument("record: the detector pixel spacing must be in (0, 10) mm");
   if (options.max_queued_frames < 1) throw std::invalid_argument("record: the frame queue needs room for a frame");
@@ -524,6 +561,7 @@ Session SessionRecorder::finish() {
                              d.options.out.string() + "` writes them");
   }
   d.write_report(stats, &s, false);
+  sync_session_files(d.options.out);
   fs::remove_all(journal_of(d.options.out), ignored);
   if (s.carm.empty())
     throw std::runtime_error(std::to_string(s.frames.size()) + " frames were recorded but no C-arm sample (C-arm: " +
@@ -618,6 +656,7 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
                          {"carm_dropped_out_of_range", dropped},
                          {"cut_row_skipped", result.cut_row_skipped}};
   write_json_file(directory / "record_report.json", report);
+  sync_session_files(directory);
   std::error_code ignored;
   fs::remove_all(journal, ignored);
   if (result.session.carm.empty())

@@ -36,4 +36,17 @@ TEST(InterruptGuard, SigintSigtermAndSighupAskToFinishAndThePreviousHandlersCome
   EXPECT_FALSE(fresh.interrupted());
 }
 
+// `nohup evarnode record …` ignores SIGHUP so the recording outlives its terminal; the
+// guard must leave an ignored signal ignored (the first version of it took SIGHUP over, and
+// a closed terminal ended a nohup'd recording).
+TEST(InterruptGuard, ASignalSetToBeIgnoredStaysIgnored) {
+  const auto before = std::signal(SIGHUP, SIG_IGN);
+  {
+    const evar::app::InterruptGuard guard;
+    std::raise(SIGHUP);
+    EXPECT_FALSE(guard.interrupted());
+  }
+  EXPECT_EQ(std::signal(SIGHUP, before), SIG_IGN);  // and still ignored after it
+}
+
 }  // namespace

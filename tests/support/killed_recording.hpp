@@ -1,10 +1,10 @@
 #pragma once
 // A recorder killed with SIGKILL in the middle of a recording, as the OOM killer, a crash or
 // `kill -9` would end it: a child process records a session replayed into it in real time
-// (so the recording keeps its timing), waits until
-// every frame and C-arm state is in its journal and the periodic report is written, and
-// kills itself. The recording directory is left as such a recorder leaves it: frames,
-// journal, report, and no session.json.
+// (so the recording keeps its timing), waits until every frame is in its journal, and kills
+// itself at once, before the periodic flush (C-arm rows and report, about once a second)
+// could add anything. The recording directory is left as such a recorder leaves it: frames,
+// journal, perhaps a report, and no session.json.
 #include <signal.h>
 #include <sys/wait.h>
 #include <unistd.h>
@@ -30,7 +30,7 @@ inline std::size_t line_count(const std::filesystem::path& file) {
 }
 
 /// The child's wait status: killed by SIGKILL when all went as planned; exit code 3 when it
-/// failed or its journal was not complete within 30 s. Call it with no other thread running
+/// failed or its journal did not hold every frame within 30 s. Call it with no other thread running
 /// (fork copies only the calling one).
 inline int record_then_kill(const sim::RecorderOptions& options, const sim::Session& original) {
   const pid_t pid = ::fork();
@@ -43,12 +43,9 @@ inline int record_then_kill(const sim::RecorderOptions& options, const sim::Sess
       recorder.start();
       replay.wait();
       const auto journal = options.out / "journal";
-      for (;;) {  // the C-arm rows and the report reach the disk about once a second
-        const bool complete = line_count(journal / "frames.csv") == original.frames.size() + 1 &&
-                              line_count(journal / "carm.csv") == original.carm.size() + 1 &&
-                              std::filesystem::exists(options.out / "record_report.json");
-        if (complete) ::kill(::getpid(), SIGKILL);
-        std::this_thread::sleep_for(std::chrono::milliseconds(20));
+      for (;;) {
+        if (line_count(journal / "frames.csv") == original.frames.size() + 1) ::kill(::getpid(), SIGKILL);
+        std::this_thread::sleep_for(std::chrono::milliseconds(2));
       }
     } catch (...) {
     }
