@@ -82,10 +82,26 @@ std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformO
   m->closed = geometry::is_closed(mesh);
   m->skeleton = build_skeleton(*m->caster, v.centerline, options.skeleton);
   m->skeleton_ms = ms_since(t0);
-  if (m->skeleton.centres.empty())
+  if (m->skeleton.centres.empty()) {
+    // Usually the two are in different units or frames (metres or cm; RAS for LPS): say
+    // where each lies, so the cause shows.
+    const auto box = [](const auto& points) {
+      Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
+      for (const auto& p : points) lo = lo.cwiseMin(Eigen::Vector3d(p)), hi = hi.cwiseMax(Eigen::Vector3d(p));
+      char text[160];
+      std::snprintf(text, sizeof text, "(%.1f, %.1f, %.1f) to (%.1f, %.1f, %.1f)", lo.x(), lo.y(), lo.z(), hi.x(),
+                    hi.y(), hi.z());
+      return std::string(text);
+    };
+    std::vector<Eigen::Vector3d> corners;
+    for (Eigen::Index k = 0; k < mesh.V.rows(); ++k) corners.emplace_back(mesh.V.row(k).transpose());
     throw geometry::InputError(v.centerline_path.string() + ": the centerline of vessel '" + v.name +
                                "' does not run inside its mesh " + v.mesh_path.string() +
-                               " (no slicing plane hit the wall)");
+                               " (no slicing plane hit the wall). The mesh spans " + box(corners) +
+                               " mm, the centerline " + box(v.centerline) +
+                               " mm: both must be millimetres in patient LPS (a mesh in metres or cm, or in RAS "
+                               "where the scene says LPS, lies elsewhere)");
+  }
   m->radius = radius_profile(m->skeleton);
 
   t0 = Clock::now();

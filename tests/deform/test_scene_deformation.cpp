@@ -433,6 +433,22 @@ TEST(SceneDeformation, RefusesAReversedIliacCenterline) {
   }
 }
 
+// A mesh in metres (a unit slip on export) lies nowhere near its centerline in mm: refused,
+// and the message says where each lies and what to check (before session 15 it said only
+// that no slicing plane hit the wall).
+TEST(SceneDeformation, AMeshInOtherUnitsIsRefusedSayingWhereMeshAndCenterlineLie) {
+  auto scene = sim::to_scene(example());
+  scene.vessels[0].mesh.mesh.V /= 1000.0;
+  try {
+    deform::SceneDeformer deformer(scene);
+    FAIL() << "expected an InputError";
+  } catch (const geometry::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("does not run inside its mesh"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("The mesh spans"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("millimetres in patient LPS"), std::string::npos) << e.what();
+  }
+}
+
 TEST(SceneDeformation, RefusesALandmarkFarFromEveryVessel) {
   auto scene = sim::to_scene(example());
   scene.landmarks.push_back({"stray", {300.0, 0.0, 0.0}});

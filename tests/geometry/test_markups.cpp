@@ -100,6 +100,26 @@ TEST(ReadMarkups, ReadsSlicerCurveWithLabelsAndSkipsUnplacedPoints) {
   EXPECT_EQ(markups[1].points[2].label, "C-4");
 }
 
+// Slicer 5 writes points being placed ("preview") and skipped ones ("missing", at the
+// origin) too; read as points, a skipped landmark sat at (0, 0, 0) and a skipped device
+// point dragged the aorta 20 mm. An unknown status is refused by field, as Slicer does.
+TEST(ReadMarkups, OnlyPlacedPointsAreReadAndAnUnknownStatusIsRefused) {
+  std::string text = kSlicerCurve;
+  const std::string undefined = R"("positionStatus": "undefined")";
+  for (const char* status : {"missing", "preview"}) {
+    std::string t = text;
+    t.replace(t.find(undefined), undefined.size(), std::string(R"("positionStatus": ")") + status + "\"");
+    const fs::path file = write_text(test_dir() / "status.mrk.json", t);
+    const auto curve = read_curve(file);
+    ASSERT_EQ(curve.points.size(), 3u) << status;
+    for (const auto& p : curve.points) EXPECT_NE(p.position_lps, Eigen::Vector3d::Zero()) << status;
+  }
+  text.replace(text.find(undefined), undefined.size(), R"("positionStatus": "bogus")");
+  const fs::path file = write_text(test_dir() / "status.mrk.json", text);
+  EXPECT_THAT(markups_error(file), HasSubstr("controlPoints[2].positionStatus"));
+  EXPECT_THAT(markups_error(file), HasSubstr("bogus"));
+}
+
 TEST(ReadCurve, ReturnsTheFirstCurveSkippingOtherTypes) {
   const fs::path file = write_text(test_dir() / "centerline.mrk.json", kSlicerCurve);
   const Markup curve = read_curve(file);

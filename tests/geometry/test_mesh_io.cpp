@@ -678,6 +678,27 @@ TEST(ValidateMesh, AcceptsClosedAndOpenManifoldSurfaces) {
   EXPECT_NO_THROW(validate_mesh(grid, "grid"));
 }
 
+// A PLY or OBJ written per triangle (each with corners of its own) is a cloud of loose
+// triangles to the deformation, which then tore an iliac 22.8 mm apart: refused, saying
+// how to weld it. Unreferenced copies (kept for vertex order) are not corners and pass.
+TEST(ValidateMesh, RefusesTrianglesThatDoNotShareTheirCorners) {
+  const TriangleMesh cube = unit_cube();
+  TriangleMesh loose;
+  loose.V.resize(3 * cube.F.rows(), 3);
+  loose.F.resize(cube.F.rows(), 3);
+  for (Eigen::Index f = 0; f < cube.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      loose.V.row(3 * f + k) = cube.V.row(cube.F(f, k));
+      loose.F(f, k) = static_cast<int>(3 * f + k);
+    }
+  EXPECT_THAT(validate_error(loose), HasSubstr("lie exactly on another vertex without being joined"));
+  EXPECT_THAT(validate_error(loose), HasSubstr("weld the mesh"));
+  TriangleMesh spare = unit_cube();
+  spare.V.conservativeResize(9, 3);
+  spare.V.row(8) = spare.V.row(0);  // a copy no face uses
+  EXPECT_NO_THROW(validate_mesh(spare, "cube with a spare vertex"));
+}
+
 TEST(ValidateMesh, NamesTheSourceAndTheOffendingItem) {
   TriangleMesh empty = unit_cube();
   empty.F.resize(0, 3);
