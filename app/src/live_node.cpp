@@ -434,7 +434,14 @@ void LiveNode::analysis_loop() {
         ++stats_.analysis_replaced;  // the held frame is skipped for the newer one
       }
     }
-    if (retry_pair_.exchange(false)) selector.retry();
+    {
+      std::optional<PairOutcome> outcome;
+      {
+        std::lock_guard lock(outcome_mutex_);
+        outcome.swap(pair_outcome_);
+      }
+      if (outcome) outcome->used ? selector.succeeded(outcome->earlier_frame) : selector.failed(outcome->earlier_frame);
+    }
     const auto analysis_start = Clock::now();
     FrameAnalysis r = analyse_frame(wrap(a->frame), a->view, options_.candidate);
     const double waited_ms = ms_between(a->frame.host_arrival, analysis_start), took_ms = ms_between(analysis_start, Clock::now());
@@ -483,6 +490,10 @@ void LiveNode::adaptation_loop() {
         adaptation_latencies_.push_back(ready_ms);
         if (adaptation_latencies_.size() > kLatencyWindow) adaptation_latencies_.pop_front();
       }
+      {
+        std::lock_guard lock(outcome_mutex_);
+        pair_outcome_ = PairOutcome{true, pair->earlier.frame};
+      }
       clear_alert("adaptation");
       log().info("adapted model from frames {}+{}: device {} points, residual {:.2f} px; reconstruction {:.1f} ms, "
                  "deformation {:.1f} ms; ready {:.0f} ms after the second view arrived",
@@ -501,7 +512,10 @@ void LiveNode::adaptation_loop() {
         stats_.last_failure = "frames " + std::to_string(pair->earlier.frame) + "+" + std::to_string(pair->later.frame) +
                               ": " + e.what();
       }
-      retry_pair_ = true;
+      {
+        std::lock_guard lock(outcome_mutex_);
+        pair_outcome_ = PairOutcome{false, pair->earlier.frame};
+      }
       set_alert("adaptation", std::string("frames ") + std::to_string(pair->earlier.frame) + "+" +
                                   std::to_string(pair->later.frame) + ": " + e.what() + "; last good model kept",
                 true);

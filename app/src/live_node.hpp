@@ -183,7 +183,14 @@ class LiveNode {
   BoundedQueue<ComposedFrame> output_;
   LatestSlot<Analysis> analysis_;
   LatestSlot<ViewPair> pairs_;
-  std::atomic<bool> retry_pair_{false};
+  /// The last adaptation's outcome for the analysis thread's selector: used or not, and
+  /// the earlier frame of its pair.
+  struct PairOutcome {
+    bool used = false;
+    std::uint64_t earlier_frame = 0;
+  };
+  std::mutex outcome_mutex_;
+  std::optional<PairOutcome> pair_outcome_;
   // While an adaptation runs, the analysis waits: on a small box the segmentation of every
   // frame would take the core the deformation needs, and a pair formed meanwhile would only
   // wait for it. Then the newest frame is analysed.

@@ -38,7 +38,12 @@ std::vector<double> outside_lumen_mm(const geometry::Polyline& device, const def
     double outside = std::numeric_limits<double>::infinity();
     for (std::size_t v = 0; v < vessels.size(); ++v) {
       const auto q = geometry::project_onto(vessels[v].centerline, p);
-      outside = std::min(outside, std::max(0.0, q.distance_mm - deformer.lumen_radius_mm(v, q.arc_length_mm)));
+      // Past a centerline's end (a wire running on above an infrarenal segmentation) the
+      // vessel goes on unmodelled: only the distance across its axis there counts.
+      const Eigen::Vector3d off = p - q.point;
+      const double across_mm =
+          q.beyond_start || q.beyond_end ? (off - off.dot(q.tangent) * q.tangent).norm() : q.distance_mm;
+      outside = std::min(outside, std::max(0.0, across_mm - deformer.lumen_radius_mm(v, q.arc_length_mm)));
     }
     out.push_back(outside);
   }

@@ -58,6 +58,7 @@ void check_finite(const AdaptedModel& model);
 /// How far outside the preoperative vessels each point of a device lies: its distance to
 /// the nearest centerline less the lumen radius there (the deformer's radius profile; no
 /// mesh is searched, so this costs a few hundred point-to-polyline projections), 0 inside.
+/// Past a centerline's end, its distance across the end's axis (the vessel goes on).
 std::vector<double> outside_lumen_mm(const geometry::Polyline& device, const deform::SceneDeformer& deformer);
 /// outside_lumen_mm's mean (infinite for an empty device).
 double mean_outside_lumen_mm(const geometry::Polyline& device, const deform::SceneDeformer& deformer);

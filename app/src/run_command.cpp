@@ -72,6 +72,10 @@ int run_node(const RunCommand& cmd) {
       gap_ns = std::max(gap_ns, session->carm[i].timestamp_ns - session->carm[i - 1].timestamp_ns);
     options.timeline.stale_after =
         std::max(options.timeline.stale_after, std::chrono::milliseconds(gap_ns / 1'000'000 + 250));
+    // Replayed faster than recorded, each C-arm sample arrives early by up to the gap before
+    // it: not a clock set forward, so not held (GeometryTimelineOptions::ahead_after).
+    options.timeline.ahead_after =
+        std::max(options.timeline.ahead_after, std::chrono::milliseconds(gap_ns / 1'000'000 + 250));
   } else {
     if (!config->scene) throw geometry::InputError(config->file.string() + ": scene: missing (needed for live sources)");
     if (!config->registration) throw geometry::InputError(config->file.string() + ": registration: missing");

@@ -15,14 +15,20 @@ ViewPairSelector::ViewPairSelector(double min_separation_deg, ViewPairOptions op
         "partner_failures >= 1");
 }
 
-void ViewPairSelector::retry() {
+void ViewPairSelector::failed(std::uint64_t earlier_frame) {
   retry_ = true;
-  if (!last_partner_) return;
-  if (failed_partner_ == last_partner_) {
+  if (failed_partner_ == earlier_frame) {
     ++partner_failures_;
   } else {
-    failed_partner_ = last_partner_;
+    failed_partner_ = earlier_frame;
     partner_failures_ = 1;
+  }
+}
+
+void ViewPairSelector::succeeded(std::uint64_t earlier_frame) {
+  if (failed_partner_ == earlier_frame) {
+    failed_partner_.reset();
+    partner_failures_ = 0;
   }
 }
 
@@ -54,7 +60,6 @@ std::optional<ViewPair> ViewPairSelector::add(ViewCandidate candidate) {
     const double sep = separation(*it);
     if (sep >= min_separation_deg_ && sep <= 180.0 - min_separation_deg_) {
       retry_ = false;
-      last_partner_ = it->frame;
       return ViewPair{*it, candidate, sep};
     }
   }

@@ -53,18 +53,20 @@ class ViewPairSelector {
 
   /// Takes a candidate; returns the pair it completes, if any.
   std::optional<ViewPair> add(ViewCandidate candidate);
-  /// The last pair could not be used (reconstruction failed): the next candidate of the
-  /// current view tries again with its newer frame; after ViewPairOptions::partner_failures
-  /// such failures with the same partner frame, with the next older view far enough.
-  void retry();
+  /// A pair whose earlier frame was `earlier_frame` could not be used (reconstruction
+  /// failed): the next candidate of the current view tries again with its newer frame;
+  /// after ViewPairOptions::partner_failures such failures in a row with that partner
+  /// frame, with the next older view far enough.
+  void failed(std::uint64_t earlier_frame);
+  /// A pair with that earlier frame was used: its failures so far no longer count.
+  void succeeded(std::uint64_t earlier_frame);
 
  private:
   double min_separation_deg_;
   ViewPairOptions options_;
   std::vector<ViewCandidate> views_;  // newest candidate per view, most recent view last
   bool retry_ = false;
-  std::optional<std::uint64_t> last_partner_;    // the earlier frame of the last pair given
-  std::optional<std::uint64_t> failed_partner_;  // and of the failures in a row counted here
+  std::optional<std::uint64_t> failed_partner_;  // the earlier frame of the failures in a row counted here
   int partner_failures_ = 0;
 };
 

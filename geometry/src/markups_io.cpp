@@ -112,8 +112,8 @@ Markup parse_markup(const fs::path& file, const json& root, const json& j, const
     const json& cp = (*points)[i];
     const std::string cp_field = points_field + "[" + std::to_string(i) + "]";
     if (!cp.is_object()) bad(file, cp_field, std::string("expected an object, found ") + cp.type_name());
-    // Only a placed point is a point. Slicer 5 also keeps placeholders for points not placed
-    // yet ("undefined"), being placed ("preview"), or skipped ("missing", written at the
+    // Only a placed point is a point. Slicer 5 also writes points not placed yet
+    // ("undefined"), being placed ("preview"), or skipped ("missing", written at the
     // origin): used as points, a missing landmark sat at (0, 0, 0) and a missing device
     // point dragged the aorta 20 mm.
     if (const json* status = find(cp, "positionStatus")) {

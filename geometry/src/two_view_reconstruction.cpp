@@ -292,14 +292,13 @@ std::vector<Reconstruction> reconstruct_two_view_readings(const std::vector<Eige
     throw std::invalid_argument(
         "two-view reconstruction: sample step, match reward, output step and max gap must be finite and > 0, smoothing >= 0, "
         "min separation in (0, 90), grazing angle in [0, 90), ambiguity ratio in (0, 1]");
-  Reconstruction geometry_only;
+  double separation = 0.0;
   try {
-    geometry_only.separation_deg = view_separation_deg(P1, P2);
+    separation = view_separation_deg(P1, P2);
   } catch (const std::invalid_argument& e) {  // a singular projection
     throw ReconstructionError(std::string("two-view reconstruction: ") + e.what());
   }
   // Views facing each other (near 180°) triangulate as badly as views side by side.
-  const double separation = geometry_only.separation_deg;
   const double effective = std::min(separation, 180.0 - separation);
   if (effective < o.min_separation_deg)
     throw ReconstructionError("the views are " + std::to_string(separation).substr(0, 5) +

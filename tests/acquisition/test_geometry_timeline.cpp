@@ -262,3 +262,32 @@ TEST(GeometryTimeline, ATablePanOrDetectorMoveIsMovement) {
   EXPECT_TRUE(tl.at(sc.at(2.85))->moving);
   EXPECT_FALSE(tl.at(sc.at(2.95))->moving);
 }
+
+// A session that sends only every 1.5 s, replayed four times faster than recorded: each
+// sample arrives 1.1 s before its time by the offset so far. With the limit `run --replay`
+// sets (the longest gap plus 250 ms) none is held or lost; with the live default every one
+// after the first would be taken for a stray (an independent review's finding).
+TEST(GeometryTimeline, AFastReplayOfASparseSessionKeepsEverySample) {
+  const auto feed = [](acq::GeometryTimeline& tl) {
+    for (int k = 0; k < 10; ++k) {
+      acq::CArmState c;
+      c.device_time_ns = 1'000'000'000LL + k * 1'500'000'000LL;
+      c.host_arrival = Clock::time_point(100s) + std::chrono::milliseconds(375 * k);
+      c.primary_deg = 10.0 * k;
+      c.sid_mm = 1200;
+      c.sod_mm = 800;
+      tl.add(c);
+    }
+  };
+  acq::GeometryTimelineOptions replay;
+  replay.ahead_after = std::chrono::milliseconds(1'500 + 250);
+  acq::GeometryTimeline kept(replay), live;
+  feed(kept);
+  feed(live);
+  EXPECT_EQ(kept.dropped_samples(), 0u);
+  EXPECT_EQ(kept.restarts(), 0u);
+  const auto newest = kept.at(Clock::time_point(100s) + std::chrono::milliseconds(375 * 9));
+  ASSERT_TRUE(newest);
+  EXPECT_DOUBLE_EQ(newest->state.primary_deg, 90.0);
+  EXPECT_GT(live.dropped_samples() + live.restarts(), 3u);  // what the live default makes of it
+}

@@ -397,7 +397,7 @@ TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView
   EXPECT_EQ(pair->earlier.frame, 3u);                 // the newest view far enough (30°)
   EXPECT_NEAR(pair->separation_deg, 30.0, 0.5);
   EXPECT_FALSE(selector.add(candidate(5, 40, 0)));    // still the same view: no new pair
-  selector.retry();                                   // the pair failed
+  selector.failed(3);                                 // the pair failed
   const auto again = selector.add(candidate(6, 40, 0));
   ASSERT_TRUE(again);
   EXPECT_EQ(again->later.frame, 6u);
@@ -416,25 +416,47 @@ TEST(ViewPairSelector, APartnerThatKeepsFailingIsForgottenForAnOlderView) {
   auto pair = selector.add(candidate(3, 30));     // LAO 30: the newest view far enough is frame 2 (40°)
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 2u);
-  selector.retry();
+  selector.failed(2);
   pair = selector.add(candidate(4, 30));          // a newer frame, the same partner
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 2u);
-  selector.retry();                               // failed again with frame 2: it goes
+  selector.failed(2);                             // failed again with frame 2: it goes
   pair = selector.add(candidate(5, 30));
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 1u);             // AP, 30° away
-  selector.retry();
+  selector.failed(1);
   pair = selector.add(candidate(6, 30));
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 1u);
-  selector.retry();                               // AP fails twice too: nothing left to pair with
+  selector.failed(1);                             // AP fails twice too: nothing left to pair with
   EXPECT_FALSE(selector.add(candidate(7, 30)));
   // The C-arm goes back to a view: a new candidate there pairs again.
   pair = selector.add(candidate(8, -10));
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 7u);
   EXPECT_THROW(app::ViewPairSelector(20.0, {2.0, 8, 120'000'000'000, 0}), std::invalid_argument);
+}
+
+// Failures count against the pair's own partner and only in a row: a success in between
+// clears them (an independent review found both wrong in the first version).
+TEST(ViewPairSelector, OnlyFailuresInARowWithThePairsOwnPartnerCount) {
+  app::ViewPairSelector selector(20.0);
+  EXPECT_FALSE(selector.add(view_candidate(1, 0)));
+  auto pair = selector.add(view_candidate(2, 30));
+  ASSERT_TRUE(pair);
+  selector.failed(1);
+  pair = selector.add(view_candidate(3, 30));     // tried again with the newer frame
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.frame, 1u);
+  selector.succeeded(1);                          // and it worked: the failure before is forgotten
+  EXPECT_FALSE(selector.add(view_candidate(4, 30)));
+  pair = selector.add(view_candidate(5, 35));     // a new view, 5° on: AP is its partner again
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.frame, 1u);
+  selector.failed(1);                             // one failure since the success: AP stays
+  pair = selector.add(view_candidate(6, 35));
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.frame, 1u);
 }
 
 TEST(ViewPairSelector, AViewOlderThanTheGapOrFromBeforeATimeRestartIsNotPaired) {

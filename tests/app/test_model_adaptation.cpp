@@ -123,6 +123,13 @@ TEST(ModelAdaptation, ADeviceRunningFarOutsideTheVesselsIsRefused) {
   auto moved = example.device;  // the whole device 30 mm to the side: a strong deformation, still plausible
   for (auto& p : moved) p.y() += 30.0;
   EXPECT_NO_THROW(evar::app::check_in_the_vessels(moved, deformer, options));
+  // The wire goes on 250 mm above the top of an infrarenal segmentation, up the aorta's
+  // axis (a third of its points over 50 mm past the centerline's end: refused before).
+  auto onwards = example.device;
+  const auto& aortic = example.vessel("aorta").centerline;
+  const Eigen::Vector3d up = (aortic.front() - aortic[5]).normalized();
+  for (int k = 1; k <= 250; ++k) onwards.insert(onwards.begin(), onwards.front() + up);
+  EXPECT_NO_THROW(evar::app::check_in_the_vessels(onwards, deformer, options));
   auto hijacked = example.device;  // its last third leaves along a lead, 3 mm forwards per point
   const std::size_t from = hijacked.size() * 2 / 3;
   for (std::size_t k = from; k < hijacked.size(); ++k)

@@ -27,8 +27,9 @@ struct GeometryTimelineOptions {
   /// A sample that, by the clock offset so far, arrived more than this before its own time
   /// (impossible but for a clock that was set forward, or a stray time) is held likewise
   /// until the next sample confirms it. Below this, it is taken and the offset follows it.
-  /// (An as-fast-as-possible replay whose C-arm samples are further apart than this gets
-  /// each one a sample late.)
+  /// A replay faster than recorded makes every sample early by up to the gap before it:
+  /// `run --replay` raises this to the session's longest C-arm gap plus 250 ms (a sparse
+  /// session would otherwise lose its samples as strays).
   std::chrono::milliseconds ahead_after{250};
 };
 
