@@ -91,7 +91,10 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
 
   // The camera shows each picture until the next (at 40 fps), so the recording holds the
   // original frames in order, each repeated, loop after loop; blank frames may come first.
-  std::vector<int> first_at(8, -1);
+  // Where a frame is seen coming in (the step from its predecessor, so within a camera
+  // period of when it was shown; the recording may start in the middle of a picture) and
+  // the C-arm link was already up, its geometry is checked: `arrivals[k]` are those frames.
+  std::vector<std::vector<std::size_t>> arrivals(8);
   int last = -1;
   std::size_t unknown = 0;
   for (std::size_t i = 0; i < back.frames.size(); ++i) {
@@ -106,32 +109,46 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
     if (last >= 0) {
       EXPECT_TRUE(which == last || which == (last + 1) % 8) << "frame " << which << " after " << last << " at " << i;
     }
-    // Geometry in force is compared where a frame is seen coming in (the step from its
-    // predecessor, so within a camera period of when it was shown; the recording may start
-    // in the middle of a picture) and the C-arm link was already up.
     const bool arrives = last >= 0 && which == (last + 1) % 8;
     last = which;
-    if (arrives && first_at[static_cast<std::size_t>(which)] < 0 &&
-        back.frames[i].timestamp_ns > back.carm.front().timestamp_ns)
-      first_at[static_cast<std::size_t>(which)] = static_cast<int>(i);
+    if (arrives && back.frames[i].timestamp_ns > back.carm.front().timestamp_ns)
+      arrivals[static_cast<std::size_t>(which)].push_back(i);
   }
   EXPECT_EQ(unknown, 0u) << "recorded frames that are no original frame (torn or corrupted)";
+
+  // The geometry in force when a frame arrived is the one in force in the original. The
+  // two streams are replayed by two threads of this test, 100 ms either side of a C-arm
+  // change; on a loaded machine (CI runs two sanitized suites' tests at once) one of them
+  // can be late by that much, which shifts that one arrival by one state. So: every arrival
+  // carries the original state or a neighbour, and in every loop but at most one per frame
+  // it is the original's. A recorder pairing frames with the wrong state (an offset
+  // between the two clocks of 100 ms or more, a state taken before its time) fails each.
+  constexpr double kStepDeg = 6.0;  // between consecutive C-arm states above
   for (int k = 0; k < 8; ++k) {
-    const int i = first_at[static_cast<std::size_t>(k)];
-    ASSERT_GE(i, 0) << "original frame " << k << " was never recorded with geometry";
-    // The geometry in force when the frame arrived is the one in force in the original.
+    const auto& seen = arrivals[static_cast<std::size_t>(k)];
+    ASSERT_FALSE(seen.empty()) << "original frame " << k << " was never recorded with geometry";
     const auto* was = sim::carm_at(original, original.frames[static_cast<std::size_t>(k)].timestamp_ns);
-    const auto* now = sim::carm_at(back, back.frames[static_cast<std::size_t>(i)].timestamp_ns);
-    ASSERT_TRUE(was && now);
-    // Said on failure: how far the frame was recorded from the C-arm changes around it
-    // (about 100 ms each way in the original; the camera period adds up to 25 ms).
-    const std::int64_t t = back.frames[static_cast<std::size_t>(i)].timestamp_ns;
-    const auto next = std::upper_bound(back.carm.begin(), back.carm.end(), t,
-                                       [](std::int64_t a, const sim::CArmSample& c) { return a < c.timestamp_ns; });
-    EXPECT_NEAR(now->primary_deg, was->primary_deg, 0.0005)
-        << "frame " << k << " recorded as frame " << i << ", " << 1e-6 * static_cast<double>(t - now->timestamp_ns)
-        << " ms after the C-arm state in force and "
-        << (next == back.carm.end() ? -1.0 : 1e-6 * static_cast<double>(next->timestamp_ns - t)) << " ms before the next";
+    ASSERT_TRUE(was);
+    std::size_t right = 0;
+    std::string said;
+    for (const std::size_t i : seen) {
+      const std::int64_t t = back.frames[i].timestamp_ns;
+      const auto* now = sim::carm_at(back, t);
+      ASSERT_TRUE(now);
+      right += std::abs(now->primary_deg - was->primary_deg) < 0.0005;
+      // Said on failure: how far the frame was recorded from the C-arm changes around it
+      // (about 100 ms each way in the original; the camera period adds up to 25 ms).
+      const auto next = std::upper_bound(back.carm.begin(), back.carm.end(), t,
+                                         [](std::int64_t a, const sim::CArmSample& c) { return a < c.timestamp_ns; });
+      said += "\n  recorded as frame " + std::to_string(i) + " with " + std::to_string(now->primary_deg) + " deg, " +
+              std::to_string(1e-6 * static_cast<double>(t - now->timestamp_ns)) + " ms after the state in force and " +
+              std::to_string(next == back.carm.end() ? -1.0 : 1e-6 * static_cast<double>(next->timestamp_ns - t)) +
+              " ms before the next";
+      EXPECT_LE(std::abs(now->primary_deg - was->primary_deg), kStepDeg + 0.0005)
+          << "frame " << k << " (" << was->primary_deg << " deg in the original):" << said;
+    }
+    EXPECT_GE(right + 1, seen.size()) << "frame " << k << " (" << was->primary_deg << " deg in the original):" << said;
+    EXPECT_GE(right, 1u) << "frame " << k << " (" << was->primary_deg << " deg in the original):" << said;
   }
   const auto report = nlohmann::json::parse(std::ifstream(out / "record_report.json"));
   EXPECT_EQ(report["frames"]["written"].get<std::size_t>(), back.frames.size());
