@@ -21,8 +21,9 @@ struct Constraints {
 };
 
 // Reads {"fixed": [i...], "handles": [{"vertex": i, "target": [x, y, z]}]}; every error
-// names the file and the JSON path.
-Constraints read_constraints(const std::filesystem::path& path, const geometry::Vertices& V) {
+// names the file and the JSON path. Targets are in the mesh file's coordinates: RAS where
+// the file says SPACE=RAS (`V` is LPS, as read_mesh gives it), turned into LPS here.
+Constraints read_constraints(const std::filesystem::path& path, const geometry::Vertices& V, geometry::MeshSpace space) {
   using geometry::InputError;
   const std::string file = path.string();
   const nlohmann::json j = geometry::detail::parse_json_file(path);
@@ -73,6 +74,7 @@ Constraints read_constraints(const std::filesystem::path& path, const geometry::
           throw InputError(file + ": " + where + ".target[" + std::to_string(a) + "]: must be a finite number");
         t[a] = x.get<double>();
       }
+      if (space == geometry::MeshSpace::Ras) t.head<2>() = -t.head<2>();
       add(h["vertex"].get<long long>(), t, where);
     }
   }
@@ -88,7 +90,7 @@ int run_arap(const ArapCommand& cmd) {
   const auto loaded = geometry::read_mesh(cmd.mesh);
   geometry::validate_mesh(loaded.mesh, cmd.mesh.string());
   const auto& mesh = loaded.mesh;
-  const auto constraints = read_constraints(cmd.constraints, mesh.V);
+  const auto constraints = read_constraints(cmd.constraints, mesh.V, loaded.space);
   log().info("{}: {} vertices, {} faces; {} constrained vertices", cmd.mesh.string(), mesh.V.rows(), mesh.F.rows(),
              constraints.vertices.size());
 
@@ -115,7 +117,7 @@ int run_arap(const ArapCommand& cmd) {
   if (!r.X.allFinite() || !std::isfinite(r.energy.back()))
     throw std::runtime_error(cmd.mesh.string() + ": the ARAP solve produced non-finite positions (coordinates or targets out of range?); nothing written");
   geometry::TriangleMesh out{r.X, mesh.F};
-  geometry::write_mesh(cmd.out, out, geometry::format_for_extension(cmd.out));
+  geometry::write_mesh(cmd.out, out, geometry::format_for_extension(cmd.out), loaded.space);
   const double per_iteration = r.iterations > 0 ? r.iterate_ms / r.iterations : 0.0;
   log().info("factor {:.2f} ms ({}), {} iterations in {:.2f} ms ({:.3f} ms each), energy {:.6g}{}; wrote {}",
              solver.factor_ms(), deform::to_string(solver.backend()), r.iterations, r.iterate_ms, per_iteration,

@@ -116,7 +116,7 @@ int run_deform(const DeformCommand& cmd) {
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
     const auto& v = scene.vessels[i];
     const auto out_path = cmd.out / v.mesh_path.filename();
-    geometry::write_mesh(out_path, result.vessels[i].mesh, v.mesh.format);
+    geometry::write_mesh(out_path, result.vessels[i].mesh, v.mesh.format, v.mesh.space);
     const auto& r = result.reports[i];
     report["vessels"].push_back(vessel_json(r, out_path.string()));
     log().info("{:<12} {:<19} {:>3} control points, {:>4} constrained, {:>3} iterations in {} round(s), "

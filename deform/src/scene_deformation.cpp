@@ -99,8 +99,8 @@ std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformO
                                "' does not run inside its mesh " + v.mesh_path.string() +
                                " (no slicing plane hit the wall). The mesh spans " + box(corners) +
                                " mm, the centerline " + box(v.centerline) +
-                               " mm: both must be millimetres in patient LPS (a mesh in metres or cm, or in RAS "
-                               "where the scene says LPS, lies elsewhere)");
+                               " mm: both must be millimetres in patient LPS (a mesh in metres or cm, or saved in "
+                               "RAS without SPACE=RAS in its header, lies elsewhere)");
   }
   m->radius = radius_profile(m->skeleton);
 

@@ -59,8 +59,21 @@ LoadedMesh read_stl(const std::filesystem::path& path, std::string_view bytes);
 LoadedMesh read_ply(const std::filesystem::path& path, std::string_view bytes);
 TriangleMesh read_obj(const std::filesystem::path& path, std::string_view bytes);
 
-void write_stl(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary);
-void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary);
-void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh);
+/// What the file's header declares (mesh_space.cpp): the binary STL header, the ASCII STL's
+/// first line, the PLY header's comments or the OBJ's leading comment lines, searched for
+/// SPACE=RAS and SPACE=LPS as 3D Slicer does. InputError if it declares both.
+MeshSpace declared_space(const std::filesystem::path& path, std::string_view bytes, MeshFormat format);
+
+/// LPS <-> RAS: x and y negated (the change is its own inverse).
+void flip_lps_ras(TriangleMesh& mesh);
+
+/// "SPACE=LPS" or "SPACE=RAS", as 3D Slicer writes it (Undeclared: LPS).
+std::string_view space_tag(MeshSpace space);
+
+/// `space_tag` goes into the header: the binary STL header or solid line, a PLY comment,
+/// the OBJ's first comment line. The coordinates are written as they are.
+void write_stl(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary, std::string_view space_tag);
+void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary, std::string_view space_tag);
+void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh, std::string_view space_tag);
 
 }  // namespace evar::geometry::detail

@@ -73,18 +73,28 @@ LoadedMesh read_mesh(const std::filesystem::path& path) {
                            "' (expected .stl, .ply or .obj)");
   }
   const std::string bytes = read_input_file(path, kMeshLimit);
-  if (ext == ".stl") return detail::read_stl(path, bytes);
-  if (ext == ".ply") return detail::read_ply(path, bytes);
-  return LoadedMesh{detail::read_obj(path, bytes), MeshFormat::Obj};
+  LoadedMesh loaded = ext == ".stl"   ? detail::read_stl(path, bytes)
+                      : ext == ".ply" ? detail::read_ply(path, bytes)
+                                      : LoadedMesh{detail::read_obj(path, bytes), MeshFormat::Obj};
+  loaded.space = detail::declared_space(path, bytes, loaded.format);
+  if (loaded.space == MeshSpace::Ras) detail::flip_lps_ras(loaded.mesh);
+  return loaded;
 }
 
-void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, MeshFormat format) {
+void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, MeshFormat format, MeshSpace space) {
+  TriangleMesh in_ras;
+  if (space == MeshSpace::Ras) {
+    in_ras = mesh;
+    detail::flip_lps_ras(in_ras);
+  }
+  const TriangleMesh& out = space == MeshSpace::Ras ? in_ras : mesh;
+  const std::string_view tag = detail::space_tag(space);
   switch (format) {
-    case MeshFormat::StlBinary: return detail::write_stl(path, mesh, true);
-    case MeshFormat::StlAscii: return detail::write_stl(path, mesh, false);
-    case MeshFormat::PlyBinary: return detail::write_ply(path, mesh, true);
-    case MeshFormat::PlyAscii: return detail::write_ply(path, mesh, false);
-    case MeshFormat::Obj: return detail::write_obj(path, mesh);
+    case MeshFormat::StlBinary: return detail::write_stl(path, out, true, tag);
+    case MeshFormat::StlAscii: return detail::write_stl(path, out, false, tag);
+    case MeshFormat::PlyBinary: return detail::write_ply(path, out, true, tag);
+    case MeshFormat::PlyAscii: return detail::write_ply(path, out, false, tag);
+    case MeshFormat::Obj: return detail::write_obj(path, out, tag);
   }
   throw std::invalid_argument(path.string() + ": unknown mesh format");
 }

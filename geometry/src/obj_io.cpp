@@ -133,12 +133,14 @@ TriangleMesh read_obj(const std::filesystem::path& path, std::string_view bytes)
   return mesh;
 }
 
-void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh) {
+void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh, std::string_view space_tag) {
   check_indices_for_writing(mesh, path);
   std::string out;
   out.reserve(64 + static_cast<std::size_t>(mesh.V.rows()) * 60 +
               static_cast<std::size_t>(mesh.F.rows()) * 24);
-  out += "# evarnode: LPS millimetres\n";
+  out += "# evarnode: millimetres, ";
+  out += space_tag;
+  out += '\n';
   char buf[32];
   // to_chars rather than printf: the same "%.17g" digits, but immune to the C locale's
   // decimal separator. 17 significant digits read back as exactly the same double.

@@ -554,7 +554,7 @@ LoadedMesh read_ply(const std::filesystem::path& path, std::string_view bytes) {
   return {read_body(path, header, layout, reader, ctx), MeshFormat::PlyBinary};
 }
 
-void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary) {
+void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary, std::string_view space_tag) {
   check_indices_for_writing(mesh, path);
   const auto nv = mesh.V.rows();
   const auto nf = mesh.F.rows();
@@ -563,7 +563,10 @@ void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, bool
               static_cast<std::size_t>(nf) * (binary ? 13 : 30));
   out += "ply\n";
   out += binary ? "format binary_little_endian 1.0\n" : "format ascii 1.0\n";
-  out += "comment evarnode: LPS millimetres\n";
+  out += "comment evarnode: millimetres\n";
+  out += "comment ";
+  out += space_tag;
+  out += '\n';
   // double coordinates: a write/read round trip is exact.
   out += "element vertex " + std::to_string(nv) + "\n";
   out += "property double x\nproperty double y\nproperty double z\n";

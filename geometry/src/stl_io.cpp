@@ -335,14 +335,15 @@ LoadedMesh read_stl(const std::filesystem::path& path, std::string_view bytes) {
                  " bytes, but the file has " + std::to_string(bytes.size()));
 }
 
-void write_stl(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary) {
+void write_stl(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary, std::string_view space_tag) {
   check_indices_for_writing(mesh, path);
   const auto nf = static_cast<std::size_t>(mesh.F.rows());
   std::string out;
   if (binary) {
     out.reserve(kPreambleBytes + nf * kTriangleBytes);
     // Must not start with "solid": other readers would take the file for ASCII.
-    std::string header = "evarnode binary STL";
+    std::string header = "evarnode binary STL ";
+    header += space_tag;
     header.resize(kHeaderBytes, ' ');
     out += header;
     put_u32_le(out, static_cast<std::uint32_t>(nf));
@@ -357,7 +358,9 @@ void write_stl(const std::filesystem::path& path, const TriangleMesh& mesh, bool
     }
   } else {
     out.reserve(64 + nf * 200);
-    out += "solid evarnode\n";
+    out += "solid evarnode ";
+    out += space_tag;
+    out += '\n';
     for (std::size_t f = 0; f < nf; ++f) {
       const auto fi = static_cast<Eigen::Index>(f);
       const Eigen::Vector3f n = face_normal(mesh, fi);

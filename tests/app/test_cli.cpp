@@ -295,6 +295,59 @@ TEST_F(Cli, DeformKeepsThePlyFormatOfItsInput) {
   EXPECT_EQ(out.mesh.F, in.mesh.F);  // PLY keeps vertex order and faces exactly
 }
 
+// A scene whose meshes were saved from 3D Slicer in RAS (SPACE=RAS in each header; the
+// centerlines, device and landmarks stay LPS markups) deforms exactly as the LPS scene,
+// and its output meshes are written back in RAS, saying so. Read as LPS, each mesh would
+// lie mirrored through the patient's long axis, off its centerline.
+TEST_F(Cli, DeformReadsMeshesSavedInRasAndWritesThemBackInRas) {
+  namespace geometry = evar::geometry;
+  const auto dir = scratch("ras_scene");
+  fs::copy(dir_, dir / "in", fs::copy_options::recursive);
+  for (const char* name : {"aorta.stl", "iliac_left.stl", "iliac_right.stl"}) {
+    const auto lps = geometry::read_mesh(dir_ / name);
+    geometry::write_mesh(dir / "in" / name, lps.mesh, lps.format, geometry::MeshSpace::Ras);
+  }
+  const auto lps_run = evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out",
+                                 (dir / "out_lps").string(), "--no-preview"});
+  ASSERT_EQ(lps_run.code, 0) << lps_run.err;
+  const auto ras_run = evarnode({"deform", "--scene", (dir / "in" / "scene.json").string(), "--device",
+                                 (dir / "in" / "device.mrk.json").string(), "--out", (dir / "out_ras").string(),
+                                 "--no-preview"});
+  ASSERT_EQ(ras_run.code, 0) << ras_run.err;
+  for (const char* name : {"aorta.stl", "iliac_left.stl", "iliac_right.stl"}) {
+    const auto from_lps = geometry::read_mesh(dir / "out_lps" / name);
+    const auto from_ras = geometry::read_mesh(dir / "out_ras" / name);
+    EXPECT_EQ(from_lps.space, geometry::MeshSpace::Lps) << name;
+    EXPECT_EQ(from_ras.space, geometry::MeshSpace::Ras) << name;
+    // The same numbers in (a sign flip is exact), the same arithmetic, the same floats out.
+    ASSERT_EQ(from_ras.mesh.V.rows(), from_lps.mesh.V.rows()) << name;
+    EXPECT_EQ((from_ras.mesh.V - from_lps.mesh.V).cwiseAbs().maxCoeff(), 0.0) << name;
+  }
+  std::ifstream a(dir / "out_lps" / "landmarks.mrk.json"), b(dir / "out_ras" / "landmarks.mrk.json");
+  EXPECT_EQ(nlohmann::json::parse(a), nlohmann::json::parse(b));
+}
+
+// arap's targets are in the mesh file's own coordinates, RAS for a file that says so.
+TEST_F(Cli, ArapTakesTargetsInTheCoordinatesOfAMeshSavedInRas) {
+  namespace geometry = evar::geometry;
+  const auto dir = scratch("arap_ras");
+  const auto lps = geometry::read_mesh(dir_ / "iliac_left.stl").mesh;
+  geometry::write_mesh(dir / "in.ply", lps, geometry::MeshFormat::PlyAscii, geometry::MeshSpace::Ras);
+  const int v = static_cast<int>(lps.V.rows()) - 1;
+  // Vertex v in the file: (-x, -y, z) of its LPS position; moved 5 mm along the file's x.
+  nlohmann::json c = {{"fixed", {0, 1, 2}}, {"handles", nlohmann::json::array()}};
+  c["handles"].push_back({{"vertex", v}, {"target", {-lps.V(v, 0) + 5.0, -lps.V(v, 1), lps.V(v, 2)}}});
+  write_text(dir / "c.json", c.dump());
+  const auto r = evarnode({"arap", "--mesh", (dir / "in.ply").string(), "--constraints", (dir / "c.json").string(),
+                           "--out", (dir / "out.ply").string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto out = geometry::read_mesh(dir / "out.ply");
+  EXPECT_EQ(out.space, geometry::MeshSpace::Ras);
+  EXPECT_NEAR(out.mesh.V(v, 0), lps.V(v, 0) - 5.0, 1e-9);  // file +x is patient right: LPS -x
+  EXPECT_NEAR(out.mesh.V(v, 1), lps.V(v, 1), 1e-9);
+  EXPECT_NEAR(out.mesh.V(0, 0), lps.V(0, 0), 1e-9);  // a fixed vertex stays
+}
+
 TEST_F(Cli, ArapRefusesToWriteANonFiniteResult) {
   const auto dir = scratch("arap_overflow");
   write_text(dir / "c.json", R"({"fixed": [0], "handles": [{"vertex": 5, "target": [1e308, 1e308, 1e308]}]})");

@@ -297,8 +297,9 @@ TEST_F(Recording, ARecordingKilledMidwayIsRecoveredFromItsJournal) {
   const int status = evar::test::record_then_kill(options(), original_);
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "child status " << status;
   EXPECT_THROW(read_session(out), geometry::InputError);  // no session.json: nothing a reader takes
-  if (fs::exists(out / "record_report.json"))  // the periodic report, if one was written before the kill
+  if (fs::exists(out / "record_report.json")) {  // the periodic report, if one was written before the kill
     EXPECT_EQ(nlohmann::json::parse(std::ifstream(out / "record_report.json"))["in_progress"], true);
+  }
 
   // The kill may also cut the PNG being written and the journal row after it.
   const fs::path last_png = out / "frames" / "f0000012.png";
