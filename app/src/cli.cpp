@@ -67,9 +67,12 @@ int run_cli(const std::vector<std::string>& args) {
                                "Plain surface ARAP for explicit constraints (no skeleton), to compare the\n"
                                "solver with other ARAP implementations on identical problems.\n"
                                "constraints JSON: {\"fixed\": [vertex...], \"handles\": [{\"vertex\": i, \"target\": [x,y,z]}]}");
-  a->add_option("--mesh", arap.mesh, "input mesh (.stl, .ply, .obj)")->required();
-  a->add_option("--constraints", arap.constraints, "constraints JSON")->required();
-  a->add_option("--out", arap.out, "output mesh (format from its extension)")->required();
+  a->add_option("--mesh", arap.mesh, "input mesh (.stl, .ply, .obj, .vtk)")->required();
+  a->add_option("--constraints", arap.constraints,
+                "constraints JSON; targets in the mesh file's coordinates (RAS if its header says SPACE=RAS)")
+      ->required();
+  a->add_option("--out", arap.out,
+                "output mesh (format from its extension, in the input's coordinate system)")->required();
   auto* it = a->add_option("--iterations", arap.iterations, "run exactly N iterations after the initial guess")
                  ->check(CLI::NonNegativeNumber);
   auto* tol = a->add_option("--tolerance-mm", arap.tolerance_mm, "stop when the largest update is below T (default 0.01)")
@@ -83,7 +86,7 @@ int run_cli(const std::vector<std::string>& args) {
 
   // Mesh format and resolution of the synthetic scenes (example, sim patient).
   const auto add_mesh_options = [](CLI::App* c, SyntheticSceneCommand& cmd) {
-    c->add_option("--format", cmd.format, "mesh format: stl, ply or obj")
+    c->add_option("--format", cmd.format, "mesh format: stl, ply, obj or vtk")
         ->check(CLI::IsMember({"stl", "ply", "obj"}))
         ->capture_default_str();
     c->add_option("--aorta-vertices", cmd.aorta_vertices, "approximate aortic mesh size")

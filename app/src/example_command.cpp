@@ -11,7 +11,8 @@ geometry::MeshFormat mesh_format_option(const std::string& name) {
   if (name == "ply") return geometry::MeshFormat::PlyBinary;
   if (name == "obj") return geometry::MeshFormat::Obj;
   if (name == "stl") return geometry::MeshFormat::StlBinary;
-  throw std::invalid_argument("--format: '" + name + "' (expected stl, ply or obj)");
+  if (name == "vtk") return geometry::MeshFormat::VtkBinary;
+  throw std::invalid_argument("--format: '" + name + "' (expected stl, ply, obj or vtk)");
 }
 
 int run_example(const SyntheticSceneCommand& cmd) {

@@ -58,9 +58,10 @@ void check_indices_for_writing(const TriangleMesh& mesh, const std::filesystem::
 LoadedMesh read_stl(const std::filesystem::path& path, std::string_view bytes);
 LoadedMesh read_ply(const std::filesystem::path& path, std::string_view bytes);
 TriangleMesh read_obj(const std::filesystem::path& path, std::string_view bytes);
+LoadedMesh read_vtk(const std::filesystem::path& path, std::string_view bytes);
 
 /// What the file's header declares (mesh_space.cpp): the binary STL header, the ASCII STL's
-/// first line, the PLY header's comments or the OBJ's leading comment lines, searched for
+/// first line, the PLY header's comments, the OBJ's leading comment lines or the VTK title, searched for
 /// SPACE=RAS and SPACE=LPS as 3D Slicer does. InputError if it declares both.
 MeshSpace declared_space(const std::filesystem::path& path, std::string_view bytes, MeshFormat format);
 
@@ -75,5 +76,6 @@ std::string_view space_tag(MeshSpace space);
 void write_stl(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary, std::string_view space_tag);
 void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary, std::string_view space_tag);
 void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh, std::string_view space_tag);
+void write_vtk(const std::filesystem::path& path, const TriangleMesh& mesh, bool binary, std::string_view space_tag);
 
 }  // namespace evar::geometry::detail

@@ -68,13 +68,14 @@ std::string lower_extension(const std::filesystem::path& path) {
 
 LoadedMesh read_mesh(const std::filesystem::path& path) {
   const std::string ext = lower_extension(path);
-  if (ext != ".stl" && ext != ".ply" && ext != ".obj") {
+  if (ext != ".stl" && ext != ".ply" && ext != ".obj" && ext != ".vtk") {
     detail::fail(path, "unknown mesh extension '" + path.extension().string() +
-                           "' (expected .stl, .ply or .obj)");
+                           "' (expected .stl, .ply, .obj or .vtk)");
   }
   const std::string bytes = read_input_file(path, kMeshLimit);
   LoadedMesh loaded = ext == ".stl"   ? detail::read_stl(path, bytes)
                       : ext == ".ply" ? detail::read_ply(path, bytes)
+                      : ext == ".vtk" ? detail::read_vtk(path, bytes)
                                       : LoadedMesh{detail::read_obj(path, bytes), MeshFormat::Obj};
   loaded.space = detail::declared_space(path, bytes, loaded.format);
   if (loaded.space == MeshSpace::Ras) detail::flip_lps_ras(loaded.mesh);
@@ -95,6 +96,8 @@ void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, Mes
     case MeshFormat::PlyBinary: return detail::write_ply(path, out, true, tag);
     case MeshFormat::PlyAscii: return detail::write_ply(path, out, false, tag);
     case MeshFormat::Obj: return detail::write_obj(path, out, tag);
+    case MeshFormat::VtkBinary: return detail::write_vtk(path, out, true, tag);
+    case MeshFormat::VtkAscii: return detail::write_vtk(path, out, false, tag);
   }
   throw std::invalid_argument(path.string() + ": unknown mesh format");
 }
@@ -104,8 +107,9 @@ MeshFormat format_for_extension(const std::filesystem::path& path) {
   if (ext == ".stl") return MeshFormat::StlBinary;
   if (ext == ".ply") return MeshFormat::PlyBinary;
   if (ext == ".obj") return MeshFormat::Obj;
+  if (ext == ".vtk") return MeshFormat::VtkBinary;
   detail::fail(path, "cannot choose a mesh format for extension '" + path.extension().string() +
-                         "' (expected .stl, .ply or .obj)");
+                         "' (expected .stl, .ply, .obj or .vtk)");
 }
 
 }  // namespace evar::geometry

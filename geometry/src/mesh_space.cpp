@@ -1,6 +1,6 @@
 // The coordinate system a mesh file declares. 3D Slicer (since 4.11) writes "SPACE=LPS"
 // or "SPACE=RAS" into the header of every mesh file it saves: the binary STL header or the
-// ASCII STL's solid line, a PLY comment, the OBJ's leading comment. It reads files back
+// ASCII STL's solid line, a PLY comment, the OBJ's leading comment, a VTK file's title. It reads files back
 // by searching those places for the two tags, and takes a file without one as LPS. We do
 // the same, so a model saved from Slicer in RAS is not mirrored through the patient's
 // long axis (x and y negated: left-right and front-back swapped).
@@ -76,6 +76,15 @@ MeshSpace declared_space(const std::filesystem::path& path, std::string_view byt
         return true;
       });
       break;
+    case MeshFormat::VtkAscii:
+    case MeshFormat::VtkBinary: {  // the title, the second line
+      const std::size_t first_end = bytes.find('\n');
+      if (first_end != std::string_view::npos) {
+        const std::string_view rest = bytes.substr(first_end + 1);
+        tags.look_in(rest.substr(0, rest.find('\n')));
+      }
+      break;
+    }
   }
   if (tags.lps && tags.ras)
     fail(path, "its header declares both " + std::string(kLps) + " and " + std::string(kRas) +
@@ -84,8 +93,12 @@ MeshSpace declared_space(const std::filesystem::path& path, std::string_view byt
 }
 
 void flip_lps_ras(TriangleMesh& mesh) {
-  mesh.V.col(0) = -mesh.V.col(0);
-  mesh.V.col(1) = -mesh.V.col(1);
+  // Row by row: a mesh without vertices has no storage, and a column of it would be a
+  // block of a null pointer (found by fuzz_mesh: an OBJ saying SPACE=RAS and nothing else).
+  for (Eigen::Index i = 0; i < mesh.V.rows(); ++i) {
+    mesh.V(i, 0) = -mesh.V(i, 0);
+    mesh.V(i, 1) = -mesh.V(i, 1);
+  }
 }
 
 std::string_view space_tag(MeshSpace space) { return space == MeshSpace::Ras ? kRas : kLps; }

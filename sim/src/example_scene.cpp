@@ -282,6 +282,9 @@ const char* mesh_extension(geometry::MeshFormat format) {
       return ".ply";
     case geometry::MeshFormat::Obj:
       return ".obj";
+    case geometry::MeshFormat::VtkAscii:
+    case geometry::MeshFormat::VtkBinary:
+      return ".vtk";
   }
   throw std::invalid_argument("write_example_scene: unknown mesh format");
 }

@@ -348,6 +348,24 @@ TEST_F(Cli, ArapTakesTargetsInTheCoordinatesOfAMeshSavedInRas) {
   EXPECT_NEAR(out.mesh.V(0, 0), lps.V(0, 0), 1e-9);  // a fixed vertex stays
 }
 
+// 3D Slicer's default model format, VTK legacy polydata, in and out.
+TEST_F(Cli, DeformKeepsTheVtkFormatOfItsInput) {
+  const auto dir = scratch("vtk_scene");
+  evar::sim::ExampleSceneParams p;
+  p.aorta_vertices = 2500;
+  p.iliac_vertices = 1500;
+  evar::sim::write_example_scene(evar::sim::make_example_scene(p), dir / "in", evar::geometry::MeshFormat::VtkBinary);
+  const auto r = evarnode({"deform", "--scene", (dir / "in" / "scene.json").string(), "--device",
+                           (dir / "in" / "device.mrk.json").string(), "--out", (dir / "out").string(), "--no-preview"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto in = evar::geometry::read_mesh(dir / "in" / "iliac_right.vtk");
+  const auto out = evar::geometry::read_mesh(dir / "out" / "iliac_right.vtk");
+  EXPECT_EQ(out.format, evar::geometry::MeshFormat::VtkBinary);
+  EXPECT_EQ(out.mesh.V.rows(), in.mesh.V.rows());
+  EXPECT_EQ(out.mesh.F, in.mesh.F);  // VTK keeps vertex order and faces exactly
+  EXPECT_GT((out.mesh.V - in.mesh.V).cwiseAbs().maxCoeff(), 0.1);  // and the iliac carrying the device moved
+}
+
 TEST_F(Cli, ArapRefusesToWriteANonFiniteResult) {
   const auto dir = scratch("arap_overflow");
   write_text(dir / "c.json", R"({"fixed": [0], "handles": [{"vertex": 5, "target": [1e308, 1e308, 1e308]}]})");

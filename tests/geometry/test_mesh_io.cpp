@@ -621,8 +621,8 @@ TEST(ObjRead, MalformedFilesAreRefusedWithFileAndLine) {
 
 TEST(ReadMesh, RefusesUnknownExtensionMissingFilesAndDirectories) {
   const fs::path dir = test_dir();
-  write_bytes(dir / "mesh.vtk", "# vtk DataFile Version 3.0\n");
-  EXPECT_THAT(read_error(dir / "mesh.vtk"), HasSubstr("mesh.vtk: unknown mesh extension '.vtk'"));
+  write_bytes(dir / "mesh.off", "OFF\n3 1 0\n");
+  EXPECT_THAT(read_error(dir / "mesh.off"), HasSubstr("mesh.off: unknown mesh extension '.off'"));
   EXPECT_THAT(read_error(dir / "missing.stl"), HasSubstr("missing.stl: file does not exist"));
   fs::create_directories(dir / "folder.ply");
   EXPECT_THAT(read_error(dir / "folder.ply"), HasSubstr("folder.ply: is a directory"));

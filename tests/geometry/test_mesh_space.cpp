@@ -65,8 +65,8 @@ TriangleMesh in_ras(TriangleMesh m) {
 }
 
 // The files 3D Slicer (vtkMRMLModelStorageNode) writes for `m`: its header text is
-// "3D Slicer output. SPACE=<space>" (binary and ASCII STL, OBJ), and a PLY gets the
-// comment "SPACE=<space>". Coordinates as given (the caller flips them for RAS).
+// "3D Slicer output. SPACE=<space>" (binary and ASCII STL, OBJ, the VTK title), and a
+// PLY gets the comment "SPACE=<space>". Coordinates as given (the caller flips them for RAS).
 std::string slicer_file(MeshFormat format, const TriangleMesh& m, const std::string& space) {
   const std::string header = "3D Slicer output. SPACE=" + space;
   std::ostringstream out;
@@ -109,11 +109,20 @@ std::string slicer_file(MeshFormat format, const TriangleMesh& m, const std::str
       for (Eigen::Index f = 0; f < m.F.rows(); ++f)
         out << "f " << m.F(f, 0) + 1 << ' ' << m.F(f, 1) + 1 << ' ' << m.F(f, 2) + 1 << "\n";
       return out.str();
+    case MeshFormat::VtkAscii:
+    case MeshFormat::VtkBinary:  // vtkPolyDataWriter, version 4.2 (ASCII here either way)
+      out << "# vtk DataFile Version 4.2\n" << header << "\nASCII\nDATASET POLYDATA\nPOINTS " << m.V.rows()
+          << " float\n";
+      for (Eigen::Index i = 0; i < m.V.rows(); ++i) out << m.V(i, 0) << ' ' << m.V(i, 1) << ' ' << m.V(i, 2) << "\n";
+      out << "POLYGONS " << m.F.rows() << ' ' << 4 * m.F.rows() << "\n";
+      for (Eigen::Index f = 0; f < m.F.rows(); ++f) out << "3 " << m.F(f, 0) << ' ' << m.F(f, 1) << ' ' << m.F(f, 2) << "\n";
+      return out.str();
   }
   return {};
 }
 
 const char* extension(MeshFormat f) {
+  if (f == MeshFormat::VtkAscii || f == MeshFormat::VtkBinary) return ".vtk";
   return f == MeshFormat::Obj ? ".obj" : (f == MeshFormat::PlyAscii || f == MeshFormat::PlyBinary) ? ".ply" : ".stl";
 }
 
@@ -168,7 +177,8 @@ TEST_P(MeshSpaceOfEachFormat, WrittenFilesDeclareTheirSpaceAndReadBackTheSame) {
 }
 
 INSTANTIATE_TEST_SUITE_P(Formats, MeshSpaceOfEachFormat,
-                         testing::Values(MeshFormat::StlBinary, MeshFormat::StlAscii, MeshFormat::PlyAscii, MeshFormat::Obj));
+                         testing::Values(MeshFormat::StlBinary, MeshFormat::StlAscii, MeshFormat::PlyAscii, MeshFormat::Obj,
+                                         MeshFormat::VtkBinary));
 
 TEST(MeshSpace, AFileWithoutATagIsLpsAndSaysItIsUndeclared) {
   const fs::path file = test_dir() / "plain.obj";
