@@ -97,6 +97,7 @@ class Cli : public ::testing::Test {
     fs::create_directories(p);
     return p;
   }
+  void expect_deform_keeps(evar::geometry::MeshFormat format, const std::string& extension);
   std::string curve_json(const std::string& points) const {
     return R"({"markups": [{"type": "Curve", "coordinateSystem": "LPS", "controlPoints": [)" + points + "]}]}";
   }
@@ -279,21 +280,29 @@ TEST_F(Cli, DeformRefusesToOverwriteItsInputs) {
   EXPECT_NE(r.err.find("would overwrite an input"), std::string::npos) << r.err;
 }
 
-TEST_F(Cli, DeformKeepsThePlyFormatOfItsInput) {
-  const auto dir = scratch("ply_scene");
+// `deform` writes each mesh in its input's format, with the file's vertex order and faces
+// (PLY and VTK are indexed formats), the iliac carrying the device moved.
+void Cli::expect_deform_keeps(evar::geometry::MeshFormat format, const std::string& extension) {
+  const auto dir = scratch("format" + extension);
   evar::sim::ExampleSceneParams p;
   p.aorta_vertices = 2500;
   p.iliac_vertices = 1500;
-  evar::sim::write_example_scene(evar::sim::make_example_scene(p), dir / "in", evar::geometry::MeshFormat::PlyBinary);
+  evar::sim::write_example_scene(evar::sim::make_example_scene(p), dir / "in", format);
   const auto r = evarnode({"deform", "--scene", (dir / "in" / "scene.json").string(), "--device",
                            (dir / "in" / "device.mrk.json").string(), "--out", (dir / "out").string(), "--no-preview"});
   ASSERT_EQ(r.code, 0) << r.err;
-  const auto in = evar::geometry::read_mesh(dir / "in" / "iliac_right.ply");
-  const auto out = evar::geometry::read_mesh(dir / "out" / "iliac_right.ply");
-  EXPECT_EQ(out.format, evar::geometry::MeshFormat::PlyBinary);
-  EXPECT_EQ(out.mesh.V.rows(), in.mesh.V.rows());
-  EXPECT_EQ(out.mesh.F, in.mesh.F);  // PLY keeps vertex order and faces exactly
+  const auto in = evar::geometry::read_mesh(dir / "in" / ("iliac_right" + extension));
+  const auto out = evar::geometry::read_mesh(dir / "out" / ("iliac_right" + extension));
+  EXPECT_EQ(out.format, format);
+  ASSERT_EQ(out.mesh.V.rows(), in.mesh.V.rows());
+  EXPECT_EQ(out.mesh.F, in.mesh.F);
+  EXPECT_GT((out.mesh.V - in.mesh.V).cwiseAbs().maxCoeff(), 0.1);
 }
+
+TEST_F(Cli, DeformKeepsThePlyFormatOfItsInput) { expect_deform_keeps(evar::geometry::MeshFormat::PlyBinary, ".ply"); }
+
+// 3D Slicer's default model format, VTK legacy polydata, in and out.
+TEST_F(Cli, DeformKeepsTheVtkFormatOfItsInput) { expect_deform_keeps(evar::geometry::MeshFormat::VtkBinary, ".vtk"); }
 
 // A scene whose meshes were saved from 3D Slicer in RAS (SPACE=RAS in each header; the
 // centerlines, device and landmarks stay LPS markups) deforms exactly as the LPS scene,
@@ -346,24 +355,6 @@ TEST_F(Cli, ArapTakesTargetsInTheCoordinatesOfAMeshSavedInRas) {
   EXPECT_NEAR(out.mesh.V(v, 0), lps.V(v, 0) - 5.0, 1e-9);  // file +x is patient right: LPS -x
   EXPECT_NEAR(out.mesh.V(v, 1), lps.V(v, 1), 1e-9);
   EXPECT_NEAR(out.mesh.V(0, 0), lps.V(0, 0), 1e-9);  // a fixed vertex stays
-}
-
-// 3D Slicer's default model format, VTK legacy polydata, in and out.
-TEST_F(Cli, DeformKeepsTheVtkFormatOfItsInput) {
-  const auto dir = scratch("vtk_scene");
-  evar::sim::ExampleSceneParams p;
-  p.aorta_vertices = 2500;
-  p.iliac_vertices = 1500;
-  evar::sim::write_example_scene(evar::sim::make_example_scene(p), dir / "in", evar::geometry::MeshFormat::VtkBinary);
-  const auto r = evarnode({"deform", "--scene", (dir / "in" / "scene.json").string(), "--device",
-                           (dir / "in" / "device.mrk.json").string(), "--out", (dir / "out").string(), "--no-preview"});
-  ASSERT_EQ(r.code, 0) << r.err;
-  const auto in = evar::geometry::read_mesh(dir / "in" / "iliac_right.vtk");
-  const auto out = evar::geometry::read_mesh(dir / "out" / "iliac_right.vtk");
-  EXPECT_EQ(out.format, evar::geometry::MeshFormat::VtkBinary);
-  EXPECT_EQ(out.mesh.V.rows(), in.mesh.V.rows());
-  EXPECT_EQ(out.mesh.F, in.mesh.F);  // VTK keeps vertex order and faces exactly
-  EXPECT_GT((out.mesh.V - in.mesh.V).cwiseAbs().maxCoeff(), 0.1);  // and the iliac carrying the device moved
 }
 
 TEST_F(Cli, ArapRefusesToWriteANonFiniteResult) {

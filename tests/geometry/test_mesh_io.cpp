@@ -20,6 +20,7 @@
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/triangle_mesh.hpp"
+#include "support/file_bytes.hpp"
 
 namespace fs = std::filesystem;
 using evar::geometry::format_for_extension;
@@ -31,6 +32,8 @@ using evar::geometry::read_mesh;
 using evar::geometry::TriangleMesh;
 using evar::geometry::validate_mesh;
 using evar::geometry::write_mesh;
+using evar::test::read_bytes;
+using evar::test::write_bytes;
 using testing::HasSubstr;
 
 namespace {
@@ -43,19 +46,6 @@ fs::path test_dir() {
   fs::remove_all(dir);
   fs::create_directories(dir);
   return dir;
-}
-
-void write_bytes(const fs::path& path, const std::string& bytes) {
-  std::ofstream out(path, std::ios::binary);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  ASSERT_TRUE(out.good());
-}
-
-std::string read_bytes(const fs::path& path) {
-  std::ifstream in(path, std::ios::binary);
-  std::ostringstream s;
-  s << in.rdbuf();
-  return s.str();
 }
 
 // The message of the InputError thrown by read_mesh(path), or a test failure.

@@ -5,53 +5,39 @@
 #include <Eigen/Geometry>
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
-#include <unistd.h>
 
 #include <algorithm>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
-#include <fstream>
-#include <sstream>
 #include <string>
 
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/mesh_io.hpp"
+#include "support/error_message.hpp"
+#include "support/file_bytes.hpp"
+#include "support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
-using evar::geometry::InputError;
 using evar::geometry::MeshFormat;
 using evar::geometry::MeshSpace;
 using evar::geometry::read_mesh;
 using evar::geometry::TriangleMesh;
 using evar::geometry::write_mesh;
+using evar::test::TempDir;
 using testing::HasSubstr;
 
 namespace {
 
-fs::path test_dir() {
-  const auto* info = testing::UnitTest::GetInstance()->current_test_info();
-  const fs::path dir = fs::path(testing::TempDir()) / ("evar_vtk_io_" + std::to_string(::getpid())) / info->name();
-  fs::remove_all(dir);
-  fs::create_directories(dir);
-  return dir;
-}
-
-fs::path write_bytes(const std::string& name, const std::string& bytes) {
-  const fs::path path = test_dir() / name;
-  std::ofstream out(path, std::ios::binary);
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
+// `bytes` as a file `name` in the test's own scratch folder.
+fs::path file_of(const TempDir& dir, const std::string& name, const std::string& bytes) {
+  const fs::path path = dir.path / name;
+  evar::test::write_bytes(path, bytes);
   return path;
 }
 
 std::string read_error(const fs::path& path) {
-  try {
-    read_mesh(path);
-  } catch (const InputError& e) {
-    return e.what();
-  }
-  ADD_FAILURE() << "read_mesh(" << path << ") did not throw InputError";
-  return {};
+  return evar::test::error_message([&] { read_mesh(path); }, "read_mesh(" + path.string() + ") did not throw InputError");
 }
 
 template <class T>
@@ -85,13 +71,14 @@ void expect_square(const TriangleMesh& m) {
 // As 3D Slicer saves a model (vtkPolyDataWriter, version 4.2, ASCII), with the normals
 // and the array metadata VTK 9 adds after the points.
 TEST(VtkRead, ASlicerAsciiFileWithPointDataAndMetadata) {
+  const TempDir dir;
   const std::string text = std::string("# vtk DataFile Version 4.2\n3D Slicer output. SPACE=LPS\nASCII\n") +
                            "DATASET POLYDATA\nPOINTS 5 float\n" + kSquarePoints +
                            "METADATA\nINFORMATION 2\nNAME L2_NORM_RANGE LOCATION vtkDataArray\nDATA 2 0 12.1244\n"
                            "NAME L2_NORM_FINITE_RANGE LOCATION vtkDataArray\nDATA 2 0 12.1244\n\n"
                            "POLYGONS 1 5\n4 0 1 2 3\n"
                            "POINT_DATA 5\nNORMALS Normals float\n0 0 1 0 0 1 0 0 1 0 0 1 0 0 1\n";
-  const auto loaded = read_mesh(write_bytes("model.vtk", text));
+  const auto loaded = read_mesh(file_of(dir, "model.vtk", text));
   EXPECT_EQ(loaded.format, MeshFormat::VtkAscii);
   EXPECT_EQ(loaded.space, MeshSpace::Lps);
   expect_square(loaded.mesh);  // the quad, fan-triangulated
@@ -100,6 +87,7 @@ TEST(VtkRead, ASlicerAsciiFileWithPointDataAndMetadata) {
 // BINARY (big-endian), a FIELD block before the points, and a triangle strip whose
 // second triangle is turned to face the same way.
 TEST(VtkRead, BinaryWithFieldDataAndATriangleStrip) {
+  const TempDir dir;
   std::string b = "# vtk DataFile Version 4.2\nvtk output\nBINARY\nDATASET POLYDATA\n"
                   "FIELD FieldData 1\nLabel 1 2 double\n";
   put_be(b, 4.5);
@@ -109,7 +97,7 @@ TEST(VtkRead, BinaryWithFieldDataAndATriangleStrip) {
   b += "\nTRIANGLE_STRIPS 1 5\n";
   for (const std::int32_t v : {4, 0, 1, 3, 2}) put_be(b, v);
   b += "\nCELL_DATA 2\n";
-  const auto loaded = read_mesh(write_bytes("strip.vtk", b));
+  const auto loaded = read_mesh(file_of(dir, "strip.vtk", b));
   EXPECT_EQ(loaded.format, MeshFormat::VtkBinary);
   EXPECT_EQ(loaded.space, MeshSpace::Undeclared);
   const auto& m = loaded.mesh;
@@ -123,10 +111,11 @@ TEST(VtkRead, BinaryWithFieldDataAndATriangleStrip) {
 
 // VTK 9's own layout (version 5.1): OFFSETS and CONNECTIVITY arrays, ASCII and BINARY.
 TEST(VtkRead, Version51OffsetsAndConnectivity) {
+  const TempDir dir;
   const std::string ascii = std::string("# vtk DataFile Version 5.1\nvtk output\nASCII\nDATASET POLYDATA\n") +
                             "POINTS 5 float\n" + kSquarePoints +
                             "POLYGONS 3 6\nOFFSETS vtktypeint64\n0 3 6\nCONNECTIVITY vtktypeint64\n0 1 2 0 2 3\n";
-  expect_square(read_mesh(write_bytes("a51.vtk", ascii)).mesh);
+  expect_square(read_mesh(file_of(dir, "a51.vtk", ascii)).mesh);
 
   std::string b = "# vtk DataFile Version 5.1\nvtk output\nBINARY\nDATASET POLYDATA\nPOINTS 5 float\n";
   for (const float v : {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 7, 7, 7}) put_be(b, v);
@@ -135,13 +124,14 @@ TEST(VtkRead, Version51OffsetsAndConnectivity) {
   b += "\nCONNECTIVITY vtktypeint64\n";
   for (const std::int64_t v : {0, 1, 2, 0, 2, 3}) put_be(b, v);
   b += "\n";
-  expect_square(read_mesh(write_bytes("b51.vtk", b)).mesh);
+  expect_square(read_mesh(file_of(dir, "b51.vtk", b)).mesh);
 }
 
 TEST(VtkRead, ASlicerFileInRasIsReadIntoLps) {
+  const TempDir dir;
   const std::string text = std::string("# vtk DataFile Version 4.2\n3D Slicer output. SPACE=RAS\nASCII\n") +
                            "DATASET POLYDATA\nPOINTS 3 float\n-10 -20 30 -11 -20 30 -10 -21 31\nPOLYGONS 1 4\n3 0 1 2\n";
-  const auto loaded = read_mesh(write_bytes("ras.vtk", text));
+  const auto loaded = read_mesh(file_of(dir, "ras.vtk", text));
   EXPECT_EQ(loaded.space, MeshSpace::Ras);
   EXPECT_EQ(loaded.mesh.V(0, 0), 10.0);
   EXPECT_EQ(loaded.mesh.V(0, 1), 20.0);
@@ -150,12 +140,14 @@ TEST(VtkRead, ASlicerFileInRasIsReadIntoLps) {
 
 // Lines and vertices are cells but not faces: skipped, their indices still checked.
 TEST(VtkRead, LinesAndVerticesAreNotFaces) {
+  const TempDir dir;
   const std::string text = std::string("# vtk DataFile Version 4.2\nt\nASCII\nDATASET POLYDATA\nPOINTS 5 float\n") +
                            kSquarePoints + "VERTICES 1 2\n1 4\nLINES 1 3\n2 0 4\nPOLYGONS 2 8\n3 0 1 2\n3 0 2 3\n";
-  expect_square(read_mesh(write_bytes("lines.vtk", text)).mesh);
+  expect_square(read_mesh(file_of(dir, "lines.vtk", text)).mesh);
 }
 
 TEST(VtkRoundTrip, KeepsVertexOrderFacesAndDoublesExactly) {
+  const TempDir dir;
   TriangleMesh m;
   m.V.resize(5, 3);
   m.V << 12.345678901234567, -98.76543210987654, 0.1, 1e-7, 3.0 / 7.0, -250.5, 77.7, 0.3, 1.0 / 3.0, -0.0, 5.5,
@@ -163,7 +155,7 @@ TEST(VtkRoundTrip, KeepsVertexOrderFacesAndDoublesExactly) {
   m.F.resize(2, 3);
   m.F << 3, 0, 4, 4, 0, 1;  // vertex 2 unreferenced
   for (const MeshFormat f : {MeshFormat::VtkAscii, MeshFormat::VtkBinary}) {
-    const fs::path file = test_dir() / (f == MeshFormat::VtkAscii ? "a.vtk" : "b.vtk");
+    const fs::path file = dir.path / (f == MeshFormat::VtkAscii ? "a.vtk" : "b.vtk");
     write_mesh(file, m, f);
     const auto back = read_mesh(file);
     EXPECT_EQ(back.format, f);
@@ -175,6 +167,7 @@ TEST(VtkRoundTrip, KeepsVertexOrderFacesAndDoublesExactly) {
 }
 
 TEST(VtkRead, MalformedFilesAreRefusedWithFileAndPlace) {
+  const TempDir dir;
   const std::string head = "# vtk DataFile Version 4.2\nt\nASCII\nDATASET POLYDATA\n";
   struct Case {
     std::string text, expected;
@@ -198,7 +191,7 @@ TEST(VtkRead, MalformedFilesAreRefusedWithFileAndPlace) {
       {head, "the file has no POINTS section"},
   };
   for (const Case& c : cases) {
-    const fs::path path = write_bytes("bad.vtk", c.text);
+    const fs::path path = file_of(dir, "bad.vtk", c.text);
     const std::string error = read_error(path);
     EXPECT_THAT(error, HasSubstr(path.string())) << c.text;
     EXPECT_THAT(error, HasSubstr(c.expected)) << c.text;
@@ -206,15 +199,16 @@ TEST(VtkRead, MalformedFilesAreRefusedWithFileAndPlace) {
 }
 
 TEST(VtkRead, TruncatedBinaryNamesTheByte) {
+  const TempDir dir;
   std::string b = "# vtk DataFile Version 4.2\nt\nBINARY\nDATASET POLYDATA\nPOINTS 3 float\n";
   for (const float v : {0, 0, 0, 1, 0}) put_be(b, v);  // 5 of the 9 floats
-  const std::string error = read_error(write_bytes("cut.vtk", b));
+  const std::string error = read_error(file_of(dir, "cut.vtk", b));
   EXPECT_THAT(error, HasSubstr("POINTS 3 of 4 bytes each cannot fit in the rest of the file"));
   std::string v5 = "# vtk DataFile Version 5.1\nt\nBINARY\nDATASET POLYDATA\nPOINTS 3 float\n";
   for (const float v : {0, 0, 0, 1, 0, 0, 1, 1, 0}) put_be(v5, v);
   v5 += "\nPOLYGONS 2 3\nOFFSETS vtktypeint64\n";
   const std::size_t offsets_at = v5.size();
   put_be(v5, std::int64_t{0});
-  EXPECT_THAT(read_error(write_bytes("cut51.vtk", v5)),
+  EXPECT_THAT(read_error(file_of(dir, "cut51.vtk", v5)),
               HasSubstr("byte " + std::to_string(offsets_at) + ": the file ends inside its POLYGONS OFFSETS"));
 }
