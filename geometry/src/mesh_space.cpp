@@ -51,12 +51,18 @@ bool starts_with_word(std::string_view line, std::string_view word) {
 MeshSpace declared_space(const std::filesystem::path& path, std::string_view bytes, MeshFormat format) {
   Tags tags;
   switch (format) {
-    case MeshFormat::StlBinary: tags.look_in(bytes.substr(0, 80)); break;
-    case MeshFormat::StlAscii: {  // the solid line, which blank lines may precede
-      const std::string_view text = trimmed_front(bytes);
-      tags.look_in(text.substr(0, text.find('\n')));
+    case MeshFormat::StlBinary: {  // the 80-byte header, as a C string (VTK's reader stops at a NUL)
+      const std::string_view header = bytes.substr(0, 80);
+      tags.look_in(header.substr(0, header.find('\0')));
       break;
     }
+    case MeshFormat::StlAscii:  // every solid's name: VTK's reader joins them into its header
+      for_each_line(bytes, [&](std::string_view line) {
+        line = trimmed_front(line);
+        if (line.size() >= 5 && (line.substr(0, 5) == "solid" || line.substr(0, 5) == "SOLID")) tags.look_in(line);
+        return true;
+      });
+      break;
     case MeshFormat::PlyAscii:
     case MeshFormat::PlyBinary:
       // The header is text up to end_header, which the reader has already found.
@@ -67,11 +73,11 @@ MeshSpace declared_space(const std::filesystem::path& path, std::string_view byt
       });
       break;
     case MeshFormat::Obj:
-      // The comment lines before the first statement, as VTK's OBJ reader gathers them.
+      // The comment lines from the first line on, without a break, as VTK's OBJ reader
+      // gathers them (a blank line ends them).
       for_each_line(bytes, [&](std::string_view line) {
         line = trimmed_front(line);
-        if (line.empty()) return true;
-        if (line.front() != '#') return false;
+        if (line.empty() || line.front() != '#') return false;
         tags.look_in(line);
         return true;
       });

@@ -51,7 +51,7 @@ std::optional<ValueType> value_type(std::string_view name) {
       {"unsigned_int", {4, Kind::Unsigned}},  {"long", {8, Kind::Signed}},
       {"unsigned_long", {8, Kind::Unsigned}}, {"vtktypeint64", {8, Kind::Signed}},
       {"vtktypeuint64", {8, Kind::Unsigned}}, {"float", {4, Kind::Floating}},
-      {"double", {8, Kind::Floating}},
+      {"double", {8, Kind::Floating}},       {"vtkidtype", {4, Kind::Signed}},  // as VTK writes it
   };
   for (const Entry& e : kTypes)
     if (iequals(name, e.name)) return e.type;
@@ -70,12 +70,12 @@ class VtkReader {
   VtkReader(const std::filesystem::path& path, std::string_view bytes) : path_(path), s_(bytes) {}
 
   LoadedMesh read() {
-    constexpr std::string_view kMagic = "# vtk DataFile Version ";
+    constexpr std::string_view kMagic = "# vtk DataFile Version";
     const std::string_view first = next_line();
     if (first.substr(0, kMagic.size()) != kMagic)
       fail_at(0, "not a VTK legacy file: the first line must be '# vtk DataFile Version <x.y>'");
     int major = 0;
-    const std::string_view version = first.substr(kMagic.size());
+    const std::string_view version = trimmed(first.substr(kMagic.size()));  // VTK's sscanf skips spaces
     const auto [end, ec] = std::from_chars(version.data(), version.data() + version.size(), major);
     if (ec != std::errc{} || end == version.data() || major < 1)
       fail_at(0, "the version " + quoted(version) + " on the first line is not a number");
@@ -114,7 +114,7 @@ class VtkReader {
       } else if (iequals(key, "FIELD")) {
         skip_field();
       } else if (iequals(key, "METADATA")) {
-        skip_metadata();
+        skip_metadata(0);
       } else {
         fail_at(at, "unexpected " + quoted(key) +
                         " (a polydata section is POINTS, POLYGONS, TRIANGLE_STRIPS, VERTICES, LINES, FIELD, "
@@ -166,6 +166,13 @@ class VtkReader {
     if (!iequals(w, keyword)) fail_at(at, "expected " + std::string(keyword) + ", found " + quoted(w));
   }
 
+  bool next_is(std::string_view keyword) {
+    const std::size_t at = skip_space();
+    const bool is = iequals(word(), keyword);
+    pos_ = at;
+    return is;
+  }
+
   // A count on a section's line: a whole number, at most what the rest of the file can hold
   // at `min_bytes` bytes a value (checked before anything is allocated).
   std::size_t count(std::string_view what, std::size_t values_per_item, std::size_t min_bytes) {
@@ -206,7 +213,8 @@ class VtkReader {
   template <class T, class Check>
   std::vector<T> values(std::size_t n, const ValueType& t, std::string_view what, Check&& check) {
     std::vector<T> out;
-    out.reserve(n);
+    // ASCII counts are bounded only by the bytes left (two a value): grow as values come.
+    out.reserve(binary_ ? n : std::min<std::size_t>(n, 1u << 20));
     if (binary_) {
       to_binary_data();
       if (n > (s_.size() - pos_) / t.bytes)
@@ -257,7 +265,7 @@ class VtkReader {
       return v;
     };
     std::vector<double> p = values<double>(3 * n, t, "POINTS", finite);
-    skip_metadata_if_any();
+    skip_metadata_if_any(3);
     return p;
   }
 
@@ -273,20 +281,21 @@ class VtkReader {
       // "KEY nOffsets nConnectivity", then OFFSETS and CONNECTIVITY arrays (version 5).
       const std::size_t n_offsets = count(section + " offset count", 1, binary_ ? 1 : 2);
       const std::size_t n_ids = count(section + " connectivity size", 1, binary_ ? 1 : 2);
+      if (n_offsets == 0 && n_ids == 0 && !next_is("OFFSETS")) return c;  // VTK reads an empty section so
       expect("OFFSETS");
-      std::size_t at = skip_space();
+      const std::size_t at = skip_space();
       ValueType t = type_word();
       integral(t, at);
       std::vector<std::int64_t> offsets = values<std::int64_t>(n_offsets, t, section + " OFFSETS", any);
-      skip_metadata_if_any();
+      skip_metadata_if_any(1);
       expect("CONNECTIVITY");
-      at = skip_space();
+      const std::size_t ids_at = skip_space();
       t = type_word();
-      integral(t, at);
+      integral(t, ids_at);
       c.ids = values<std::int64_t>(n_ids, t, section + " CONNECTIVITY", any);
-      skip_metadata_if_any();
+      skip_metadata_if_any(1);
       if (offsets.empty()) {
-        if (!c.ids.empty()) fail_at(at, section + ": connectivity without offsets");
+        if (!c.ids.empty()) fail_at(ids_at, section + ": connectivity without offsets");
       } else {
         if (offsets.front() != 0) fail_at(at, section + ": the first offset is " + std::to_string(offsets.front()) + ", not 0");
         for (std::size_t i = 1; i < offsets.size(); ++i)
@@ -303,8 +312,10 @@ class VtkReader {
       const std::size_t n_cells = count(section + " cell count", 1, binary_ ? 4 : 2);
       const std::size_t size = count(section + " size", 1, binary_ ? 4 : 2);
       const std::size_t at = pos_;
-      const std::vector<std::int64_t> v = values<std::int64_t>(size, ValueType{4, Kind::Signed}, section, any);
-      std::size_t p = 0;
+      std::vector<std::int64_t> v = values<std::int64_t>(size, ValueType{4, Kind::Signed}, section, any);
+      // Each cell's indices move down over the counts before them, in place: w <= p.
+      std::size_t p = 0, w = 0;
+      c.offsets.reserve(n_cells + 1);
       for (std::size_t cell = 0; cell < n_cells; ++cell) {
         if (p >= v.size())
           fail_at(at, section + ": declares " + std::to_string(n_cells) + " cells but its " + std::to_string(size) +
@@ -313,14 +324,15 @@ class VtkReader {
         if (k < 0 || static_cast<std::uint64_t>(k) > v.size() - p)
           fail_at(at, section + ": cell " + std::to_string(cell) + " says it has " + std::to_string(k) +
                           " points, more than the values left");
-        c.ids.insert(c.ids.end(), v.begin() + static_cast<std::ptrdiff_t>(p), v.begin() + static_cast<std::ptrdiff_t>(p + static_cast<std::size_t>(k)));
-        p += static_cast<std::size_t>(k);
-        c.offsets.push_back(static_cast<std::int64_t>(c.ids.size()));
+        for (std::int64_t j = 0; j < k; ++j) v[w++] = v[p++];
+        c.offsets.push_back(static_cast<std::int64_t>(w));
       }
       if (p != v.size())
         fail_at(at, section + ": size " + std::to_string(size) + " but its " + std::to_string(n_cells) +
                         " cells use " + std::to_string(p) + " values");
-      skip_metadata_if_any();
+      v.resize(w);
+      c.ids = std::move(v);
+      skip_metadata_if_any(1);
     }
     for (std::size_t cell = 0; cell < c.count(); ++cell)
       for (auto i = c.offsets[cell]; i < c.offsets[cell + 1]; ++i) {
@@ -334,6 +346,7 @@ class VtkReader {
 
   // Polygons with more than 3 corners are fan-triangulated (0,1,2), (0,2,3), ...
   void add_polygons(const Cells& c, std::vector<int>& faces, std::size_t at) const {
+    faces.reserve(faces.size() + 3 * c.ids.size());  // a polygon of n corners gives n - 2 triangles
     for (std::size_t cell = 0; cell < c.count(); ++cell) {
       const auto first = static_cast<std::size_t>(c.offsets[cell]);
       const auto n = static_cast<std::size_t>(c.offsets[cell + 1]) - first;
@@ -347,6 +360,7 @@ class VtkReader {
   // second one turned so that all face the same way. Triangles with a repeated corner,
   // which join strips, have no area and are left out.
   static void add_strips(const Cells& c, std::vector<int>& faces) {
+    faces.reserve(faces.size() + 3 * c.ids.size());
     for (std::size_t cell = 0; cell < c.count(); ++cell) {
       const auto first = static_cast<std::size_t>(c.offsets[cell]);
       const auto n = static_cast<std::size_t>(c.offsets[cell + 1]) - first;
@@ -378,14 +392,21 @@ class VtkReader {
         fail_at(type_at, "FIELD array " + quoted(name) + " cannot fit in the rest of the file");
       const std::size_t n = components * tuples;
       const auto t = value_type(type_name);
-      if (t && binary_) {
+      const bool bits = iequals(type_name, "bit");
+      const bool strings = iequals(type_name, "string") || iequals(type_name, "utf8_string");
+      if ((t || bits) && binary_) {
         to_binary_data();
-        if (n > (s_.size() - pos_) / t->bytes) fail_at(pos_, "the file ends inside FIELD array " + quoted(name));
-        pos_ += n * t->bytes;
-      } else if (t) {
+        const std::size_t bytes = bits ? (n + 7) / 8 : n;  // for t: values, below
+        if (bytes > (s_.size() - pos_) / (bits ? 1 : t->bytes))
+          fail_at(pos_, "the file ends inside FIELD array " + quoted(name));
+        pos_ += bits ? bytes : n * t->bytes;
+      } else if (t || bits) {
         for (std::size_t i = 0; i < n; ++i)
           if (word().empty()) fail_at(pos_, "the file ends inside FIELD array " + quoted(name));
-      } else if (iequals(type_name, "string") && !binary_) {
+      } else if (strings && binary_) {
+        to_binary_data();
+        for (std::size_t i = 0; i < n; ++i) skip_binary_string(name);
+      } else if (strings) {
         next_line();  // the rest of the array's line; then a string a line
         for (std::size_t i = 0; i < n; ++i) {
           if (pos_ >= s_.size()) fail_at(pos_, "the file ends inside FIELD array " + quoted(name));
@@ -393,26 +414,49 @@ class VtkReader {
         }
       } else {
         fail_at(type_at, "FIELD array " + quoted(name) + " of type " + quoted(type_name) +
-                             " cannot be skipped (numbers, or strings in an ASCII file, can)");
+                             " cannot be skipped (numbers, bits and strings can)");
       }
-      skip_metadata_if_any();
+      skip_metadata_if_any(components);
     }
   }
 
-  // "METADATA" then lines up to an empty line (array information VTK 8+ writes).
-  void skip_metadata() {
+  // "METADATA", then COMPONENT_NAMES (a line a component, empty for an unnamed one) and
+  // INFORMATION (its NAME and DATA lines), ended by an empty line: what VTK 8+ writes after
+  // an array of `components` components (0: not known; then the names end at an empty line
+  // too). A block that never ends takes the rest of the file, as in VTK's reader.
+  void skip_metadata(std::size_t components) {
     next_line();  // the rest of the METADATA line
-    while (pos_ < s_.size())
-      if (trimmed(next_line()).empty()) return;
+    while (pos_ < s_.size()) {
+      const std::string_view line = trimmed(next_line());
+      if (line.empty()) return;
+      if (iequals(line, "COMPONENT_NAMES"))
+        for (std::size_t i = 0; i < components && pos_ < s_.size(); ++i) next_line();
+    }
   }
 
-  void skip_metadata_if_any() {
+  void skip_metadata_if_any(std::size_t components) {
     const std::size_t at = skip_space();
     const std::string_view w = word();
     if (iequals(w, "METADATA"))
-      skip_metadata();
+      skip_metadata(components);
     else
       pos_ = at;
+  }
+
+  // One string of a BINARY string array: a big-endian length whose first byte's top two
+  // bits say its width (11: the byte's 6 bits, 10: 2 bytes, 01: 4, 00: 8), then the bytes.
+  void skip_binary_string(std::string_view array) {
+    if (pos_ >= s_.size()) fail_at(pos_, "the file ends inside FIELD array " + quoted(array));
+    const auto first = static_cast<unsigned char>(s_[pos_]);
+    static constexpr std::size_t kWidth[] = {8, 4, 2, 1};
+    const std::size_t width = kWidth[first >> 6];
+    if (s_.size() - pos_ < width) fail_at(pos_, "the file ends inside FIELD array " + quoted(array));
+    std::uint64_t length = first & 0x3Fu;
+    for (std::size_t i = 1; i < width; ++i) length = (length << 8) | static_cast<unsigned char>(s_[pos_ + i]);
+    pos_ += width;
+    if (length > s_.size() - pos_)
+      fail_at(pos_, "a string of FIELD array " + quoted(array) + " is longer than the rest of the file");
+    pos_ += static_cast<std::size_t>(length);
   }
 
   // ---- errors ----

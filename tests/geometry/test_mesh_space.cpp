@@ -174,17 +174,32 @@ TEST(MeshSpace, AFileWithoutATagIsLpsAndSaysItIsUndeclared) {
   EXPECT_EQ(loaded.mesh.V(0, 1), 2.0);
 }
 
-// Only the header counts, as in Slicer's reader: text further on is geometry or names.
-TEST(MeshSpace, ATagAfterTheHeaderDoesNotCount) {
+// Only what Slicer's readers (VTK's) take for the header counts: an OBJ's comment lines
+// from the first line on without a break, every ASCII STL solid's name, a binary STL
+// header up to its first NUL byte.
+TEST(MeshSpace, OnlyWhatSlicersReadersTakeForTheHeaderCounts) {
   const TempDir tmp;
   const fs::path dir = tmp.path;
   write_bytes(dir / "late.obj", "v 1 2 3\n# SPACE=RAS\nv 4 5 6\nv 7 8 10\nf 1 2 3\n");
   EXPECT_EQ(read_mesh(dir / "late.obj").space, MeshSpace::Undeclared);
   EXPECT_EQ(read_mesh(dir / "late.obj").mesh.V(0, 0), 1.0);
+  write_bytes(dir / "gap.obj", "# made by X\n\n# SPACE=RAS\nv 1 2 3\nv 4 5 6\nv 7 8 10\nf 1 2 3\n");
+  EXPECT_EQ(read_mesh(dir / "gap.obj").space, MeshSpace::Undeclared);
+  write_bytes(dir / "block.obj", "# made by X\n# SPACE=RAS\nv 1 2 3\nv 4 5 6\nv 7 8 10\nf 1 2 3\n");
+  EXPECT_EQ(read_mesh(dir / "block.obj").space, MeshSpace::Ras);
+
   std::string two_solids = slicer_file(MeshFormat::StlAscii, tetrahedron(), "LPS");
+  two_solids.replace(0, two_solids.find('\n'), "solid first");
   two_solids += "solid second SPACE=RAS\nendsolid\n";
   write_bytes(dir / "two.stl", two_solids);
-  EXPECT_EQ(read_mesh(dir / "two.stl").space, MeshSpace::Lps);
+  EXPECT_EQ(read_mesh(dir / "two.stl").space, MeshSpace::Ras);
+
+  std::string binary = slicer_file(MeshFormat::StlBinary, tetrahedron(), "LPS");
+  std::string header("evarnode\0SPACE=RAS", 18);  // after the NUL: not in the header Slicer sees
+  header.resize(80, ' ');
+  binary.replace(0, 80, header);
+  write_bytes(dir / "nul.stl", binary);
+  EXPECT_EQ(read_mesh(dir / "nul.stl").space, MeshSpace::Undeclared);
 }
 
 TEST(MeshSpace, AFileThatSaysBothIsRefusedByName) {

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <algorithm>
+#include <cmath>
 #include <cstdint>
 #include <cstring>
 #include <filesystem>
@@ -146,6 +147,53 @@ TEST(VtkRead, LinesAndVerticesAreNotFaces) {
   expect_square(read_mesh(file_of(dir, "lines.vtk", text)).mesh);
 }
 
+// What else VTK 8/9 writes around the geometry: FIELD arrays of vtkIdType, bits and
+// strings (binary strings carry a length prefix), component names that may be empty
+// lines inside METADATA, and an empty cell section in a 5.1 file.
+TEST(VtkRead, FieldArraysComponentNamesAndEmptySectionsAsVtkWritesThem) {
+  const TempDir dir;
+  const std::string ascii = std::string("# vtk DataFile Version 5.1\nvtk output\nASCII\nDATASET POLYDATA\n") +
+                            "FIELD FieldData 3\nIds 1 2 vtkIdType\n7 8\nFlags 1 3 bit\n1 0 1\nNames 1 1 string\nleft%20iliac\n" +
+                            "POINTS 5 float\n" + kSquarePoints +
+                            "METADATA\nCOMPONENT_NAMES\nX\n\nZ\nINFORMATION 1\nNAME L2_NORM_RANGE LOCATION vtkDataArray\n"
+                            "DATA 2 0 12.1\n\nLINES 0 0\nPOLYGONS 3 6\nOFFSETS vtktypeint64\n0 3 6\n"
+                            "CONNECTIVITY vtktypeint64\n0 1 2 0 2 3\n";
+  expect_square(read_mesh(file_of(dir, "field.vtk", ascii)).mesh);
+
+  std::string b = "# vtk DataFile Version 4.2\nvtk output\nBINARY\nDATASET POLYDATA\nFIELD FieldData 2\n"
+                  "Names 1 2 string\n";
+  b += static_cast<char>(0xC0 | 5);  // a 1-byte length: 5
+  b += "iliac";
+  b += static_cast<char>(0x80 | 1);  // a 2-byte length: 0x12C = 300
+  b += static_cast<char>(44);
+  b += std::string(300, 'x');
+  b += "\nIds 1 1 vtkIdType\n";
+  put_be(b, std::int32_t{7});
+  b += "\nPOINTS 5 float\n";
+  for (const float v : {0, 0, 0, 1, 0, 0, 1, 1, 0, 0, 1, 0, 7, 7, 7}) put_be(b, v);
+  b += "\nPOLYGONS 2 8\n";
+  for (const std::int32_t v : {3, 0, 1, 2, 3, 0, 2, 3}) put_be(b, v);
+  b += "\n";
+  expect_square(read_mesh(file_of(dir, "field_binary.vtk", b)).mesh);
+}
+
+TEST(VtkRead, BadOffsetsAndLineIndicesAreRefusedOnTheirLine) {
+  const TempDir dir;
+  const std::string head = "# vtk DataFile Version 5.1\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 1 1 0\n";
+  EXPECT_THAT(read_error(file_of(dir, "first.vtk", head + "POLYGONS 2 3\nOFFSETS vtktypeint64\n1 3\n"
+                                                          "CONNECTIVITY vtktypeint64\n0 1 2\n")),
+              HasSubstr("line 8: POLYGONS: the first offset is 1, not 0"));
+  EXPECT_THAT(read_error(file_of(dir, "back.vtk", head + "POLYGONS 3 3\nOFFSETS vtktypeint64\n0 3 2\n"
+                                                         "CONNECTIVITY vtktypeint64\n0 1 2\n")),
+              HasSubstr("line 8: POLYGONS: offset 2 goes back (2 after 3)"));
+  EXPECT_THAT(read_error(file_of(dir, "last.vtk", head + "POLYGONS 2 4\nOFFSETS vtktypeint64\n0 3\n"
+                                                         "CONNECTIVITY vtktypeint64\n0 1 2 0\n")),
+              HasSubstr("line 8: POLYGONS: the last offset is 3 but there are 4 indices"));
+  const std::string v4 = "# vtk DataFile Version 4.2\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 1 1 0\n";
+  EXPECT_THAT(read_error(file_of(dir, "line.vtk", v4 + "LINES 1 3\n2 0 9\nPOLYGONS 1 4\n3 0 1 2\n")),
+              HasSubstr("line 7: LINES: cell 0 has point index 9 but the file has 3 points"));
+}
+
 TEST(VtkRoundTrip, KeepsVertexOrderFacesAndDoublesExactly) {
   const TempDir dir;
   TriangleMesh m;
@@ -161,6 +209,7 @@ TEST(VtkRoundTrip, KeepsVertexOrderFacesAndDoublesExactly) {
     EXPECT_EQ(back.format, f);
     EXPECT_EQ(back.space, MeshSpace::Lps);
     EXPECT_EQ(back.mesh.V, m.V);
+    EXPECT_TRUE(std::signbit(back.mesh.V(3, 0)));  // -0 stays -0 (== cannot tell)
     EXPECT_EQ(back.mesh.F, m.F);
   }
   EXPECT_EQ(evar::geometry::format_for_extension("m.VTK"), MeshFormat::VtkBinary);
