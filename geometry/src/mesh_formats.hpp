@@ -2,6 +2,7 @@
 // Private to evar_geometry: the per-format readers and writers behind mesh_io.hpp, and
 // the few helpers they share (whole-file reading, error messages that name the file).
 #include <algorithm>
+#include <cctype>
 #include <charconv>
 #include <cstddef>
 #include <filesystem>
@@ -19,6 +20,13 @@ namespace evar::geometry::detail {
 inline void reverse_bytes(void* value, std::size_t size) {
   auto* b = static_cast<unsigned char*>(value);
   std::reverse(b, b + size);
+}
+
+/// ASCII case-insensitive equality (format keywords: STL's, VTK's).
+inline bool iequals(std::string_view a, std::string_view b) {
+  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
+           return std::tolower(static_cast<unsigned char>(x)) == std::tolower(static_cast<unsigned char>(y));
+         });
 }
 
 inline bool is_space(char c) {

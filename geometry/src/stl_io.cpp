@@ -89,14 +89,6 @@ class Welder {
 
 // ---- ASCII -------------------------------------------------------------------------
 
-bool iequals(std::string_view a, std::string_view b) {
-  return a.size() == b.size() &&
-         std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
-           return std::tolower(static_cast<unsigned char>(x)) ==
-                  std::tolower(static_cast<unsigned char>(y));
-         });
-}
-
 class AsciiStlParser {
  public:
   AsciiStlParser(const std::filesystem::path& path, std::string_view text)

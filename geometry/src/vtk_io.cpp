@@ -26,12 +26,6 @@ namespace evar::geometry::detail {
 
 namespace {
 
-bool iequals(std::string_view a, std::string_view b) {
-  return a.size() == b.size() && std::equal(a.begin(), a.end(), b.begin(), [](char x, char y) {
-           return std::tolower(static_cast<unsigned char>(x)) == std::tolower(static_cast<unsigned char>(y));
-         });
-}
-
 // A value type of the legacy format, with its size in a BINARY file.
 enum class Kind { Signed, Unsigned, Floating };
 struct ValueType {
@@ -203,9 +197,6 @@ class VtkReader {
     if (end == std::string_view::npos) fail_at(pos_, "the file ends before its binary values");
     pos_ = end + 1;
   }
-
-  // The smallest number of bytes a value takes: ASCII needs a digit and a separator.
-  std::size_t min_bytes(const ValueType& t) const { return binary_ ? t.bytes : 2; }
 
   // ---- values ----
 
@@ -481,7 +472,7 @@ template <class T>
 void put_be(std::string& out, T value) {
   char b[sizeof(T)];
   std::memcpy(b, &value, sizeof(T));
-  if constexpr (std::endian::native == std::endian::little) std::reverse(b, b + sizeof(T));
+  if constexpr (std::endian::native == std::endian::little) reverse_bytes(b, sizeof(T));
   out.append(b, sizeof(T));
 }
 
