@@ -39,6 +39,7 @@ struct SceneDeformer::VesselModel {
   /// each with the closest point of the undeformed aortic surface (face, barycentric).
   std::vector<std::pair<int, geometry::SurfacePoint>> junction;
   Eigen::Vector3d top_centroid = Eigen::Vector3d::Zero();  ///< of the junction vertices
+  double junction_gap_mm = 0.0;  ///< the farthest junction vertex from its aortic point
   double skeleton_ms = 0.0, weights_ms = 0.0;
 };
 
@@ -100,7 +101,8 @@ std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformO
                                " (no slicing plane hit the wall). The mesh spans " + box(corners) +
                                " mm, the centerline " + box(v.centerline) +
                                " mm: both must be millimetres in patient LPS (a mesh in metres or cm, or saved in "
-                               "RAS without SPACE=RAS in its header, lies elsewhere)");
+                               "RAS without SPACE=RAS in its header, lies elsewhere; for the latter, declare "
+                               "\"mesh_coordinate_system\": \"RAS\" for the vessel in the scene)");
   }
   m->radius = radius_profile(m->skeleton);
 
@@ -129,6 +131,10 @@ std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformO
 // the deformed aorta at that closest point (barycentric in its face), so neighbouring
 // top vertices move alike and the junction follows the aorta without tearing the ring
 // (a nearest-vertex binding jumps between aortic vertices that moved differently).
+// How far apart they may be is the start check's (the constructor): a top vertex lies
+// within about its radius of the centerline's start, and a start outside the aorta is
+// at most the radius + 5 mm from its wall, so the gap (in the report) stays under about
+// twice the radius + 8 mm. A start inside the aorta binds to the nearest wall however far.
 void bind_junction(VesselModel& m, const geometry::TriangleMesh& aorta, double bind_length_mm) {
   const auto& v = *m.vessel;
   const auto& V = v.mesh.mesh.V;
@@ -149,7 +155,10 @@ void bind_junction(VesselModel& m, const geometry::TriangleMesh& aorta, double b
     m.top_centroid += p;
   }
   const auto on_aorta = geometry::closest_points_on_mesh(aorta, points);
-  for (std::size_t i = 0; i < top.size(); ++i) m.junction.emplace_back(top[i], on_aorta[i]);
+  for (std::size_t i = 0; i < top.size(); ++i) {
+    m.junction.emplace_back(top[i], on_aorta[i]);
+    m.junction_gap_mm = std::max(m.junction_gap_mm, on_aorta[i].distance_mm);
+  }
   if (!m.junction.empty()) m.top_centroid /= static_cast<double>(m.junction.size());
 }
 
@@ -553,6 +562,7 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
       junction_moved = junction_moved || shift.norm() > 0.0;
     }
     r.bound_vertices = static_cast<int>(bound.size());
+    r.junction_gap_mm = m.junction_gap_mm;
     r.timings.control_points_ms = ms_since(t0);
     const bool carries = static_cast<int>(i) == device_iliac;
     if (carries && bound.empty())

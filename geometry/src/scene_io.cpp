@@ -54,6 +54,29 @@ VesselKind parse_kind(const fs::path& file, const std::string& kind, const std::
   bad(file, field, "unknown vessel kind \"" + kind + "\" (expected \"aorta\" or \"iliac\")");
 }
 
+MeshSpace parse_space(const fs::path& file, const std::string& space, const std::string& field) {
+  if (space == "LPS") return MeshSpace::Lps;
+  if (space == "RAS") return MeshSpace::Ras;
+  bad(file, field, "unknown coordinate system \"" + space + "\" (expected \"LPS\" or \"RAS\")");
+}
+
+const char* space_name(MeshSpace space) { return space == MeshSpace::Ras ? "RAS" : "LPS"; }
+
+// A mesh file that says nothing is in the system the scene declares for it; one that says
+// something must say the same (two sources that disagree cannot both be right).
+void apply_declared_space(const fs::path& file, const std::string& field, const Vessel& vessel, LoadedMesh& loaded) {
+  if (vessel.declared_mesh_space == MeshSpace::Undeclared) return;
+  if (loaded.space == MeshSpace::Undeclared) {
+    if (vessel.declared_mesh_space == MeshSpace::Ras) detail::flip_lps_ras(loaded.mesh);
+    loaded.space = vessel.declared_mesh_space;
+    return;
+  }
+  if (loaded.space != vessel.declared_mesh_space)
+    bad(file, field, "is \"" + std::string(space_name(vessel.declared_mesh_space)) + "\", but " +
+                         vessel.mesh_path.string() + " declares SPACE=" + space_name(loaded.space) +
+                         " in its header; remove one of the two");
+}
+
 // A nested file's own error already names that file; prefix the scene field that named it.
 template <class F>
 auto loading(const fs::path& scene, const std::string& field, F&& load) {
@@ -125,6 +148,9 @@ Scene load_scene(const std::filesystem::path& scene_json) {
     // operator/ keeps an absolute path as it is.
     vessel.mesh_path = dir / string_field(file, v, "mesh", field + ".mesh");
     vessel.centerline_path = dir / string_field(file, v, "centerline", field + ".centerline");
+    if (v.contains("mesh_coordinate_system"))
+      vessel.declared_mesh_space = parse_space(file, string_field(file, v, "mesh_coordinate_system", field + ".mesh_coordinate_system"),
+                                               field + ".mesh_coordinate_system");
     scene.vessels.push_back(std::move(vessel));
   }
   if (aortas == 0) bad(file, "vessels", "no vessel of kind \"aorta\"; the scene needs exactly one");
@@ -142,6 +168,7 @@ Scene load_scene(const std::filesystem::path& scene_json) {
       validate_mesh(loaded.mesh, vessel.mesh_path.string());
       return loaded;
     });
+    apply_declared_space(file, field + ".mesh_coordinate_system", vessel, vessel.mesh);
     const Markup curve = loading(file, field + ".centerline", [&] {
       return read_curve(vessel.centerline_path, 2);
     });
@@ -185,7 +212,11 @@ void write_scene_manifest(const std::filesystem::path& scene_json, const SceneMa
     if (!names.insert(v.name).second) invalid("two vessels named \"" + v.name + "\"");
     if (v.kind != "aorta" && v.kind != "iliac") invalid("vessel \"" + v.name + "\" has kind \"" + v.kind + "\"");
     if (v.kind == "aorta") ++aortas;
-    vessels.push_back({{"name", v.name}, {"kind", v.kind}, {"mesh", v.mesh}, {"centerline", v.centerline}});
+    if (!v.mesh_coordinate_system.empty() && v.mesh_coordinate_system != "LPS" && v.mesh_coordinate_system != "RAS")
+      invalid("vessel \"" + v.name + "\" has mesh_coordinate_system \"" + v.mesh_coordinate_system + "\"");
+    ordered entry = {{"name", v.name}, {"kind", v.kind}, {"mesh", v.mesh}, {"centerline", v.centerline}};
+    if (!v.mesh_coordinate_system.empty()) entry["mesh_coordinate_system"] = v.mesh_coordinate_system;
+    vessels.push_back(std::move(entry));
   }
   if (aortas != 1) invalid("exactly one vessel must be of kind \"aorta\"");
 
@@ -227,8 +258,10 @@ std::filesystem::path copy_scene(const Scene& scene, const std::filesystem::path
       stem += '_';
       stem += std::to_string(k);
     }
+    // The files are copied as they are, so a system the scene declared for a mesh goes along.
     m.vessels.push_back({v.name, to_string(v.kind), copy(v.mesh_path, stem + v.mesh_path.extension().string()),
-                         copy(v.centerline_path, std::string(stem).append(".centerline").append(markup_suffix(v.centerline_path)))});
+                         copy(v.centerline_path, std::string(stem).append(".centerline").append(markup_suffix(v.centerline_path))),
+                         v.declared_mesh_space == MeshSpace::Undeclared ? std::string() : space_name(v.declared_mesh_space)});
   }
   if (!scene.landmarks_path.empty()) m.landmarks = copy(scene.landmarks_path, std::string("landmarks").append(markup_suffix(scene.landmarks_path)));
   const fs::path json = directory / "scene.json";

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <cstdint>
 #include <cstring>
+#include <functional>
 #include <optional>
 #include <string>
 #include <type_traits>
@@ -102,7 +103,7 @@ class VtkReader {
       } else if (iequals(key, "POLYGONS") || iequals(key, "TRIANGLE_STRIPS") || iequals(key, "VERTICES") ||
                  iequals(key, "LINES")) {
         if (!have_points) fail_at(at, std::string(key) + " comes before POINTS");
-        const Cells cells = read_cells(key, points.size() / 3, at);
+        const Cells cells = read_cells(key, points.size() / 3);
         if (iequals(key, "POLYGONS")) add_polygons(cells, faces, at);
         if (iequals(key, "TRIANGLE_STRIPS")) add_strips(cells, faces);
       } else if (iequals(key, "FIELD")) {
@@ -260,10 +261,25 @@ class VtkReader {
     return p;
   }
 
-  // `section_at`: where the section starts, which index errors name.
-  Cells read_cells(std::string_view key, std::size_t points, std::size_t section_at) {
+  // Where value `index` of an array whose values start at `start` lies (its line in ASCII,
+  // its byte in BINARY): found again only for an error, so no position is kept per value.
+  std::size_t value_position(std::size_t start, std::size_t index, std::size_t bytes) const {
+    if (binary_) {
+      const std::size_t end = s_.find('\n', start);
+      return end == std::string_view::npos ? start : end + 1 + index * bytes;
+    }
+    std::size_t at = start;
+    for (std::size_t i = 0;; ++i) {
+      while (at < s_.size() && is_space(s_[at])) ++at;
+      if (i == index || at >= s_.size()) return at;
+      while (at < s_.size() && !is_space(s_[at])) ++at;
+    }
+  }
+
+  Cells read_cells(std::string_view key, std::size_t points) {
     const std::string section(key);
     Cells c;
+    std::function<std::size_t(std::size_t cell, std::size_t index)> id_at;  // where c.ids[index] was
     auto integral = [&](const ValueType& t, std::size_t at) {
       if (t.kind == Kind::Floating) fail_at(at, section + ": cell indices must have an integer type");
     };
@@ -283,7 +299,10 @@ class VtkReader {
       const std::size_t ids_at = skip_space();
       t = type_word();
       integral(t, ids_at);
+      const std::size_t ids_start = pos_;
+      const std::size_t id_bytes = t.bytes;
       c.ids = values<std::int64_t>(n_ids, t, section + " CONNECTIVITY", any);
+      id_at = [this, ids_start, id_bytes](std::size_t, std::size_t i) { return value_position(ids_start, i, id_bytes); };
       skip_metadata_if_any(1);
       if (offsets.empty()) {
         if (!c.ids.empty()) fail_at(ids_at, section + ": connectivity without offsets");
@@ -304,6 +323,9 @@ class VtkReader {
       const std::size_t size = count(section + " size", 1, binary_ ? 4 : 2);
       const std::size_t at = pos_;
       std::vector<std::int64_t> v = values<std::int64_t>(size, ValueType{4, Kind::Signed}, section, any);
+      // Cell c's index i was value i + c + 1 of the section: each cell before it and this
+      // one began with their point count.
+      id_at = [this, at](std::size_t cell, std::size_t i) { return value_position(at, i + cell + 1, 4); };
       // Each cell's indices move down over the counts before them, in place: w <= p.
       std::size_t p = 0, w = 0;
       c.offsets.reserve(n_cells + 1);
@@ -329,7 +351,7 @@ class VtkReader {
       for (auto i = c.offsets[cell]; i < c.offsets[cell + 1]; ++i) {
         const std::int64_t id = c.ids[static_cast<std::size_t>(i)];
         if (id < 0 || static_cast<std::uint64_t>(id) >= points)
-          fail_at(section_at, section + ": cell " + std::to_string(cell) + " has point index " + std::to_string(id) +
+          fail_at(id_at(cell, static_cast<std::size_t>(i)), section + ": cell " + std::to_string(cell) + " has point index " + std::to_string(id) +
                             " but the file has " + std::to_string(points) + " points");
       }
     return c;

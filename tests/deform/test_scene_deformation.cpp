@@ -366,7 +366,7 @@ TEST(SceneDeformation, ContralateralIliacBendsAfterTheJunctionAndKeepsItsDistalE
   const auto& aorta = out.vessels[0].mesh.V;
   const geometry::PolylineProjector onto(iliac.centerline);
   const double length = geometry::arc_lengths(iliac.centerline).back();
-  double junction_mm = 0.0, distal_mm = 0.0;
+  double junction_mm = 0.0, distal_mm = 0.0, gap_mm = 0.0;
   int bound = 0;
   for (Eigen::Index k = 0; k < V0.rows(); ++k) {
     const Eigen::Vector3d p = V0.row(k).transpose();
@@ -383,11 +383,14 @@ TEST(SceneDeformation, ContralateralIliacBendsAfterTheJunctionAndKeepsItsDistalE
       }
       EXPECT_LT((V.row(k) - V0.row(k) - shift.transpose()).norm(), 1e-9) << "vertex " << k;
       junction_mm = std::max(junction_mm, moved);
+      gap_mm = std::max(gap_mm, at.distance_mm);
       ++bound;
     }
     if (s >= length - 10.0) distal_mm = std::max(distal_mm, moved);
   }
   EXPECT_EQ(bound, r.bound_vertices);
+  // The report says how far the bound ring lies from the aortic wall it follows.
+  EXPECT_NEAR(r.junction_gap_mm, gap_mm, 1e-9);
   ASSERT_GT(junction_mm, 0.5) << "the example's aorta should move the junction";
   // The distal end (its last 10 mm) stays near its registered pose: well under the
   // junction's move (a rigid follow would move it as far).

@@ -285,3 +285,76 @@ TEST(CopyScene, CarriesEveryFileUnderUniqueNamesAndNeverOverwrites) {
   // A second copy into the same place would overwrite: refused.
   EXPECT_THROW(copy_scene(original, dir / "copy"), fs::filesystem_error);
 }
+
+namespace {
+
+// The tetrahedron as 3D Slicer before 4.11 saved it: RAS (x and y negated) with nothing in
+// the file to say so.
+void write_untagged_ras_obj(const fs::path& file, const TriangleMesh& lps) {
+  std::ofstream out(file);
+  for (Eigen::Index k = 0; k < lps.V.rows(); ++k)
+    out << "v " << -lps.V(k, 0) << ' ' << -lps.V(k, 1) << ' ' << lps.V(k, 2) << '\n';
+  for (Eigen::Index f = 0; f < lps.F.rows(); ++f)
+    out << "f " << lps.F(f, 0) + 1 << ' ' << lps.F(f, 1) + 1 << ' ' << lps.F(f, 2) + 1 << '\n';
+}
+
+// make_scene's scene with its aorta replaced by an untagged RAS OBJ.
+fs::path scene_with_untagged_ras_aorta(const fs::path& dir) {
+  const fs::path file = make_scene(dir);
+  write_untagged_ras_obj(file.parent_path() / "meshes" / "aorta.obj", tetrahedron(100));
+  json j = read_json(file);
+  j["vessels"][0]["mesh"] = "meshes/aorta.obj";
+  write_json(file, j);
+  return file;
+}
+
+}  // namespace
+
+TEST(LoadScene, AnUntaggedMeshIsReadInTheCoordinateSystemTheSceneDeclaresForIt) {
+  const fs::path dir = test_dir();
+  const fs::path file = scene_with_untagged_ras_aorta(dir / "declared");
+  // Without the declaration the file is LPS, as Slicer reads it: turned about the long axis.
+  const Scene as_is = load_scene(file);
+  EXPECT_EQ(as_is.vessels[0].mesh.space, evar::geometry::MeshSpace::Undeclared);
+  EXPECT_GT((as_is.vessels[0].mesh.mesh.V - tetrahedron(100).V).cwiseAbs().maxCoeff(), 0.5);
+
+  json j = read_json(file);
+  j["vessels"][0]["mesh_coordinate_system"] = "RAS";
+  write_json(file, j);
+  const Scene scene = load_scene(file);
+  EXPECT_EQ(scene.vessels[0].mesh.mesh.V, tetrahedron(100).V);
+  // Written back in RAS, now saying so; the other vessel is untouched.
+  EXPECT_EQ(scene.vessels[0].mesh.space, evar::geometry::MeshSpace::Ras);
+  EXPECT_EQ(scene.vessels[0].declared_mesh_space, evar::geometry::MeshSpace::Ras);
+  EXPECT_EQ(scene.vessels[1].mesh.mesh.V, tetrahedron(50).V);
+  EXPECT_EQ(scene.vessels[1].declared_mesh_space, evar::geometry::MeshSpace::Undeclared);
+
+  // A recorded session's copy of the scene keeps the declaration its untagged file needs.
+  const Scene copied = load_scene(copy_scene(scene, dir / "copy"));
+  EXPECT_EQ(copied.vessels[0].mesh.mesh.V, tetrahedron(100).V);
+  EXPECT_EQ(copied.vessels[0].declared_mesh_space, evar::geometry::MeshSpace::Ras);
+}
+
+TEST(LoadScene, AMeshCoordinateSystemThatContradictsTheFileOrIsUnknownIsRefusedByField) {
+  const fs::path dir = test_dir();
+  // The STL make_scene writes says SPACE=LPS in its header.
+  EXPECT_THAT(error_after_edit(dir / "contradicts", [](json& j) { j["vessels"][0]["mesh_coordinate_system"] = "RAS"; }),
+              testing::AllOf(HasSubstr("scene.json: vessels[0].mesh_coordinate_system: is \"RAS\", but "),
+                             HasSubstr("aorta.stl declares SPACE=LPS in its header")));
+  // Saying what the file says is fine.
+  {
+    const fs::path file = make_scene(dir / "agrees");
+    const auto as_is = load_scene(file).vessels[0].mesh.mesh.V;  // welded: STL's own vertex order
+    json j = read_json(file);
+    j["vessels"][0]["mesh_coordinate_system"] = "LPS";
+    write_json(file, j);
+    EXPECT_EQ(load_scene(file).vessels[0].mesh.mesh.V, as_is);
+  }
+  EXPECT_THAT(error_after_edit(dir / "unknown", [](json& j) { j["vessels"][1]["mesh_coordinate_system"] = "ras"; }),
+              HasSubstr("scene.json: vessels[1].mesh_coordinate_system: unknown coordinate system \"ras\""));
+  EXPECT_THAT(error_after_edit(dir / "type", [](json& j) { j["vessels"][1]["mesh_coordinate_system"] = 1; }),
+              HasSubstr("scene.json: vessels[1].mesh_coordinate_system: expected a string, found number"));
+  SceneManifest bad_space;
+  bad_space.vessels = {{"a", "aorta", "a.stl", "a.mrk.json", "XYZ"}};
+  EXPECT_THROW(write_scene_manifest(dir / "scene.json", bad_space), std::invalid_argument);
+}

@@ -191,7 +191,13 @@ TEST(VtkRead, BadOffsetsAndLineIndicesAreRefusedOnTheirLine) {
               HasSubstr("line 8: POLYGONS: the last offset is 3 but there are 4 indices"));
   const std::string v4 = "# vtk DataFile Version 4.2\nt\nASCII\nDATASET POLYDATA\nPOINTS 3 float\n0 0 0 1 0 0 1 1 0\n";
   EXPECT_THAT(read_error(file_of(dir, "line.vtk", v4 + "LINES 1 3\n2 0 9\nPOLYGONS 1 4\n3 0 1 2\n")),
-              HasSubstr("line 7: LINES: cell 0 has point index 9 but the file has 3 points"));
+              HasSubstr("line 8: LINES: cell 0 has point index 9 but the file has 3 points"));
+  // A bad index is named on its own line, not on the section's: a model has thousands.
+  EXPECT_THAT(read_error(file_of(dir, "third.vtk", v4 + "POLYGONS 3 12\n3 0 1 2\n3 0 2 1\n3 2 1\n7\n")),
+              HasSubstr("line 11: POLYGONS: cell 2 has point index 7 but the file has 3 points"));
+  EXPECT_THAT(read_error(file_of(dir, "v5.vtk", head + "POLYGONS 3 6\nOFFSETS vtktypeint64\n0 3 6\n"
+                                                       "CONNECTIVITY vtktypeint64\n0 1 2\n2 1 5\n")),
+              HasSubstr("line 12: POLYGONS: cell 1 has point index 5 but the file has 3 points"));
 }
 
 TEST(VtkRoundTrip, KeepsVertexOrderFacesAndDoublesExactly) {
@@ -260,4 +266,16 @@ TEST(VtkRead, TruncatedBinaryNamesTheByte) {
   put_be(v5, std::int64_t{0});
   EXPECT_THAT(read_error(file_of(dir, "cut51.vtk", v5)),
               HasSubstr("byte " + std::to_string(offsets_at) + ": the file ends inside its POLYGONS OFFSETS"));
+}
+
+TEST(VtkRead, ABadIndexInBinaryNamesItsByte) {
+  const TempDir dir;
+  std::string b = "# vtk DataFile Version 4.2\nt\nBINARY\nDATASET POLYDATA\nPOINTS 3 float\n";
+  for (const float v : {0, 0, 0, 1, 0, 0, 1, 1, 0}) put_be(b, v);
+  b += "\nPOLYGONS 2 8\n";
+  for (const std::int32_t v : {3, 0, 1, 2, 3, 2, 1}) put_be(b, v);
+  const std::size_t bad_at = b.size();  // cell 1's third index
+  put_be(b, std::int32_t{3});
+  EXPECT_THAT(read_error(file_of(dir, "index.vtk", b)),
+              HasSubstr("byte " + std::to_string(bad_at) + ": POLYGONS: cell 1 has point index 3 but the file has 3 points"));
 }

@@ -75,6 +75,7 @@ struct VesselReport {
   int device_points = 0;         ///< device samples that lie within this vessel's reach
   int control_points = 0;        ///< handles from the device
   int bound_vertices = 0;        ///< iliac top vertices bound to the aorta
+  double junction_gap_mm = 0.0;  ///< the farthest of them from its point on the undeformed aortic surface
   int constrained_vertices = 0;
   int skeleton_points = 0;       ///< plane centres + wall hits
   int rounds = 0;                ///< containment rounds solved

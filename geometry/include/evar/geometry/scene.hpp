@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include "evar/geometry/markups.hpp"
@@ -19,7 +20,10 @@ struct Vessel {
   VesselKind kind = VesselKind::Aorta;
   std::filesystem::path mesh_path;        ///< resolved (absolute or relative to cwd)
   std::filesystem::path centerline_path;  ///< resolved
-  LoadedMesh mesh;                        ///< validated
+  LoadedMesh mesh;                        ///< validated, in LPS
+  /// scene.json's "mesh_coordinate_system" for a mesh file that declares none (3D Slicer
+  /// before 4.11 saved RAS without saying so); Undeclared when the field is absent.
+  MeshSpace declared_mesh_space = MeshSpace::Undeclared;
   std::vector<Eigen::Vector3d> centerline;  ///< LPS mm, proximal to distal
 };
 
@@ -34,13 +38,22 @@ struct Scene {
 /// Loads scene.json and everything it names. Throws InputError naming the file and field.
 /// Checks: format/version, coordinate_system "LPS", units "mm", at least one vessel,
 /// exactly one of kind "aorta", unique names, device_thickness_mm finite and >= 0,
-/// centerlines with at least 2 points.
+/// centerlines with at least 2 points, a vessel's optional "mesh_coordinate_system" ("LPS"
+/// or "RAS") agreeing with what its mesh file declares, if it declares anything.
 Scene load_scene(const std::filesystem::path& scene_json);
 
 /// Plain description used to write a scene.json (paths relative to the scene file).
 struct SceneManifest {
   struct Entry {
+    Entry(std::string name_, std::string kind_, std::string mesh_, std::string centerline_,
+          std::string mesh_coordinate_system_ = {})
+        : name(std::move(name_)),
+          kind(std::move(kind_)),
+          mesh(std::move(mesh_)),
+          centerline(std::move(centerline_)),
+          mesh_coordinate_system(std::move(mesh_coordinate_system_)) {}
     std::string name, kind, mesh, centerline;
+    std::string mesh_coordinate_system;  ///< "LPS", "RAS", or empty: not written
   };
   std::vector<Entry> vessels;
   std::string landmarks;  ///< may be empty
