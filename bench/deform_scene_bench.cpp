@@ -20,6 +20,10 @@
 // vessel); the reports' own total_ms also adds the precomputation's weights and skeleton
 // times (the vessel's cold cost). "total_ms" is SceneDeformation::total_ms (for
 // deform_scene: precomputation + the call; for a warm call: the call's wall time).
+//
+// One thread, as the targets are stated: the iliacs are solved one after the other
+// (DeformOptions::parallel_iliacs off). Pinned to one core, two iliac threads would each be
+// charged the other's time. BM_DeformWarm's "two_threads" rows are the node's setting.
 #include <benchmark/benchmark.h>
 
 #include <cmath>
@@ -80,6 +84,7 @@ void add_per_iteration(benchmark::State& state, const std::map<std::string, doub
 void BM_DeformScene(benchmark::State& state, int aorta_vertices, int backend_arg) {
   deform::DeformOptions opt;
   opt.arap.backend = bench::backend_arg(backend_arg);
+  opt.parallel_iliacs = false;
   if (!bench::backend_usable(state, opt.arap.backend)) return;
   const auto& sp = bench::example_scene(aorta_vertices);
   std::map<std::string, double> sums;
@@ -106,16 +111,18 @@ struct Warm {
   double construct_ms = 0.0;
 };
 // `proxy_edge_mm` < 0: the default (fine meshes solved on proxies); 0: every mesh as it is.
+// `parallel`: the iliacs on threads of their own (the node's setting).
 const Warm& warm_deformer(int aorta_vertices, deform::CholeskyBackend backend, double tolerance_mm,
-                          double proxy_edge_mm = -1.0) {
-  static std::map<std::tuple<int, int, double, double>, std::unique_ptr<Warm>> cache;
-  auto& slot = cache[{aorta_vertices, static_cast<int>(backend), tolerance_mm, proxy_edge_mm}];
+                          double proxy_edge_mm = -1.0, bool parallel = false) {
+  static std::map<std::tuple<int, int, double, double, bool>, std::unique_ptr<Warm>> cache;
+  auto& slot = cache[{aorta_vertices, static_cast<int>(backend), tolerance_mm, proxy_edge_mm, parallel}];
   if (!slot) {
     const auto& sp = bench::example_scene(aorta_vertices);
     deform::DeformOptions opt;
     opt.arap.backend = backend;
     opt.arap.tolerance_mm = tolerance_mm;  // everything else default (at most 500 iterations)
     if (proxy_edge_mm >= 0.0) opt.proxy_edge_mm = proxy_edge_mm;
+    opt.parallel_iliacs = parallel;
     slot = std::make_unique<Warm>();
     slot->deformer = std::make_unique<deform::SceneDeformer>(sp.scene, opt);
     slot->construct_ms = slot->deformer->precompute_ms();
@@ -146,15 +153,15 @@ void time_warm_deform(benchmark::State& state, const deform::SceneDeformer& defo
 }
 
 // --- warm: deform(device) on a prebuilt SceneDeformer ----------------------------------
-void BM_DeformWarm(benchmark::State& state, int aorta_vertices, int backend_arg) {
+void BM_DeformWarm(benchmark::State& state, int aorta_vertices, int backend_arg, bool parallel = false) {
   const auto backend = bench::backend_arg(backend_arg);
   if (!bench::backend_usable(state, backend)) return;
   const auto& sp = bench::example_scene(aorta_vertices);
-  const auto& w = warm_deformer(aorta_vertices, backend, deform::ArapOptions{}.tolerance_mm);
+  const auto& w = warm_deformer(aorta_vertices, backend, deform::ArapOptions{}.tolerance_mm, -1.0, parallel);
   std::map<std::string, double> sums;
   time_warm_deform(state, *w.deformer, sp.example.device, sums, [](const deform::SceneDeformation&) {});
   state.counters["precompute_ms"] = w.construct_ms;  // the SceneDeformer constructor (once)
-  state.SetLabel(bench::backend_label(backend) + ", warm");
+  state.SetLabel(bench::backend_label(backend) + (parallel ? ", warm, iliacs on two threads" : ", warm"));
 }
 
 // The same with every mesh solved as it is (no proxy for fine meshes), for comparison.
@@ -263,6 +270,7 @@ BENCHMARK_CAPTURE(BM_DeformScene, 30000/cholmod, 30000, 1)->Iterations(2)->UseMa
 BENCHMARK_CAPTURE(BM_DeformScene, 120000/eigen, 120000, 0)->Iterations(1)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformScene, 120000/cholmod, 120000, 1)->Iterations(1)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformWarm, 7500/eigen, 7500, 0)->Iterations(10)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_DeformWarm, 7500/eigen/two_threads, 7500, 0, true)->Iterations(10)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformWarm, 7500/cholmod, 7500, 1)->Iterations(10)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformWarm, 30000/eigen, 30000, 0)->Iterations(3)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_DeformWarm, 30000/cholmod, 30000, 1)->Iterations(3)->UseManualTime()->Unit(benchmark::kMillisecond);

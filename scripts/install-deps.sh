@@ -17,6 +17,8 @@ packages=(
   libgtest-dev libgmock-dev libbenchmark-dev
   systemd
 )
+# Only the test suite needs these: a third-party reader of the PLUS export (VTK's MetaIO).
+[ "${EVAR_TEST_DEPS:-0}" = 1 ] && packages+=(python3-vtk9 python3-numpy)
 
 missing=()
 for p in "${packages[@]}"; do

@@ -15,6 +15,8 @@ if [ "${EVAR_SANITIZE:-0}" = 1 ]; then
   export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1}
   export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
 fi
+# The suite's own peers (python3-vtk9 for the PLUS export check) come with it.
+export EVAR_TEST_DEPS=1
 # Tests on explicitly: run-example.sh configures the same build directory without them.
 "$root/scripts/build.sh" -DEVAR_BUILD_TESTS=ON "${args[@]}"
 ctest --test-dir "${EVAR_BUILD_DIR:-$root/build}" --output-on-failure --no-tests=error -j"$(nproc)"
