@@ -4,6 +4,7 @@
 #include <exception>
 
 #include "commands.hpp"
+#include "evar/geometry/image_header.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/sim/session_replay.hpp"
 #include "logging.hpp"
@@ -296,10 +297,17 @@ int run_cli(const std::vector<std::string>& args) {
                                  "whose PNG is whole and every C-arm state");
   for (auto* o : recording_options) recover->excludes(o);
   for (auto* o : recording_extras) recover->excludes(o);
-  rd->callback([recover, recording_options] {
+  rd->callback([recover, recording_options, &record] {
     if (recover->count() > 0) return;
     for (const auto* o : recording_options)
       if (o->count() == 0) throw CLI::RequiredError(o->get_name() + " (or --recover DIR)");
+    // Each side may reach 16384, but a session's frames hold at most kMaxImagePixels in all
+    // (what every evarnode image reader takes): refused now rather than at the first frame.
+    const auto& f = record.frames;
+    if (f.width && f.height && std::int64_t{*f.width} * *f.height > geometry::kMaxImagePixels)
+      throw CLI::ValidationError("--width x --height", std::to_string(*f.width) + " x " + std::to_string(*f.height) +
+                                                          " pixels; a session's frames hold at most " +
+                                                          std::to_string(geometry::kMaxImagePixels) + " in all");
   });
 
   RunCommand run;

@@ -796,3 +796,22 @@ TEST_F(Cli, RecordRecoverMakesASessionOfAKilledRecording) {
   EXPECT_EQ(missing.code, 2);
   EXPECT_NE(missing.err.find("--carm"), std::string::npos) << missing.err;
 }
+
+// Each side may be up to 16384 px, but no session holds frames of more than 8192 x 8192 in
+// all: a size its frames could never be written at is refused before anything is opened.
+TEST_F(Cli, RecordRefusesAFrameSizeNoSessionCanHold) {
+  const auto out = scratch("record_big");
+  const auto args = [&](const char* w, const char* h) {
+    return std::vector<std::string>{"record", "--camera", "NONE", "--carm", "serial:/dev/null", "--scene",
+                                    scene().string(), "--registration", scene().string(), "--pixel-spacing", "0.3",
+                                    "--out", (out / "big").string(), "--width", w, "--height", h};
+  };
+  const auto big = evarnode(args("16384", "8193"));
+  EXPECT_EQ(big.code, 2);
+  EXPECT_NE(big.err.find("16384 x 8193 pixels; a session's frames hold at most 67108864 in all"), std::string::npos)
+      << big.err;
+  EXPECT_FALSE(fs::exists(out / "big"));
+  // 16384 x 4096 is within the limit: it gets past the options (and fails on the camera).
+  const auto wide = evarnode(args("16384", "4096"));
+  EXPECT_EQ(wide.code, 1) << wide.err;
+}
