@@ -285,9 +285,7 @@ void BM_TubeSolve(benchmark::State& state, int vertices, int backend_arg, bool a
 struct Registrar {
   template <class Fn, class... Args>
   static void add(const std::string& name, int iterations, bool manual_time, Fn fn, Args... args) {
-    auto* b = benchmark::RegisterBenchmark(name.c_str(), fn, args...);
-    b->Iterations(iterations)->Unit(benchmark::kMillisecond);
-    if (manual_time) b->UseManualTime();
+    bench::register_fixed(name, iterations, manual_time, fn, args...);
   }
   Registrar() {
     const char* backends[] = {"eigen", "cholmod"};

@@ -124,6 +124,15 @@ inline double max_row_distance(const deform::Positions& a, const deform::Positio
 /// A counter averaged over the benchmark's iterations.
 inline benchmark::Counter avg(double sum) { return benchmark::Counter(sum, benchmark::Counter::kAvgIterations); }
 
+/// Registers benchmark `name` running `fn(state, args...)` for a fixed number of iterations,
+/// in milliseconds; `manual_time`: the benchmark sets each iteration's time itself.
+template <class Fn, class... Args>
+void register_fixed(const std::string& name, int iterations, bool manual_time, Fn fn, Args... args) {
+  auto* b = benchmark::RegisterBenchmark(name.c_str(), fn, args...);
+  b->Iterations(iterations)->Unit(benchmark::kMillisecond);
+  if (manual_time) b->UseManualTime();
+}
+
 /// Process CPU time (ms), all threads: single-threaded work measured this way is not
 /// inflated when other processes compete for the cores (wall time is).
 inline double cpu_ms() {
