@@ -99,12 +99,21 @@ void check_options(const DrawOptions& options) {
 // ---------------------------------------------------------------------------------------
 // Mesh silhouettes
 
-// Sets the samples (integer positions of `mask`) inside triangle abc (sample coordinates),
+// A mask of samples covering part of the image's sample grid: sample (x, y) of the grid is
+// mask(y - origin.y, x - origin.x); the grid beyond the mask is empty.
+struct SampleMask {
+  cv::Mat1b mask;
+  cv::Point origin;  ///< in samples
+};
+
+// Sets the samples (integer positions of the grid) inside triangle abc (sample coordinates),
 // half-open like GPU rasterisers: rows a.y <= y < c.y, columns x_left <= x < x_right.
 // Unlike cv::fillConvexPoly, which includes both ends of every span and so grows shapes
 // by about half a sample (biasing area and, measured, position), this covers each sample
 // by its centre: the filled area is unbiased and triangles sharing an edge leave no gap.
-void fill_triangle(cv::Mat1b& mask, std::array<Eigen::Vector2d, 3> t) {
+// Computed in grid coordinates whatever part the mask holds, so a sample is set or not
+// independently of where the mask lies.
+void fill_triangle(SampleMask& grid, std::array<Eigen::Vector2d, 3> t) {
   std::sort(t.begin(), t.end(), [](const Eigen::Vector2d& p, const Eigen::Vector2d& q) {
     return p.y() < q.y() || (p.y() == q.y() && p.x() < q.x());
   });
@@ -113,45 +122,74 @@ void fill_triangle(cv::Mat1b& mask, std::array<Eigen::Vector2d, 3> t) {
   const auto x_at = [](const Eigen::Vector2d& p, const Eigen::Vector2d& q, double y) {
     return p.x() + (y - p.y()) * (q.x() - p.x()) / (q.y() - p.y());
   };
-  const double cols = mask.cols;
-  const int y0 = static_cast<int>(std::max(0.0, std::ceil(a.y())));
-  const int y1 = static_cast<int>(std::min<double>(mask.rows, std::ceil(c.y())));
+  const double left = grid.origin.x, right = grid.origin.x + grid.mask.cols;
+  const int y0 = static_cast<int>(std::max<double>(grid.origin.y, std::ceil(a.y())));
+  const int y1 = static_cast<int>(std::min<double>(grid.origin.y + grid.mask.rows, std::ceil(c.y())));
   for (int y = y0; y < y1; ++y) {
     const double xa = x_at(a, c, y), xb = y < b.y() ? x_at(a, b, y) : x_at(b, c, y);
-    const int x0 = static_cast<int>(std::clamp(std::ceil(std::min(xa, xb)), 0.0, cols));
-    const int x1 = static_cast<int>(std::clamp(std::ceil(std::max(xa, xb)), 0.0, cols));
-    if (x1 > x0) std::memset(mask.ptr<std::uint8_t>(y) + x0, 255, static_cast<std::size_t>(x1 - x0));
+    const int x0 = static_cast<int>(std::clamp(std::ceil(std::min(xa, xb)), left, right));
+    const int x1 = static_cast<int>(std::clamp(std::ceil(std::max(xa, xb)), left, right));
+    if (x1 > x0)
+      std::memset(grid.mask.ptr<std::uint8_t>(y - grid.origin.y) + (x0 - grid.origin.x), 255,
+                  static_cast<std::size_t>(x1 - x0));
   }
 }
 
 // The union of the layer's projected triangles, sampled `supersample` times finer than
-// `size` along each axis (image pixel centre u = i maps to sample (u + 0.5) k - 0.5).
-cv::Mat1b silhouette(const ViewProjection& view, const MeshLayer& layer, cv::Size size, int supersample) {
-  cv::Mat1b mask = cv::Mat1b::zeros(size.height * supersample, size.width * supersample);
+// `size` along each axis (image pixel centre u = i maps to sample (u + 0.5) k - 0.5), held
+// only over the whole image pixels that the triangles' bounding box touches, with one
+// empty pixel around it where the image goes on (vessels cover a fraction of the frame;
+// the fill, its coverage, the outline tracing and the blend then touch only that part).
+// `pixels`: that part of the image.
+SampleMask silhouette(const ViewProjection& view, const MeshLayer& layer, cv::Size size, int supersample,
+                      cv::Rect& pixels) {
   const double near = view.near_depth();
   const double limit = kMaxCoordPx * supersample;
-  std::vector<Eigen::Vector2d> points;
-  std::vector<char> state;  // 0 not projected yet, 1 projected, 2 cannot be projected
-  for (const auto& mesh : layer.meshes) {
-    points.assign(static_cast<std::size_t>(mesh.V.rows()), Eigen::Vector2d::Zero());
-    state.assign(static_cast<std::size_t>(mesh.V.rows()), 0);
+  struct Projected {
+    std::vector<Eigen::Vector2d> points;
+    std::vector<char> state;  // 1 projected, 2 cannot be projected, 0 not referenced
+  };
+  std::vector<Projected> meshes(layer.meshes.size());
+  Eigen::AlignedBox2d box;
+  for (std::size_t m = 0; m < layer.meshes.size(); ++m) {
+    const auto& mesh = layer.meshes[m];
+    auto& p = meshes[m];
+    p.points.assign(static_cast<std::size_t>(mesh.V.rows()), Eigen::Vector2d::Zero());
+    p.state.assign(static_cast<std::size_t>(mesh.V.rows()), 0);
     // Only referenced vertices are projected: erased faces may leave any vertex behind.
-    const auto vertex = [&](Eigen::Index f, int corner) -> const Eigen::Vector2d* {
-      const auto i = static_cast<std::size_t>(mesh.F(f, corner));
-      if (state[i] == 0) {
-        const Eigen::Vector3d p = mesh.V.row(mesh.F(f, corner)).transpose();
-        state[i] = view.depth(p) > near ? 1 : 2;
-        if (state[i] == 1)
-          points[i] = ((view.project(p).array() + 0.5) * supersample - 0.5).cwiseMax(-limit).cwiseMin(limit);
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+      for (int corner = 0; corner < 3; ++corner) {
+        const auto i = static_cast<std::size_t>(mesh.F(f, corner));
+        if (p.state[i] != 0) continue;
+        const Eigen::Vector3d x = mesh.V.row(mesh.F(f, corner)).transpose();
+        p.state[i] = view.depth(x) > near ? 1 : 2;
+        if (p.state[i] == 1) {
+          p.points[i] = ((view.project(x).array() + 0.5) * supersample - 0.5).cwiseMax(-limit).cwiseMin(limit);
+          box.extend(p.points[i]);
+        }
       }
-      return state[i] == 1 ? &points[i] : nullptr;
-    };
+  }
+  // Samples k·i .. k·i + k − 1 make up image pixel i.
+  pixels = cv::Rect();
+  if (!box.isEmpty()) {
+    const auto pixel = [&](double sample) { return static_cast<int>(std::floor(sample / supersample)); };
+    const int x0 = std::max(0, pixel(box.min().x()) - 1), y0 = std::max(0, pixel(box.min().y()) - 1);
+    const int x1 = std::min(size.width, pixel(box.max().x()) + 2), y1 = std::min(size.height, pixel(box.max().y()) + 2);
+    if (x1 > x0 && y1 > y0) pixels = cv::Rect(x0, y0, x1 - x0, y1 - y0);
+  }
+  SampleMask grid{cv::Mat1b::zeros(pixels.height * supersample, pixels.width * supersample),
+                  {pixels.x * supersample, pixels.y * supersample}};
+  if (pixels.empty()) return grid;
+  for (std::size_t m = 0; m < layer.meshes.size(); ++m) {
+    const auto& mesh = layer.meshes[m];
+    const auto& p = meshes[m];
     for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
-      const Eigen::Vector2d *a = vertex(f, 0), *b = vertex(f, 1), *c = vertex(f, 2);
-      if (a && b && c) fill_triangle(mask, {*a, *b, *c});
+      const auto a = static_cast<std::size_t>(mesh.F(f, 0)), b = static_cast<std::size_t>(mesh.F(f, 1)),
+                 c = static_cast<std::size_t>(mesh.F(f, 2));
+      if (p.state[a] == 1 && p.state[b] == 1 && p.state[c] == 1) fill_triangle(grid, {p.points[a], p.points[b], p.points[c]});
     }
   }
-  return mask;
+  return grid;
 }
 
 // image = image * (1 - a) + colour * a with a = alpha * coverage / 255, per pixel.
@@ -171,9 +209,9 @@ void blend(cv::Mat& image, const cv::Mat1b& coverage, Bgr colour, double alpha) 
 }
 
 // The mask's boundaries (outer and holes) as fixed-point polylines in image pixels.
-std::vector<std::vector<cv::Point>> outline(const cv::Mat1b& mask, int supersample) {
+std::vector<std::vector<cv::Point>> outline(const SampleMask& grid, int supersample) {
   std::vector<std::vector<cv::Point>> contours;
-  cv::findContours(mask, contours, cv::RETR_LIST, cv::CHAIN_APPROX_NONE);
+  if (!grid.mask.empty()) cv::findContours(grid.mask, contours, cv::RETR_LIST, cv::CHAIN_APPROX_NONE, grid.origin);
   std::vector<std::vector<cv::Point>> result;
   result.reserve(contours.size());
   std::vector<cv::Point> simplified;
@@ -327,15 +365,19 @@ void draw_overlay(std::span<cv::Mat> images, const ViewProjection& view, const O
   std::vector<std::vector<std::vector<cv::Point>>> outlines(overlay.layers.size());
   for (std::size_t l = 0; l < overlay.layers.size(); ++l) {
     const MeshLayer& layer = overlay.layers[l];
-    const cv::Mat1b mask = silhouette(view, layer, size, k);
-    if (layer.outline) outlines[l] = outline(mask, k);
-    if (layer.fill_alpha <= 0.0) continue;
+    cv::Rect pixels;
+    const SampleMask grid = silhouette(view, layer, size, k, pixels);
+    if (layer.outline) outlines[l] = outline(grid, k);
+    if (layer.fill_alpha <= 0.0 || pixels.empty()) continue;
     cv::Mat1b coverage;
     if (k == 1)
-      coverage = mask;
+      coverage = grid.mask;
     else
-      cv::resize(mask, coverage, size, 0.0, 0.0, cv::INTER_AREA);  // box average: exact coverage
-    for (cv::Mat& image : images) blend(image, coverage, layer.colour, layer.fill_alpha);
+      cv::resize(grid.mask, coverage, pixels.size(), 0.0, 0.0, cv::INTER_AREA);  // box average: exact coverage
+    for (cv::Mat& image : images) {
+      cv::Mat part = image(pixels);
+      blend(part, coverage, layer.colour, layer.fill_alpha);
+    }
   }
   for (cv::Mat& image : images) draw_lines_and_markers(image, view, overlay, outlines, options);
 }

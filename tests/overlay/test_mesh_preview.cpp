@@ -213,6 +213,48 @@ TEST(Composite, TriangleFillCoversItsAnalyticAreaAndOnlyItsPixels) {
   EXPECT_NEAR(coverage, area, 0.002 * area);
 }
 
+// The fill is computed only over the part of the image the layer's bounding box touches; a
+// layer running off the image must still draw, pixel for pixel, as that part of a larger
+// image where it lies whole. A 240 x 160 picture and its left 100 columns, at the same
+// scale and with the same pixel centres: a translucent triangle crossing the cut, and one
+// wholly inside both.
+TEST(Composite, ALayerRunningOffTheImageDrawsAsThatPartOfALargerImage) {
+  constexpr int kWide = 240, kNarrow = 100, kRows = 160;
+  const double mm_per_px = 0.37;
+  // Centred so that pixel (x, y) of the narrow image is pixel (x, y) of the wide one.
+  const Vector3d centre_wide = Vector3d::Zero();
+  const Vector3d centre_narrow(-(kWide - kNarrow) / 2.0 * mm_per_px, 0.0, 0.0);
+  const OrthographicProjection wide(evar::overlay::view_axes(StandardView::AP), centre_wide, mm_per_px, kWide, kRows);
+  const OrthographicProjection narrow(evar::overlay::view_axes(StandardView::AP), centre_narrow, mm_per_px, kNarrow, kRows);
+  ASSERT_LT((wide.project({3, 0, 4}) - narrow.project({3, 0, 4})).norm(), 1e-9);
+  evar::overlay::Overlay overlay;
+  MeshLayer across = opaque_layer(triangle({-30.3, 0, 20.1}, {9.7, 0, 14.9}, {-22.2, 0, -25.6}));
+  across.fill_alpha = 0.6;
+  across.outline = false;  // an outline follows the image's edge where the layer is cut
+  overlay.layers.push_back(across);
+  MeshLayer inside = opaque_layer(triangle({-40.1, 0, 5.3}, {-33.6, 0, 9.9}, {-36.0, 0, -2.2}), Bgr{0, 200, 0});
+  inside.outline = false;
+  overlay.layers.push_back(inside);
+  for (const int k : {1, 3}) {
+    Image big = Image::filled(kWide, kRows, kBlack), part = Image::filled(kNarrow, kRows, kBlack);
+    evar::overlay::composite(big, wide, overlay, {k, 0.45});
+    evar::overlay::composite(part, narrow, overlay, {k, 0.45});
+    int covered = 0;
+    for (int y = 0; y < kRows; ++y)
+      for (int x = 0; x < kNarrow; ++x) {
+        const Bgr a = big.at(x, y), b = part.at(x, y);
+        ASSERT_TRUE(a.r == b.r && a.g == b.g && a.b == b.b) << "pixel " << x << "," << y << " at supersample " << k;
+        covered += a.r > 0 || a.g > 0;
+      }
+    EXPECT_GT(covered, 1500);
+    // And the wide image has the triangle's other part beyond the cut.
+    int beyond = 0;
+    for (int y = 0; y < kRows; ++y)
+      for (int x = kNarrow; x < kWide; ++x) beyond += big.at(x, y).r > 0;
+    EXPECT_GT(beyond, 300);
+  }
+}
+
 TEST(Composite, OverlappingMeshesInOneLayerAreOutlinedAsOneSilhouetteWithoutSeams) {
   const int size = 120;
   const OrthographicProjection ap(evar::overlay::view_axes(StandardView::AP), Vector3d::Zero(), 0.5, size, size);
