@@ -29,7 +29,7 @@ nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& out
           {"device_points", r.device_points},
           {"control_points", r.control_points},
           {"bound_vertices", r.bound_vertices},
-          {"junction_gap_mm", r.junction_gap_mm},
+          {"junction_gap_mm", r.bound_vertices > 0 ? nlohmann::json(r.junction_gap_mm) : nlohmann::json()},
           {"constrained_vertices", r.constrained_vertices},
           {"skeleton_points", r.skeleton_points},
           {"rounds", r.rounds},

@@ -131,10 +131,12 @@ std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformO
 // the deformed aorta at that closest point (barycentric in its face), so neighbouring
 // top vertices move alike and the junction follows the aorta without tearing the ring
 // (a nearest-vertex binding jumps between aortic vertices that moved differently).
-// How far apart they may be is the start check's (the constructor): a top vertex lies
-// within about its radius of the centerline's start, and a start outside the aorta is
-// at most the radius + 5 mm from its wall, so the gap (in the report) stays under about
-// twice the radius + 8 mm. A start inside the aorta binds to the nearest wall however far.
+// How far apart they may be (the report's junction_gap_mm) only the constructor's start
+// check bounds, and only for a closed aorta: a start outside it is at most the radius r +
+// 5 mm from its wall, and a bound vertex is within bind_length + 3r of the start (the
+// selection's reach; the top ring itself about r + bind_length), so the gap stays under
+// 4r + 5 mm + bind_length (about 2r + 5 mm + bind_length on the ring). A start inside the
+// aorta, or an open aortic mesh (no inside to test), binds to the nearest wall however far.
 void bind_junction(VesselModel& m, const geometry::TriangleMesh& aorta, double bind_length_mm) {
   const auto& v = *m.vessel;
   const auto& V = v.mesh.mesh.V;

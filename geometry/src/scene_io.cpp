@@ -148,7 +148,8 @@ Scene load_scene(const std::filesystem::path& scene_json) {
     // operator/ keeps an absolute path as it is.
     vessel.mesh_path = dir / string_field(file, v, "mesh", field + ".mesh");
     vessel.centerline_path = dir / string_field(file, v, "centerline", field + ".centerline");
-    if (v.contains("mesh_coordinate_system"))
+    // Missing or null: nothing declared (as for "landmarks").
+    if (v.contains("mesh_coordinate_system") && !v.at("mesh_coordinate_system").is_null())
       vessel.declared_mesh_space = parse_space(file, string_field(file, v, "mesh_coordinate_system", field + ".mesh_coordinate_system"),
                                                field + ".mesh_coordinate_system");
     scene.vessels.push_back(std::move(vessel));

@@ -163,10 +163,14 @@ SampleMask silhouette(const ViewProjection& view, const MeshLayer& layer, cv::Si
         if (p.state[i] != 0) continue;
         const Eigen::Vector3d x = mesh.V.row(mesh.F(f, corner)).transpose();
         p.state[i] = view.depth(x) > near ? 1 : 2;
-        if (p.state[i] == 1) {
-          p.points[i] = ((view.project(x).array() + 0.5) * supersample - 0.5).cwiseMax(-limit).cwiseMin(limit);
-          box.extend(p.points[i]);
+        if (p.state[i] != 1) continue;
+        const Eigen::Vector2d uv = view.project(x);
+        if (!uv.allFinite()) {  // a vertex near the double range projects to inf / inf
+          p.state[i] = 2;
+          continue;
         }
+        p.points[i] = ((uv.array() + 0.5) * supersample - 0.5).cwiseMax(-limit).cwiseMin(limit);
+        box.extend(p.points[i]);
       }
   }
   // Samples k·i .. k·i + k − 1 make up image pixel i.

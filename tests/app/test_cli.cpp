@@ -121,6 +121,14 @@ TEST_F(Cli, DeformWritesMeshesLandmarksReportAndPreview) {
     for (const char* key : {"control_points", "skeleton_points", "iterations", "final_energy"}) EXPECT_TRUE(v.contains(key)) << key;
     for (const char* key : {"weights", "control_points", "skeleton", "factor", "iterate", "total"})
       EXPECT_TRUE(v["timings_ms"].contains(key)) << key;
+    // How far the bound top of an iliac lies from the aortic wall; nothing to say for the aorta.
+    if (v["kind"] == "iliac") {
+      ASSERT_TRUE(v["junction_gap_mm"].is_number()) << v["name"];
+      EXPECT_GE(v["junction_gap_mm"].get<double>(), 0.0);
+      EXPECT_LT(v["junction_gap_mm"].get<double>(), 30.0) << v["name"];
+    } else {
+      EXPECT_TRUE(v["junction_gap_mm"].is_null());
+    }
   }
   // Same vertex count and order in the output (welded STL re-read).
   const auto before = evar::geometry::read_mesh(dir_ / "iliac_right.stl").mesh;

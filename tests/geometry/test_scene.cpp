@@ -352,6 +352,14 @@ TEST(LoadScene, AMeshCoordinateSystemThatContradictsTheFileOrIsUnknownIsRefusedB
   }
   EXPECT_THAT(error_after_edit(dir / "unknown", [](json& j) { j["vessels"][1]["mesh_coordinate_system"] = "ras"; }),
               HasSubstr("scene.json: vessels[1].mesh_coordinate_system: unknown coordinate system \"ras\""));
+  // null says nothing, as for "landmarks".
+  {
+    const fs::path file = make_scene(dir / "null");
+    json j = read_json(file);
+    j["vessels"][0]["mesh_coordinate_system"] = nullptr;
+    write_json(file, j);
+    EXPECT_EQ(load_scene(file).vessels[0].declared_mesh_space, evar::geometry::MeshSpace::Undeclared);
+  }
   EXPECT_THAT(error_after_edit(dir / "type", [](json& j) { j["vessels"][1]["mesh_coordinate_system"] = 1; }),
               HasSubstr("scene.json: vessels[1].mesh_coordinate_system: expected a string, found number"));
   SceneManifest bad_space;

@@ -278,4 +278,16 @@ TEST(VtkRead, ABadIndexInBinaryNamesItsByte) {
   put_be(b, std::int32_t{3});
   EXPECT_THAT(read_error(file_of(dir, "index.vtk", b)),
               HasSubstr("byte " + std::to_string(bad_at) + ": POLYGONS: cell 1 has point index 3 but the file has 3 points"));
+  // VTK 9's layout with 8-byte indices: the place steps by the index type's size.
+  std::string v5 = "# vtk DataFile Version 5.1\nt\nBINARY\nDATASET POLYDATA\nPOINTS 3 float\n";
+  for (const float v : {0, 0, 0, 1, 0, 0, 1, 1, 0}) put_be(v5, v);
+  v5 += "\nPOLYGONS 3 6\nOFFSETS vtktypeint64\n";
+  for (const std::int64_t v : {0, 3, 6}) put_be(v5, v);
+  v5 += "\nCONNECTIVITY vtktypeint64\n";
+  for (const std::int64_t v : {0, 1, 2, 2, 1}) put_be(v5, v);
+  const std::size_t bad51_at = v5.size();  // cell 1's third index
+  put_be(v5, std::int64_t{4});
+  v5 += "\n";
+  EXPECT_THAT(read_error(file_of(dir, "index51.vtk", v5)),
+              HasSubstr("byte " + std::to_string(bad51_at) + ": POLYGONS: cell 1 has point index 4 but the file has 3 points"));
 }

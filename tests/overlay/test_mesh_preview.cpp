@@ -1,4 +1,5 @@
 #include "evar/overlay/mesh_preview.hpp"
+#include "evar/overlay/perspective_projection.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
@@ -253,6 +254,77 @@ TEST(Composite, ALayerRunningOffTheImageDrawsAsThatPartOfALargerImage) {
       for (int x = kNarrow; x < kWide; ++x) beyond += big.at(x, y).r > 0;
     EXPECT_GT(beyond, 300);
   }
+}
+
+// And over the part its bounding box touches it is exactly what the whole frame gives: the
+// same layers once more, each with points beyond all four image edges added (triangles of
+// zero area, which set no sample but stretch the box to the whole frame), must draw the
+// same bytes, outlines included. A box a pixel too small on any side (e.g. without its
+// padding) loses the fill's or the outline's edge there.
+TEST(Composite, TheFillOverItsBoundingBoxIsTheWholeFrameFill) {
+  constexpr int kCols = 200, kRows = 150;
+  const OrthographicProjection ap(evar::overlay::view_axes(StandardView::AP), Vector3d::Zero(), 0.31, kCols, kRows);
+  TriangleMesh stretch;  // one point beyond each edge of the 62 x 46.5 mm field, as degenerate triangles
+  stretch.V.resize(4, 3);
+  stretch.V << -40, 0, 0, 40, 0, 0, 0, 0, -30, 0, 0, 30;
+  stretch.F.resize(4, 3);
+  stretch.F << 0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 3;
+  const std::vector<TriangleMesh> meshes{triangle({-20.3, 0, 11.1}, {7.7, 0, 14.9}, {-12.2, 0, -15.6}),
+                                         triangle({3.1, 0, 2.2}, {17.9, 0, -9.4}, {8.8, 0, -20.05}),
+                                         vessel({-2.5, 0, 1.0})};
+  for (const int k : {1, 2, 3}) {
+    evar::overlay::Overlay tight, whole;
+    for (std::size_t m = 0; m < meshes.size(); ++m) {
+      const Bgr colour{static_cast<std::uint8_t>(60 * m), 180, static_cast<std::uint8_t>(250 - 70 * m)};
+      tight.layers.push_back({"", {meshes[m]}, colour, 0.45, true, 2});
+      whole.layers.push_back({"", {meshes[m], stretch}, colour, 0.45, true, 2});
+    }
+    Image a = Image::filled(kCols, kRows, {20, 30, 40}), b = Image::filled(kCols, kRows, {20, 30, 40});
+    evar::overlay::composite(a, ap, tight, {k, 0.45});
+    evar::overlay::composite(b, ap, whole, {k, 0.45});
+    int drawn = 0, differ = 0;
+    for (int y = 0; y < kRows; ++y)
+      for (int x = 0; x < kCols; ++x) {
+        const Bgr p = a.at(x, y), q = b.at(x, y);
+        differ += p.r != q.r || p.g != q.g || p.b != q.b;
+        drawn += p.r != 40 || p.g != 30 || p.b != 20;
+      }
+    EXPECT_EQ(differ, 0) << "supersample " << k;
+    EXPECT_GT(drawn, 3000) << "supersample " << k;
+  }
+}
+
+// A finite vertex near the end of the double range can project to inf / inf: the triangles
+// using it are not drawn and the rest of the mesh still is. (Its NaN position used to reach
+// an integer conversion, undefined behaviour that clang's -fsanitize=undefined reports and
+// GCC's does not check; on x86 it happened to draw nothing, so this test states the
+// behaviour rather than catching that conversion.)
+TEST(Composite, AVertexWhoseProjectionIsNotFiniteIsNotDrawn) {
+  evar::geometry::ProjectionMatrix P;
+  // w = 2x + 0.001z + 1000 and u = 50 + 2000x / w: about 50 + 2x px near the origin, but
+  // for x near 1.7e308 both u·w and w overflow to inf.
+  P << 2100, 0, 0.05, 50000, 100, 2000, 0.05, 50000, 2, 0, 1e-3, 1000;
+  const evar::overlay::PerspectiveProjection view(P, 100, 100);
+  TriangleMesh m = triangle({-20, -15, 0}, {20, -15, 0}, {0, 20, 0});
+  m.V.conservativeResize(4, 3);
+  m.V.row(3) << 1.7e308, 0, 0;
+  m.F.conservativeResize(2, 3);
+  m.F.row(1) << 0, 1, 3;
+  ASSERT_FALSE(view.project(m.V.row(3).transpose()).allFinite());
+  evar::overlay::Overlay overlay, finite_only;
+  overlay.layers.push_back(opaque_layer(m));
+  finite_only.layers.push_back(opaque_layer(triangle({-20, -15, 0}, {20, -15, 0}, {0, 20, 0})));
+  Image image = Image::filled(100, 100, kBlack), expected = Image::filled(100, 100, kBlack);
+  evar::overlay::composite(image, view, overlay);
+  evar::overlay::composite(expected, view, finite_only);
+  int red = 0, differ = 0;
+  for (int y = 0; y < 100; ++y)
+    for (int x = 0; x < 100; ++x) {
+      red += image.at(x, y).r > 0;
+      differ += image.at(x, y).r != expected.at(x, y).r;
+    }
+  EXPECT_GT(red, 100);   // the finite triangle
+  EXPECT_EQ(differ, 0);  // and nothing of the other
 }
 
 TEST(Composite, OverlappingMeshesInOneLayerAreOutlinedAsOneSilhouetteWithoutSeams) {
