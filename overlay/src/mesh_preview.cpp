@@ -99,11 +99,13 @@ void check_options(const DrawOptions& options) {
 // ---------------------------------------------------------------------------------------
 // Mesh silhouettes
 
-// A mask of samples covering part of the image's sample grid: sample (x, y) of the grid is
-// mask(y - origin.y, x - origin.x); the grid beyond the mask is empty.
+// A mask of samples covering part of the image's sample grid: the image pixels `pixels`,
+// k x k samples each; sample (x, y) of the grid is mask(y - origin.y, x - origin.x) with
+// origin = k · pixels.tl(), and the grid beyond the mask is empty.
 struct SampleMask {
-  cv::Mat1b mask;
+  cv::Rect pixels;
   cv::Point origin;  ///< in samples
+  cv::Mat1b mask;
 };
 
 // Sets the samples (integer positions of the grid) inside triangle abc (sample coordinates),
@@ -140,9 +142,7 @@ void fill_triangle(SampleMask& grid, std::array<Eigen::Vector2d, 3> t) {
 // only over the whole image pixels that the triangles' bounding box touches, with one
 // empty pixel around it where the image goes on (vessels cover a fraction of the frame;
 // the fill, its coverage, the outline tracing and the blend then touch only that part).
-// `pixels`: that part of the image.
-SampleMask silhouette(const ViewProjection& view, const MeshLayer& layer, cv::Size size, int supersample,
-                      cv::Rect& pixels) {
+SampleMask silhouette(const ViewProjection& view, const MeshLayer& layer, cv::Size size, int supersample) {
   const double near = view.near_depth();
   const double limit = kMaxCoordPx * supersample;
   struct Projected {
@@ -174,15 +174,15 @@ SampleMask silhouette(const ViewProjection& view, const MeshLayer& layer, cv::Si
       }
   }
   // Samples k·i .. k·i + k − 1 make up image pixel i.
-  pixels = cv::Rect();
+  cv::Rect pixels;
   if (!box.isEmpty()) {
     const auto pixel = [&](double sample) { return static_cast<int>(std::floor(sample / supersample)); };
     const int x0 = std::max(0, pixel(box.min().x()) - 1), y0 = std::max(0, pixel(box.min().y()) - 1);
     const int x1 = std::min(size.width, pixel(box.max().x()) + 2), y1 = std::min(size.height, pixel(box.max().y()) + 2);
     if (x1 > x0 && y1 > y0) pixels = cv::Rect(x0, y0, x1 - x0, y1 - y0);
   }
-  SampleMask grid{cv::Mat1b::zeros(pixels.height * supersample, pixels.width * supersample),
-                  {pixels.x * supersample, pixels.y * supersample}};
+  SampleMask grid{pixels, pixels.tl() * supersample,
+                  cv::Mat1b::zeros(pixels.height * supersample, pixels.width * supersample)};
   if (pixels.empty()) return grid;
   for (std::size_t m = 0; m < layer.meshes.size(); ++m) {
     const auto& mesh = layer.meshes[m];
@@ -369,17 +369,16 @@ void draw_overlay(std::span<cv::Mat> images, const ViewProjection& view, const O
   std::vector<std::vector<std::vector<cv::Point>>> outlines(overlay.layers.size());
   for (std::size_t l = 0; l < overlay.layers.size(); ++l) {
     const MeshLayer& layer = overlay.layers[l];
-    cv::Rect pixels;
-    const SampleMask grid = silhouette(view, layer, size, k, pixels);
+    const SampleMask grid = silhouette(view, layer, size, k);
     if (layer.outline) outlines[l] = outline(grid, k);
-    if (layer.fill_alpha <= 0.0 || pixels.empty()) continue;
+    if (layer.fill_alpha <= 0.0 || grid.pixels.empty()) continue;
     cv::Mat1b coverage;
     if (k == 1)
       coverage = grid.mask;
     else
-      cv::resize(grid.mask, coverage, pixels.size(), 0.0, 0.0, cv::INTER_AREA);  // box average: exact coverage
+      cv::resize(grid.mask, coverage, grid.pixels.size(), 0.0, 0.0, cv::INTER_AREA);  // box average: exact coverage
     for (cv::Mat& image : images) {
-      cv::Mat part = image(pixels);
+      cv::Mat part = image(grid.pixels);
       blend(part, coverage, layer.colour, layer.fill_alpha);
     }
   }
