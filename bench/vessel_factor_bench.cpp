@@ -7,7 +7,11 @@
 //   vessel_factor/<n>       ArapSolver(system, constrained): masking + numeric factorization
 //                           (what each deform() call pays per round);
 //   vessel_free_block/<n>   for comparison, the bd2df38 path: the free block A_FF ordered
-//                           by Eigen's own AMD and factored (AMD + symbolic + numeric).
+//                           by Eigen's own AMD and factored (AMD + symbolic + numeric);
+//   vessel_iteration/<n>    one local/global iteration of that constraint set, Anderson on
+//                           (iterate_ms / iterations over 20 that never converge);
+//   vessel_local_step/<n>   its parts: the local step with b(R) in the same pass, from the
+//   vessel_solve_xyz/<n>    rotations of the previous step, and the triangular solve.
 //
 // The set-up mirrors SceneDeformer's private make_model() with default DeformOptions; the
 // deform benchmarks time the product code itself.
@@ -36,6 +40,7 @@ struct AortaProblem {
   deform::ArapTether tether;
   std::shared_ptr<const deform::ArapSystem> system;
   std::vector<int> constrained;  ///< handle vertices of the first round
+  deform::Positions targets;     ///< their targets
   int vertices = 0;
 };
 
@@ -63,7 +68,12 @@ const AortaProblem& aorta(int aorta_vertices) {
   control.device_thickness_mm = sp.scene.device_thickness_mm;
   const auto handles =
       deform::select_control_points(mesh, caster, v->centerline, deform::radius_profile(skeleton), sp.example.device, control);
-  for (const auto& [k, target] : deform::handle_vertex_targets(mesh, handles)) p->constrained.push_back(k);
+  const auto targets = deform::handle_vertex_targets(mesh, handles);
+  p->targets.resize(static_cast<Eigen::Index>(targets.size()), 3);
+  for (const auto& [k, target] : targets) {
+    p->targets.row(static_cast<Eigen::Index>(p->constrained.size())) = target.transpose();
+    p->constrained.push_back(k);
+  }
   slot = std::move(p);
   return *slot;
 }
@@ -135,8 +145,67 @@ void BM_VesselFreeBlock(benchmark::State& state, int aorta_vertices) {
   set_common(state, p);
 }
 
+void BM_VesselIteration(benchmark::State& state, int aorta_vertices) {
+  const auto& p = aorta(aorta_vertices);
+  deform::ArapOptions opt;
+  opt.max_iterations = 20;
+  opt.tolerance_mm = 1e-12;  // never reached: every run does all 20
+  const deform::ArapSolver solver(std::make_shared<const deform::ArapSystem>(p.terms, opt, p.tether), p.constrained);
+  double per_iter = 0;
+  for (auto _ : state) {
+    const auto result = solver.solve(p.targets);
+    const double ms = result.iterate_ms / std::max(result.iterations, 1);
+    state.SetIterationTime(ms / 1e3);
+    per_iter += ms;
+  }
+  set_common(state, p);
+  state.counters["per_iter_ms"] = avg(per_iter);
+  state.SetLabel(solver.method() == deform::ConstraintMethod::Capacitance ? "capacitance" : "refactor");
+}
+
+// A deformed configuration and its rotations, as the iterations meet them.
+struct Configuration {
+  deform::Positions X;
+  std::vector<Eigen::Matrix3d> R;
+};
+Configuration configuration(const AortaProblem& p) {
+  const deform::ArapSolver solver(p.system, p.constrained);
+  Configuration c{solver.solve(p.targets).X, std::vector<Eigen::Matrix3d>(static_cast<std::size_t>(p.terms.num_cells),
+                                                                          Eigen::Matrix3d::Identity())};
+  p.system->local_step(c.X, c.R);
+  return c;
+}
+
+void BM_VesselLocalStep(benchmark::State& state, int aorta_vertices) {
+  const auto& p = aorta(aorta_vertices);
+  const auto c = configuration(p);
+  std::vector<Eigen::Matrix3d> R;
+  deform::Positions b;
+  for (auto _ : state) benchmark::DoNotOptimize(p.system->local_step(c.X, c.R, R, &b));
+  set_common(state, p);
+}
+
+void BM_VesselSolveXyz(benchmark::State& state, int aorta_vertices) {
+  const auto& p = aorta(aorta_vertices);
+  const auto c = configuration(p);
+  deform::Positions b;
+  p.system->right_hand_side(c.R, b);
+  const Eigen::MatrixXd B = b;
+  const auto* A = p.system->prefactored();
+  if (!A) {
+    state.SkipWithError("the aorta's system is not prefactored");
+    return;
+  }
+  for (auto _ : state) benchmark::DoNotOptimize(A->solve(B));
+  set_common(state, p);
+  state.counters["nnz_L"] = static_cast<double>(A->factor_nonzeros());
+}
+
 }  // namespace
 
+BENCHMARK_CAPTURE(BM_VesselIteration, 7500, 7500)->Iterations(5)->UseManualTime()->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselLocalStep, 7500, 7500)->Iterations(50)->Unit(benchmark::kMillisecond);
+BENCHMARK_CAPTURE(BM_VesselSolveXyz, 7500, 7500)->Iterations(100)->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_VesselSystem, 7500, 7500)->Iterations(20)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_VesselFactor, 7500, 7500)->Iterations(20)->UseManualTime()->Unit(benchmark::kMillisecond);
 BENCHMARK_CAPTURE(BM_VesselFreeBlock, 7500, 7500)->Iterations(20)->Unit(benchmark::kMillisecond);

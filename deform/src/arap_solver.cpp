@@ -2,6 +2,7 @@
 
 #include <Eigen/Cholesky>
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <numeric>
 #include <stdexcept>
@@ -69,6 +70,26 @@ ArapSystem::ArapSystem(ArapTerms terms, ArapOptions options, ArapTether tether, 
     A_ += 0.0 * I;
   }
   A_.makeCompressed();
+  for (int c = 0; c < terms_.num_cells; ++c) {
+    const auto first = cell_unknown_.size();
+    for (int t = terms_.cell_begin[static_cast<std::size_t>(c)]; t < terms_.cell_begin[static_cast<std::size_t>(c) + 1]; ++t)
+      for (int p = terms_.coeff_begin[static_cast<std::size_t>(t)]; p < terms_.coeff_begin[static_cast<std::size_t>(t) + 1]; ++p) {
+        const int k = terms_.coeff_index[static_cast<std::size_t>(p)];
+        const Eigen::Vector3d m =
+            terms_.weight[static_cast<std::size_t>(t)] * terms_.coeff_value[static_cast<std::size_t>(p)] * terms_.rest[static_cast<std::size_t>(t)];
+        const auto at = std::find(cell_unknown_.begin() + static_cast<std::ptrdiff_t>(first), cell_unknown_.end(), k);
+        if (at == cell_unknown_.end()) {
+          cell_unknown_.push_back(k);
+          cell_moment_.push_back(m);
+        } else {
+          cell_moment_[static_cast<std::size_t>(at - cell_unknown_.begin())] += m;
+        }
+      }
+    cell_unknown_begin_.push_back(static_cast<int>(cell_unknown_.size()));
+  }
+  tether_rhs_ = Positions::Zero(n, 3);
+  if (!tether_.weight.empty())
+    for (int k = 0; k < n; ++k) tether_rhs_.row(k) = tether_.weight[static_cast<std::size_t>(k)] * tether_.anchor.row(k);
   if (!knots.arc_of_unknown.empty()) coarse_.emplace(terms_, tether_.weight, knots);
   assemble_ms_ = ms_since(t0);
   const auto t1 = Clock::now();
@@ -89,23 +110,47 @@ const SparseCholesky* ArapSystem::prefactored() const {
 }
 
 double ArapSystem::local_step(const Positions& X, std::vector<Eigen::Matrix3d>& R) const {
+  return local_step(X, R, R, nullptr);
+}
+
+double ArapSystem::local_step(const Positions& X, const std::vector<Eigen::Matrix3d>& R_warm,
+                              std::vector<Eigen::Matrix3d>& R, Positions* b) const {
+  R.resize(R_warm.size());
+  if (b) *b = tether_rhs_;
   double E = rest_energy_;
   const auto* idx = terms_.coeff_index.data();
   const auto* val = terms_.coeff_value.data();
-  for (int c = 0; c < terms_.num_cells; ++c) {
-    Eigen::Matrix3d S = Eigen::Matrix3d::Zero();  // Σ w e' eᵀ
-    double deformed_sq = 0.0;
-    for (int t = terms_.cell_begin[static_cast<std::size_t>(c)]; t < terms_.cell_begin[static_cast<std::size_t>(c) + 1]; ++t) {
-      Eigen::Vector3d ep = Eigen::Vector3d::Zero();
-      for (int p = terms_.coeff_begin[static_cast<std::size_t>(t)]; p < terms_.coeff_begin[static_cast<std::size_t>(t) + 1]; ++p)
-        ep += val[p] * X.row(idx[p]).transpose();
-      const double w = terms_.weight[static_cast<std::size_t>(t)];
-      S.noalias() += (w * ep) * terms_.rest[static_cast<std::size_t>(t)].transpose();
-      deformed_sq += w * ep.squaredNorm();
+  // Cells in blocks: covariances, then rotations (eight at a time in vector registers,
+  // refine_rotations), then energy and b(R) while the block is in cache.
+  constexpr int kBlock = 32;
+  std::array<Eigen::Matrix3d, kBlock> S_block;
+  std::array<double, kBlock> sq_block;
+  for (int c0 = 0; c0 < terms_.num_cells; c0 += kBlock) {
+    const int c1 = std::min(c0 + kBlock, terms_.num_cells);
+    for (int c = c0; c < c1; ++c) {
+      const auto cu = static_cast<std::size_t>(c);
+      Eigen::Matrix3d S = Eigen::Matrix3d::Zero();  // Σ w e' eᵀ
+      double deformed_sq = 0.0;
+      for (int t = terms_.cell_begin[cu]; t < terms_.cell_begin[cu + 1]; ++t) {
+        Eigen::Vector3d ep = Eigen::Vector3d::Zero();
+        for (int p = terms_.coeff_begin[static_cast<std::size_t>(t)]; p < terms_.coeff_begin[static_cast<std::size_t>(t) + 1]; ++p)
+          ep += val[p] * X.row(idx[p]).transpose();
+        const double w = terms_.weight[static_cast<std::size_t>(t)];
+        S.noalias() += (w * ep) * terms_.rest[static_cast<std::size_t>(t)].transpose();
+        deformed_sq += w * ep.squaredNorm();
+      }
+      S_block[static_cast<std::size_t>(c - c0)] = S;
+      sq_block[static_cast<std::size_t>(c - c0)] = deformed_sq;
     }
-    auto& Rc = R[static_cast<std::size_t>(c)];
-    Rc = refine_rotation(S, Rc);
-    E += deformed_sq - 2.0 * Rc.cwiseProduct(S).sum();  // Σ w |e' − R e|²
+    refine_rotations(S_block.data(), R_warm.data() + c0, R.data() + c0, c1 - c0);
+    for (int c = c0; c < c1; ++c) {
+      const auto cu = static_cast<std::size_t>(c);
+      const Eigen::Matrix3d& Rc = R[cu];
+      E += sq_block[static_cast<std::size_t>(c - c0)] - 2.0 * Rc.cwiseProduct(S_block[static_cast<std::size_t>(c - c0)]).sum();  // Σ w |e' − R e|²
+      if (b)
+        for (int q = cell_unknown_begin_[cu]; q < cell_unknown_begin_[cu + 1]; ++q)
+          b->row(cell_unknown_[static_cast<std::size_t>(q)]).noalias() += (Rc * cell_moment_[static_cast<std::size_t>(q)]).transpose();
+    }
   }
   if (!tether_.weight.empty())
     for (int k = 0; k < terms_.num_unknowns; ++k)
@@ -113,21 +158,13 @@ double ArapSystem::local_step(const Positions& X, std::vector<Eigen::Matrix3d>& 
   return std::max(E, 0.0);
 }
 
-void ArapSystem::right_hand_side(const std::vector<Eigen::Matrix3d>& R, Eigen::MatrixXd& b_out) const {
-  Positions b = Positions::Zero(terms_.num_unknowns, 3);
-  const auto* idx = terms_.coeff_index.data();
-  const auto* val = terms_.coeff_value.data();
+void ArapSystem::right_hand_side(const std::vector<Eigen::Matrix3d>& R, Positions& b) const {
+  b = tether_rhs_;
   for (int c = 0; c < terms_.num_cells; ++c) {
-    const Eigen::Matrix3d& Rc = R[static_cast<std::size_t>(c)];
-    for (int t = terms_.cell_begin[static_cast<std::size_t>(c)]; t < terms_.cell_begin[static_cast<std::size_t>(c) + 1]; ++t) {
-      const Eigen::RowVector3d r = terms_.weight[static_cast<std::size_t>(t)] * (Rc * terms_.rest[static_cast<std::size_t>(t)]).transpose();
-      for (int p = terms_.coeff_begin[static_cast<std::size_t>(t)]; p < terms_.coeff_begin[static_cast<std::size_t>(t) + 1]; ++p)
-        b.row(idx[p]) += val[p] * r;
-    }
+    const auto cu = static_cast<std::size_t>(c);
+    for (int q = cell_unknown_begin_[cu]; q < cell_unknown_begin_[cu + 1]; ++q)
+      b.row(cell_unknown_[static_cast<std::size_t>(q)]).noalias() += (R[cu] * cell_moment_[static_cast<std::size_t>(q)]).transpose();
   }
-  if (!tether_.weight.empty())
-    for (int k = 0; k < terms_.num_unknowns; ++k) b.row(k) += tether_.weight[static_cast<std::size_t>(k)] * tether_.anchor.row(k);
-  b_out = b;
 }
 
 double ArapSystem::energy(const Positions& X) const {
@@ -190,24 +227,23 @@ ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int
   factor_ms_ = ms_since(t1);
 }
 
-Eigen::MatrixXd ArapSolver::global_step(const std::vector<Eigen::Matrix3d>& R, const Eigen::MatrixXd& coupling,
-                                        const Eigen::MatrixXd& X_C_full) const {
-  Eigen::MatrixXd rhs;
-  system_->right_hand_side(R, rhs);
+Positions ArapSolver::global_step(const Positions& b, const Positions& coupling, const Positions& X_C_full) const {
+  Positions x;
   if (prefactored_) {
     // x = A⁻¹(b + E μ) with Eᵀx = x_C:  S μ = x_C − Eᵀ A⁻¹ b,  x = A⁻¹b + W μ.
     // Rows F of A x = b + E μ are those of A_FF x_F + A_FC x_C = b_F.
-    Eigen::MatrixXd x = prefactored_->solve(rhs);
+    prefactored_->solve_xyz(b, x);
     Eigen::MatrixXd r(static_cast<Eigen::Index>(constrained_.size()), 3);
     for (std::size_t c = 0; c < constrained_.size(); ++c)
       r.row(static_cast<Eigen::Index>(c)) = X_C_full.row(constrained_[c]) - x.row(constrained_[c]);
-    x.noalias() += W_ * S_.solve(r);
+    if (!constrained_.empty()) x.noalias() += W_ * S_.solve(r);
     for (const int c : constrained_) x.row(c) = X_C_full.row(c);  // exact, not up to rounding
     return x;
   }
-  rhs -= coupling;  // free rows: b_F − A_FC x_C
+  Positions rhs = b - coupling;  // free rows: b_F − A_FC x_C
   for (const int k : constrained_) rhs.row(k) = X_C_full.row(k);
-  return cholesky_->solve(rhs);
+  cholesky_->solve_xyz(rhs, x);
+  return x;
 }
 
 ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial) const {
@@ -223,32 +259,35 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   ArapResult result;
   result.factor_ms = factor_ms_;
   const auto t_init = Clock::now();
-  Eigen::MatrixXd X_C_full = Eigen::MatrixXd::Zero(n, 3);
+  Positions X_C_full = Positions::Zero(n, 3);
   for (std::size_t c = 0; c < constrained_.size(); ++c) X_C_full.row(constrained_[c]) = targets.row(static_cast<Eigen::Index>(c));
-  const Eigen::MatrixXd coupling = prefactored_ ? Eigen::MatrixXd() : Eigen::MatrixXd(system_->matrix() * X_C_full);
+  const Positions coupling = prefactored_ ? Positions() : Positions(system_->matrix() * X_C_full);
   Positions& X = result.X;
   std::vector<Eigen::Matrix3d> R(static_cast<std::size_t>(system_->terms().num_cells), Eigen::Matrix3d::Identity());
-  Eigen::MatrixXd x(n, 3);
+  Positions b;  // b(R) of the rotations in R, kept with them
+  Positions x(n, 3);
   if (initial) {
     x = *initial;
     for (const int k : constrained_) x.row(k) = X_C_full.row(k);
   } else {
-    x = global_step(R, coupling, X_C_full);  // Laplacian editing: all rotations identity
+    system_->right_hand_side(R, b);
+    x = global_step(b, coupling, X_C_full);  // Laplacian editing: all rotations identity
   }
-  X = x;
-  double E = system_->local_step(X, R);
+  double E = system_->local_step(x, R, R, &b);
   const CoarseSpace* const coarse = coarse_ ? system_->coarse() : nullptr;
   // The global step from the rotations fitted at x: with a coarse space, turned first by its
   // Gauss-Newton step (coarse_space.hpp).
-  const auto next_global = [&]() -> Eigen::MatrixXd {
-    if (!coarse) return global_step(R, coupling, X_C_full);
-    Eigen::MatrixXd b;
-    system_->right_hand_side(R, b);
+  std::vector<Eigen::Matrix3d> turned;
+  Positions b_turned;
+  const auto next_global = [&]() -> Positions {
+    if (!coarse) return global_step(b, coupling, X_C_full);
     const Eigen::MatrixXd half_gradient = system_->matrix() * x - b;  // ½ ∇E at (x, R(x))
     const Eigen::VectorXd xi = -coarse_->solve(coarse->project(half_gradient, is_constrained_));
-    std::vector<Eigen::Matrix3d> turned = R;
-    if (xi.allFinite()) coarse->turn_cells(xi, turned);
-    return global_step(turned, coupling, X_C_full);
+    if (!xi.allFinite()) return global_step(b, coupling, X_C_full);
+    turned = R;
+    coarse->turn_cells(xi, turned);
+    system_->right_hand_side(turned, b_turned);
+    return global_step(b_turned, coupling, X_C_full);
   };
   result.energy.push_back(E);
   result.init_ms = ms_since(t_init);
@@ -258,32 +297,36 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   const int m = options.anderson_window;
   const Eigen::Index N = static_cast<Eigen::Index>(n) * 3;
   Eigen::MatrixXd dG(N, m), dF(N, m);
+  Eigen::MatrixXd gram(m, m);  // ΔFᵀΔF, one row and column renewed per new difference
   Eigen::VectorXd prev_g(N), prev_f(N);
   int history = 0, next_col = 0;
   bool have_prev = false;
 
-  Eigen::MatrixXd g = next_global();
+  std::vector<Eigen::Matrix3d> R_candidate;
+  Positions b_candidate;
+  Positions f(n, 3), candidate(n, 3);
+  Positions g = next_global();
   for (int it = 1; it <= options.max_iterations; ++it) {
-    const Eigen::MatrixXd f = g - x;
+    f = g - x;
     result.last_update_mm = n > 0 ? f.rowwise().norm().maxCoeff() : 0.0;
     result.iterations = it;
     if (result.last_update_mm < options.tolerance_mm) {
       x = g;
-      X = x;
-      E = system_->local_step(X, R);
+      E = system_->local_step(x, R);
       result.energy.push_back(E);
       result.converged = true;
       break;
     }
-    Eigen::MatrixXd candidate = g;
+    candidate = g;
     bool accelerated = false;
     if (options.anderson) {
       const Eigen::Map<const Eigen::VectorXd> gv(g.data(), N), fv(f.data(), N);
       if (have_prev) {
         dG.col(next_col) = gv - prev_g;
         dF.col(next_col) = fv - prev_f;
-        next_col = (next_col + 1) % m;
         history = std::min(history + 1, m);
+        for (int j = 0; j < history; ++j) gram(next_col, j) = gram(j, next_col) = dF.col(next_col).dot(dF.col(j));
+        next_col = (next_col + 1) % m;
       }
       prev_g = gv;
       prev_f = fv;
@@ -291,29 +334,24 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
       if (history > 0) {
         // θ = argmin |f − ΔF θ|, via regularized normal equations on column-scaled ΔF.
         const auto dFh = dF.leftCols(history);
-        Eigen::VectorXd scale = dFh.colwise().norm().transpose();
+        Eigen::VectorXd scale = gram.diagonal().head(history).cwiseSqrt();
         for (int j = 0; j < history; ++j) scale(j) = scale(j) > 0.0 ? 1.0 / scale(j) : 0.0;
-        Eigen::MatrixXd M = scale.asDiagonal() * (dFh.transpose() * dFh) * scale.asDiagonal();
+        Eigen::MatrixXd M = scale.asDiagonal() * gram.topLeftCorner(history, history) * scale.asDiagonal();
         M.diagonal().array() += 1e-10;
         const Eigen::VectorXd theta = scale.asDiagonal() * M.ldlt().solve(scale.asDiagonal() * (dFh.transpose() * fv));
         if (theta.allFinite()) {
-          Eigen::VectorXd xv = gv - dG.leftCols(history) * theta;
-          candidate = Eigen::Map<Eigen::MatrixXd>(xv.data(), n, 3);
+          Eigen::Map<Eigen::VectorXd>(candidate.data(), N).noalias() -= dG.leftCols(history) * theta;
           for (const int k : constrained_) candidate.row(k) = X_C_full.row(k);
           accelerated = true;
         }
       }
     }
-    X = candidate;
-    std::vector<Eigen::Matrix3d> R_candidate = R;
-    double E_candidate = system_->local_step(X, R_candidate);
+    double E_candidate = system_->local_step(candidate, R, R_candidate, &b_candidate);
     if (accelerated && !(E_candidate < E)) {
       // Safeguard: fall back to the plain local/global step, which cannot raise E.
       ++result.anderson_rejections;
       candidate = g;
-      X = candidate;
-      R_candidate = R;
-      E_candidate = system_->local_step(X, R_candidate);
+      E_candidate = system_->local_step(candidate, R, R_candidate, &b_candidate);
       history = 0;
       next_col = 0;
       have_prev = false;
@@ -321,21 +359,21 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
     if (coarse && !(E_candidate <= E)) {
       // The turned rotations did not pay here: the plain step, which cannot raise E.
       ++result.coarse_fallbacks;
-      candidate = global_step(R, coupling, X_C_full);
-      X = candidate;
-      R_candidate = R;
-      E_candidate = system_->local_step(X, R_candidate);
+      candidate = global_step(b, coupling, X_C_full);
+      E_candidate = system_->local_step(candidate, R, R_candidate, &b_candidate);
     }
-    x = std::move(candidate);
-    R = std::move(R_candidate);
+    std::swap(x, candidate);
+    std::swap(R, R_candidate);
+    std::swap(b, b_candidate);
     E = E_candidate;
     result.energy.push_back(E);
     g = next_global();
   }
   if (!result.converged && options.max_iterations > 0) {
-    X = g;  // the last global solve is the best estimate we have
-    result.energy.push_back(system_->local_step(X, R));
+    x = g;  // the last global solve is the best estimate we have
+    result.energy.push_back(system_->local_step(x, R));
   }
+  X = std::move(x);
   if (options.max_iterations == 0) result.converged = false;
   result.iterate_ms = ms_since(t_iter);
   return result;

@@ -88,6 +88,113 @@ Eigen::Matrix3d refine_rotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d&
   return closest_rotation(A, warm);
 }
 
+namespace {
+
+// One Newton step of newton_rotation (same formulas, same acceptance) for kLanes cells in
+// structure-of-arrays form: every statement is a loop over the lanes, which the compiler
+// vectorizes. Matrices are column-major, a[3 * col + row][lane]. ok[l] says whether lane l's
+// step was certified and short; otherwise the caller decides that cell on its own.
+constexpr int kLanes = 8;
+using Lanes = double[kLanes];
+
+void newton_step_lanes(const double (&a)[9][kLanes], const double (&r0)[9][kLanes], double (&r)[9][kLanes],
+                       bool (&ok)[kLanes]) {
+  double m[9][kLanes];  // M = R0ᵀ A
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int l = 0; l < kLanes; ++l)
+        m[3 * j + i][l] = r0[3 * i][l] * a[3 * j][l] + r0[3 * i + 1][l] * a[3 * j + 1][l] + r0[3 * i + 2][l] * a[3 * j + 2][l];
+  Lanes g0, g1, g2, h00, h11, h22, h01, h02, h12;
+  for (int l = 0; l < kLanes; ++l) {
+    g0[l] = m[5][l] - m[7][l];  // M(2,1) − M(1,2)
+    g1[l] = m[6][l] - m[2][l];  // M(0,2) − M(2,0)
+    g2[l] = m[1][l] - m[3][l];  // M(1,0) − M(0,1)
+    const double tr = m[0][l] + m[4][l] + m[8][l];
+    h00[l] = tr - m[0][l];
+    h11[l] = tr - m[4][l];
+    h22[l] = tr - m[8][l];
+    h01[l] = -0.5 * (m[3][l] + m[1][l]);
+    h02[l] = -0.5 * (m[6][l] + m[2][l]);
+    h12[l] = -0.5 * (m[7][l] + m[5][l]);
+  }
+  constexpr double kMargin = 1e-6;
+  Lanes w2, x, y, z;
+  for (int l = 0; l < kLanes; ++l) {
+    const double c00 = h11[l] * h22[l] - h12[l] * h12[l];
+    const double c01 = h02[l] * h12[l] - h01[l] * h22[l];
+    const double c02 = h01[l] * h12[l] - h02[l] * h11[l];
+    const double c11 = h00[l] * h22[l] - h02[l] * h02[l];
+    const double c12 = h02[l] * h01[l] - h00[l] * h12[l];
+    const double m2 = h00[l] * h11[l] - h01[l] * h01[l];
+    const double m3 = h00[l] * c00 + h01[l] * c01 + h02[l] * c02;
+    const double inv = 1.0 / m3;
+    const double w0 = (c00 * g0[l] + c01 * g1[l] + c02 * g2[l]) * inv;
+    const double w1 = (c01 * g0[l] + c11 * g1[l] + c12 * g2[l]) * inv;
+    const double wz = (c02 * g0[l] + c12 * g1[l] + m2 * g2[l]) * inv;
+    w2[l] = w0 * w0 + w1 * w1 + wz * wz;
+    ok[l] = h00[l] > kMargin && m2 > kMargin && m3 > kMargin && w2[l] < 0.1 * 0.1;
+    x[l] = 0.5 * w0;
+    y[l] = 0.5 * w1;
+    z[l] = 0.5 * wz;
+  }
+  double q[9][kLanes];  // Cayley: unit quaternion ∝ (1, ω/2)
+  for (int l = 0; l < kLanes; ++l) {
+    const double qn2 = 2.0 / (1.0 + 0.25 * w2[l]);
+    q[0][l] = 1.0 - qn2 * (y[l] * y[l] + z[l] * z[l]);
+    q[1][l] = qn2 * (x[l] * y[l] + z[l]);
+    q[2][l] = qn2 * (x[l] * z[l] - y[l]);
+    q[3][l] = qn2 * (x[l] * y[l] - z[l]);
+    q[4][l] = 1.0 - qn2 * (x[l] * x[l] + z[l] * z[l]);
+    q[5][l] = qn2 * (y[l] * z[l] + x[l]);
+    q[6][l] = qn2 * (x[l] * z[l] + y[l]);
+    q[7][l] = qn2 * (y[l] * z[l] - x[l]);
+    q[8][l] = 1.0 - qn2 * (x[l] * x[l] + y[l] * y[l]);
+  }
+  for (int i = 0; i < 3; ++i)
+    for (int j = 0; j < 3; ++j)
+      for (int l = 0; l < kLanes; ++l)
+        r[3 * j + i][l] = r0[i][l] * q[3 * j][l] + r0[3 + i][l] * q[3 * j + 1][l] + r0[6 + i][l] * q[3 * j + 2][l];
+}
+
+}  // namespace
+
+void refine_rotations(const Eigen::Matrix3d* A, const Eigen::Matrix3d* warm, Eigen::Matrix3d* R, int count) {
+  int c0 = 0;
+  for (; c0 + kLanes <= count; c0 += kLanes) {
+    double a[9][kLanes], r0[9][kLanes], r[9][kLanes];
+    bool ok[kLanes];
+    Lanes scale;
+    for (int l = 0; l < kLanes; ++l) {
+      const double* src = A[c0 + l].data();
+      double s2 = 0.0;
+      for (int e = 0; e < 9; ++e) s2 += src[e] * src[e];
+      scale[l] = std::sqrt(s2);
+    }
+    for (int l = 0; l < kLanes; ++l) {
+      const double inv = 1.0 / scale[l];
+      for (int e = 0; e < 9; ++e) {
+        a[e][l] = A[c0 + l].data()[e] * inv;
+        r0[e][l] = warm[c0 + l].data()[e];
+      }
+    }
+    newton_step_lanes(a, r0, r, ok);
+    for (int l = 0; l < kLanes; ++l) {
+      Eigen::Matrix3d Rl, warm_l;  // warm_l: R may be warm, so its copy
+      for (int e = 0; e < 9; ++e) {
+        Rl.data()[e] = r[e][l];
+        warm_l.data()[e] = r0[e][l];
+      }
+      // As refine_rotation: a zero or non-finite A, an uncertified or long step, or a
+      // non-finite result is decided by the scalar path.
+      if (ok[l] && scale[l] > 0.0 && Rl.allFinite() && A[c0 + l].allFinite())
+        R[c0 + l] = Rl;
+      else
+        R[c0 + l] = refine_rotation(A[c0 + l], warm_l);
+    }
+  }
+  for (int c = c0; c < count; ++c) R[c] = refine_rotation(A[c], warm[c]);
+}
+
 Eigen::Matrix3d closest_rotation_closed_form(const Eigen::Matrix3d& A) {
   const double scale = A.norm();
   if (!(scale > 0.0) || !A.allFinite()) return Eigen::Matrix3d::Identity();

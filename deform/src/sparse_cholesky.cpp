@@ -236,4 +236,20 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
   return impl_->ldlt.solve(B);
 }
 
+void SparseCholesky::solve_xyz(const Xyz& B, Xyz& X) const {
+  if (!impl_->ordered) {
+    X = solve(Eigen::MatrixXd(B));
+    return;
+  }
+  const auto& L = impl_->ldlt_ordered.matrixL().nestedExpression();
+  const int* p = impl_->perm.indices().data();
+  const Eigen::Index n = B.rows();
+  thread_local std::vector<double> y;  // reused: one solve per ARAP iteration
+  y.resize(static_cast<std::size_t>(3 * n));
+  for (Eigen::Index i = 0; i < n; ++i) Eigen::Map<Eigen::RowVector3d>(y.data() + 3 * p[i]) = B.row(i);
+  solve_ldlt_xyz(L.outerIndexPtr(), L.innerIndexPtr(), L.valuePtr(), impl_->ldlt_ordered.vectorD().data(), n, y.data());
+  X.resize(n, 3);
+  for (Eigen::Index i = 0; i < n; ++i) X.row(i) = Eigen::Map<const Eigen::RowVector3d>(y.data() + 3 * p[i]);
+}
+
 }  // namespace evar::deform

@@ -1,7 +1,9 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <limits>
 #include <random>
+#include <vector>
 
 #include "evar/deform/closest_rotation.hpp"
 
@@ -102,4 +104,33 @@ TEST(RefineRotation, FarFromTheMaximumItSolvesExactly) {
   const Eigen::Matrix3d A = Q * Eigen::Vector3d(3.0, 2.0, 1.0).asDiagonal();
   const Eigen::Matrix3d warm = Q * Eigen::AngleAxisd(2.5, Eigen::Vector3d::UnitY()).toRotationMatrix();
   EXPECT_LT((evar::deform::refine_rotation(A, warm) - Q).norm(), 1e-9);
+}
+
+TEST(RefineRotation, TheBatchedStepGivesEachCellWhatTheSingleOneGives) {
+  // The local step fits eight cells at a time (refine_rotations); every cell, whether its
+  // Newton step is accepted or falls back (zero, non-finite or mirrored A, a warm start far
+  // off), must get refine_rotation's answer, also when R overwrites the warm starts.
+  std::mt19937_64 rng(17);
+  std::normal_distribution<double> n(0.0, 1.0);
+  constexpr int kCells = 8 * 6 + 5;  // whole lanes and a remainder
+  std::vector<Eigen::Matrix3d> A(kCells), warm(kCells);
+  for (int c = 0; c < kCells; ++c) {
+    const Eigen::Matrix3d Q = random_rotation(rng);
+    const Eigen::Matrix3d S = Eigen::Vector3d(3.0, 2.0, 0.3 + 0.1 * (c % 5)).asDiagonal();
+    A[c] = Q * S;
+    const Eigen::Vector3d axis = Eigen::Vector3d(n(rng), n(rng), n(rng)).normalized();
+    const double off_rad = (c % 4 == 0) ? 0.5 : 0.02;  // every fourth outside Newton's regime
+    warm[c] = Q * Eigen::AngleAxisd(off_rad, axis).toRotationMatrix();
+  }
+  A[3].setZero();
+  A[9](1, 1) = std::numeric_limits<double>::quiet_NaN();
+  A[14] = -A[14];  // det < 0
+  A[20] *= 1e-200;  // tiny but valid
+  std::vector<Eigen::Matrix3d> expected(kCells);
+  for (int c = 0; c < kCells; ++c) expected[c] = evar::deform::refine_rotation(A[c], warm[c]);
+  std::vector<Eigen::Matrix3d> R(kCells);
+  evar::deform::refine_rotations(A.data(), warm.data(), R.data(), kCells);
+  for (int c = 0; c < kCells; ++c) EXPECT_LT((R[c] - expected[c]).norm(), 1e-12) << "cell " << c;
+  evar::deform::refine_rotations(A.data(), warm.data(), warm.data(), kCells);  // in place
+  for (int c = 0; c < kCells; ++c) EXPECT_LT((warm[c] - expected[c]).norm(), 1e-12) << "cell " << c << " in place";
 }

@@ -84,8 +84,13 @@ class ArapSystem {
   double energy(const Positions& X) const;
   /// E(X, R) with R fitted in place (warm start: R's current content).
   double local_step(const Positions& X, std::vector<Eigen::Matrix3d>& R) const;
-  /// Σ_t w_t a_t (R_c e_t)ᵀ + tether, for all unknowns (#unknowns by 3).
-  void right_hand_side(const std::vector<Eigen::Matrix3d>& R, Eigen::MatrixXd& b) const;
+  /// The same with the warm start `R_warm` and the fitted rotations written to `R` (which
+  /// may be R_warm itself); with `b`, also b(R) as right_hand_side() gives it, in the same
+  /// pass over the cells while each one's data is in cache.
+  double local_step(const Positions& X, const std::vector<Eigen::Matrix3d>& R_warm, std::vector<Eigen::Matrix3d>& R,
+                    Positions* b) const;
+  /// b(R) = Σ_t w_t a_t (R_c e_t)ᵀ + tether, for all unknowns (#unknowns by 3).
+  void right_hand_side(const std::vector<Eigen::Matrix3d>& R, Positions& b) const;
 
   const Eigen::SparseMatrix<double>& matrix() const { return A_; }  ///< full symmetric A
   /// A itself factored (on first use, once): only a tether makes it positive definite, so
@@ -100,6 +105,13 @@ class ArapSystem {
   std::optional<CoarseSpace> coarse_;
   Eigen::SparseMatrix<double> A_;
   Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> ordering_;
+  // b(R) cell by cell: b_k = Σ_c R_c m_ck with m_ck = Σ_{t∈c} w_t a_tk e_t, over the
+  // distinct unknowns k of cell c ([cell_unknown_begin_[c], cell_unknown_begin_[c+1])):
+  // one product per unknown instead of one per term and a scatter per coefficient.
+  std::vector<int> cell_unknown_begin_{0};
+  std::vector<int> cell_unknown_;
+  std::vector<Eigen::Vector3d> cell_moment_;  ///< m_ck (mm)
+  Positions tether_rhs_;                      ///< weight_k anchor_k (zero rows without a tether)
   double rest_energy_ = 0.0;  ///< Σ_t w_t |e_t|²
   double assemble_ms_ = 0.0, ordering_ms_ = 0.0;
   mutable std::once_flag prefactor_once_;
@@ -140,8 +152,8 @@ class ArapSolver {
   ConstraintMethod method() const { return prefactored_ ? ConstraintMethod::Capacitance : ConstraintMethod::Refactor; }
 
  private:
-  Eigen::MatrixXd global_step(const std::vector<Eigen::Matrix3d>& R, const Eigen::MatrixXd& coupling,
-                              const Eigen::MatrixXd& X_C_full) const;
+  /// x solving the global step for the right-hand side b = b(R).
+  Positions global_step(const Positions& b, const Positions& coupling, const Positions& X_C_full) const;
 
   std::shared_ptr<const ArapSystem> system_;
   std::vector<int> constrained_;

@@ -17,6 +17,12 @@ Eigen::Matrix3d closest_rotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d
 /// fixed point is that of the exact local step.
 Eigen::Matrix3d refine_rotation(const Eigen::Matrix3d& A, const Eigen::Matrix3d& warm);
 
+/// refine_rotation for `count` cells at once: R[i] from A[i] and warm[i] (R may be warm).
+/// The Newton step is taken for eight cells side by side in structure-of-arrays form, so
+/// the compiler turns it into vector instructions; a cell outside Newton's regime gets
+/// refine_rotation's fallback. Same result as refine_rotation, up to rounding.
+void refine_rotations(const Eigen::Matrix3d* A, const Eigen::Matrix3d* warm, Eigen::Matrix3d* R, int count);
+
 /// Closed form: the two dominant singular directions from the symmetric 3x3 eigenproblem
 /// of AᵀA, the third by a cross product, so rank-2 A (planar one-rings) and det A < 0 need
 /// no sign fix-ups; rank-1 A falls back to the SVD.
