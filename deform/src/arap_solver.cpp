@@ -214,16 +214,30 @@ ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int
       return;
     }
   }
-  // Constrained rows and columns become identity: same pattern, so the ordering holds.
+  // The free block A_FF, eliminated in the system's order with the constrained unknowns
+  // left out: no ordering to compute, and less fill than A with those rows and columns
+  // masked to identity, whose stored zeros would still be eliminated through.
   const auto t0 = Clock::now();
-  Eigen::SparseMatrix<double> M = system_->matrix();
-  for (int col = 0; col < M.outerSize(); ++col)
-    for (Eigen::SparseMatrix<double>::InnerIterator it(M, col); it; ++it)
-      if (is_constrained_[static_cast<std::size_t>(it.row())] || is_constrained_[static_cast<std::size_t>(col)])
-        it.valueRef() = (it.row() == col) ? 1.0 : 0.0;
+  std::vector<int> free_index(static_cast<std::size_t>(n), -1);
+  for (int k = 0; k < n; ++k)
+    if (!is_constrained_[static_cast<std::size_t>(k)]) {
+      free_index[static_cast<std::size_t>(k)] = static_cast<int>(free_.size());
+      free_.push_back(k);
+    }
+  const auto n_free = static_cast<Eigen::Index>(free_.size());
+  const Eigen::SparseMatrix<double>& A = system_->matrix();
+  Eigen::SparseMatrix<double> A_FF(n_free, n_free);
+  A_FF.reserve(A.nonZeros());
+  for (Eigen::Index c = 0; c < n_free; ++c) {
+    A_FF.startVec(c);
+    for (Eigen::SparseMatrix<double>::InnerIterator it(A, free_[static_cast<std::size_t>(c)]); it; ++it)
+      if (const int r = free_index[static_cast<std::size_t>(it.row())]; r >= 0) A_FF.insertBack(r, c) = it.value();
+  }
+  A_FF.finalize();
+  const auto order_FF = restrict_ordering(system_->ordering(), free_index);
   masking_ms_ = ms_since(t0);
   const auto t1 = Clock::now();
-  if (n > 0) cholesky_.emplace(M, system_->ordering(), system_->options().backend);
+  if (n_free > 0) cholesky_.emplace(A_FF, order_FF, system_->options().backend);
   factor_ms_ = ms_since(t1);
 }
 
@@ -240,9 +254,13 @@ Positions ArapSolver::global_step(const Positions& b, const Positions& coupling,
     for (const int c : constrained_) x.row(c) = X_C_full.row(c);  // exact, not up to rounding
     return x;
   }
-  Positions rhs = b - coupling;  // free rows: b_F − A_FC x_C
-  for (const int k : constrained_) rhs.row(k) = X_C_full.row(k);
-  cholesky_->solve_xyz(rhs, x);
+  // A_FF x_F = b_F − A_FC x_C
+  Positions rhs_F(static_cast<Eigen::Index>(free_.size()), 3), x_F;
+  for (std::size_t i = 0; i < free_.size(); ++i) rhs_F.row(static_cast<Eigen::Index>(i)) = b.row(free_[i]) - coupling.row(free_[i]);
+  x = X_C_full;
+  if (free_.empty()) return x;
+  cholesky_->solve_xyz(rhs_F, x_F);
+  for (std::size_t i = 0; i < free_.size(); ++i) x.row(free_[i]) = x_F.row(static_cast<Eigen::Index>(i));
   return x;
 }
 

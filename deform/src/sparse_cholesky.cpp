@@ -1,7 +1,9 @@
 #include "evar/deform/sparse_cholesky.hpp"
 
 #include <Eigen/SparseCholesky>
+#include <algorithm>
 #include <stdexcept>
+#include <string>
 #include <variant>
 #include <vector>
 
@@ -73,6 +75,21 @@ Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> fill_reducing_orde
   Eigen::AMDOrdering<int> amd;
   amd(full, perm);
   return perm;
+}
+
+Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> restrict_ordering(
+    const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>& ordering, const std::vector<int>& keep_index) {
+  if (keep_index.size() != static_cast<std::size_t>(ordering.size()))
+    throw std::invalid_argument("restrict_ordering: one index per unknown of the ordering is required");
+  const auto kept = static_cast<Eigen::Index>(std::count_if(keep_index.begin(), keep_index.end(), [](int k) { return k >= 0; }));
+  Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> restricted(kept);
+  Eigen::Index next = 0;
+  for (Eigen::Index t = 0; t < ordering.size(); ++t)  // indices()[t]: the unknown eliminated t-th
+    if (const int k = keep_index[static_cast<std::size_t>(ordering.indices()[t])]; k >= 0) {
+      if (k >= kept) throw std::invalid_argument("restrict_ordering: the kept unknowns are not numbered 0.." + std::to_string(kept - 1));
+      restricted.indices()[next++] = k;
+    }
+  return restricted;
 }
 
 namespace {

@@ -4,9 +4,9 @@
 //
 //   ArapSystem (once per mesh):  A = Σ w a aᵀ (+ tether) assembled, fill-reducing ordering
 //                                of its pattern computed;
-//   ArapSolver (per constraint   either the constrained rows and columns of A replaced by
-//   set):                        identity (same pattern, so the ordering is reused) and
-//                                factored by sparse Cholesky, or, for a few constrained
+//   ArapSolver (per constraint   either the free block A_FF (constrained rows and columns
+//   set):                        dropped) factored by sparse Cholesky in the system's
+//                                elimination order restricted to it, or, for a few constrained
 //                                unknowns of a tethered system, A itself factored once per
 //                                system and the constraints imposed through the k by k
 //                                capacitance matrix S = Eᵀ A⁻¹ E (E: the constrained
@@ -121,7 +121,7 @@ class ArapSystem {
 /// How an ArapSolver imposes its constraint set.
 enum class ConstraintMethod {
   Automatic,    ///< the cheaper of the two by operation count (see ArapSolver)
-  Refactor,     ///< mask the constrained rows and columns, factor anew
+  Refactor,     ///< factor the free block A_FF anew
   Capacitance,  ///< the system's prefactored A and S = Eᵀ A⁻¹ E (tethered systems only)
 };
 
@@ -149,6 +149,11 @@ class ArapSolver {
   double assemble_ms() const { return system_->assemble_ms() + masking_ms_; }
   double factor_ms() const { return factor_ms_; }
   CholeskyBackend backend() const { return cholesky_ ? cholesky_->backend() : prefactored_->backend(); }
+  /// Entries below the diagonal of the factor the iterations solve with (A_FF's, or A's for
+  /// the capacitance method); 0 when unknown (CHOLMOD).
+  Eigen::Index factor_nonzeros() const {
+    return cholesky_ ? cholesky_->factor_nonzeros() : prefactored_ ? prefactored_->factor_nonzeros() : 0;
+  }
   ConstraintMethod method() const { return prefactored_ ? ConstraintMethod::Capacitance : ConstraintMethod::Refactor; }
 
  private:
@@ -158,8 +163,9 @@ class ArapSolver {
   std::shared_ptr<const ArapSystem> system_;
   std::vector<int> constrained_;
   std::vector<char> is_constrained_;
-  double masking_ms_ = 0.0, factor_ms_ = 0.0;
-  std::optional<SparseCholesky> cholesky_;
+  double masking_ms_ = 0.0, factor_ms_ = 0.0;  // masking_ms_: extracting A_FF and its order
+  std::optional<SparseCholesky> cholesky_;  // A_FF (refactor method)
+  std::vector<int> free_;                   // its unknowns: the unconstrained ones, ascending
   // Capacitance method: the system's factor of A, W = A⁻¹E (n by k), S = EᵀW factored.
   const SparseCholesky* prefactored_ = nullptr;
   Eigen::MatrixXd W_;

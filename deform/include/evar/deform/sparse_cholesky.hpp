@@ -5,6 +5,7 @@
 #include <Eigen/Sparse>
 #include <memory>
 #include <string>
+#include <vector>
 
 namespace evar::deform {
 
@@ -28,6 +29,12 @@ bool nested_dissection_available();
 /// Fill-reducing ordering of the symmetric pattern of A (lower triangle read): AMD, or
 /// METIS nested dissection from kNestedDissectionFromUnknowns unknowns on.
 Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> fill_reducing_ordering(const Eigen::SparseMatrix<double>& A);
+
+/// `ordering` (of all n unknowns, as fill_reducing_ordering gives it) restricted to the
+/// unknowns with keep_index[k] >= 0, numbered keep_index[k]: the order that eliminates
+/// the submatrix of those unknowns in the same sequence, with no fill it would not have.
+Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int> restrict_ordering(
+    const Eigen::PermutationMatrix<Eigen::Dynamic, Eigen::Dynamic, int>& ordering, const std::vector<int>& keep_index);
 
 CholeskyBackend parse_cholesky_backend(const std::string& name);  ///< "default", "eigen", "cholmod"
 const char* to_string(CholeskyBackend backend);
