@@ -63,7 +63,7 @@ ArapSystem::ArapSystem(ArapTerms terms, ArapOptions options, ArapTether tether, 
     T.setFromTriplets(diag.begin(), diag.end());
     A_ += T;
   }
-  // Every diagonal entry present, so masking a row to identity never changes the pattern.
+  // Every diagonal entry stored, so every free block A_FF has its whole diagonal.
   {
     Eigen::SparseMatrix<double> I(n, n);
     I.setIdentity();
@@ -235,7 +235,7 @@ ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int
   }
   A_FF.finalize();
   const auto order_FF = restrict_ordering(system_->ordering(), free_index);
-  masking_ms_ = ms_since(t0);
+  free_block_ms_ = ms_since(t0);
   const auto t1 = Clock::now();
   if (n_free > 0) cholesky_.emplace(A_FF, order_FF, system_->options().backend);
   factor_ms_ = ms_since(t1);

@@ -230,6 +230,11 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
 #ifdef EVAR_HAVE_CHOLMOD
   if (backend_ == CholeskyBackend::Cholmod) return impl_->cholmod->solve(B);
 #endif
+  if (impl_->ordered && B.cols() == 3) {  // points: the three-column sweep
+    Xyz X;
+    solve_xyz(B, X);
+    return X;
+  }
   if (impl_->ordered && B.cols() > 0) {
     // C = P A Pᵀ is factored: A x = b  ⇔  C (P x) = P b.
     const auto& L = impl_->ldlt_ordered.matrixL().nestedExpression();
@@ -240,10 +245,7 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
       for (Eigen::Index i = 0; i < n; ++i) y[static_cast<std::size_t>(k * p[i] + c)] = B(i, c);
     const Eigen::VectorXd D = impl_->ldlt_ordered.vectorD();  // returned by value
     const double* d = D.data();
-    if (k == 3)
-      solve_ldlt_xyz(L.outerIndexPtr(), L.innerIndexPtr(), L.valuePtr(), d, n, y.data());
-    else
-      solve_ldlt_rows(L.outerIndexPtr(), L.innerIndexPtr(), L.valuePtr(), d, n, k, y.data());
+    solve_ldlt_rows(L.outerIndexPtr(), L.innerIndexPtr(), L.valuePtr(), d, n, k, y.data());
     Eigen::MatrixXd X(n, k);
     for (Eigen::Index c = 0; c < k; ++c)
       for (Eigen::Index i = 0; i < n; ++i) X(i, c) = y[static_cast<std::size_t>(k * p[i] + c)];

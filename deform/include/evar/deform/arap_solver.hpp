@@ -146,7 +146,7 @@ class ArapSolver {
   double energy(const Positions& X) const { return system_->energy(X); }
   const ArapSystem& system() const { return *system_; }
   const std::vector<int>& constrained() const { return constrained_; }
-  double assemble_ms() const { return system_->assemble_ms() + masking_ms_; }
+  double assemble_ms() const { return system_->assemble_ms() + free_block_ms_; }
   double factor_ms() const { return factor_ms_; }
   CholeskyBackend backend() const { return cholesky_ ? cholesky_->backend() : prefactored_->backend(); }
   /// Entries below the diagonal of the factor the iterations solve with (A_FF's, or A's for
@@ -163,7 +163,7 @@ class ArapSolver {
   std::shared_ptr<const ArapSystem> system_;
   std::vector<int> constrained_;
   std::vector<char> is_constrained_;
-  double masking_ms_ = 0.0, factor_ms_ = 0.0;  // masking_ms_: extracting A_FF and its order
+  double free_block_ms_ = 0.0, factor_ms_ = 0.0;  // free_block_ms_: extracting A_FF and its order
   std::optional<SparseCholesky> cholesky_;  // A_FF (refactor method)
   std::vector<int> free_;                   // its unknowns: the unconstrained ones, ascending
   // Capacitance method: the system's factor of A, W = A⁻¹E (n by k), S = EᵀW factored.
