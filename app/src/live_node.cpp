@@ -358,6 +358,8 @@ void LiveNode::compose_loop() {
     out.P_ct = view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
     out.mm_per_px = view ? mm_at_isocenter_per_px(view->view) : 0.0;
     try {
+      // Before anything reads its rows (a held frame passed it when it came).
+      if (!held_s) acquisition::check_layout(*f);
       const int bits = f->format == acquisition::PixelFormat::Mono8 ? 8 : 16;
       out.image = std::make_shared<const overlay::Image>(
           compositor.compose({f->width, f->height, f->stride_bytes, bits, f->pixels.data()},
@@ -405,7 +407,9 @@ void LiveNode::compose_loop() {
     else output_.push(std::move(out));
     if (held_s) continue;
     // Shown first, then handed on: the frame moves to the analysis (a copy is kept to be
-    // held; assigning into the kept one reuses its buffer).
+    // held; assigning into the kept one reuses its buffer). Handing it on before compositing
+    // was tried: the segmentation then shares its core with the compositing, and neither
+    // the model nor the frame came sooner (session 19, docs/BENCHMARKS.md).
     if (!last_shown) last_shown.emplace();
     last_shown->geometry = g;
     last_shown->view = view;

@@ -3,9 +3,10 @@
 // (hardware or a replayed session) in, composited roadmap frames out to the sinks.
 //
 //   source thread   → input queue (4, oldest dropped) →
-//   compose thread  : geometry at the frame's time (GeometryTimeline), roadmap composited
-//                     with the current model, status block; eligible frames (beam on,
-//                     C-arm still, geometry fresh) offered to analysis (latest only)
+//   compose thread  : the frame's layout checked, geometry at the frame's time
+//                     (GeometryTimeline), roadmap composited with the current model,
+//                     status block; eligible frames (beam on, C-arm still, geometry fresh)
+//                     offered to analysis (latest only)
 //                   → output queue (8, oldest dropped) → output thread → sinks
 //   analysis thread : device segmentation, candidates, view pairs → adaptation (latest only)
 //   adaptation thread: reconstruction and deformation; the new model is published and the

@@ -47,13 +47,7 @@ void sync_session_files(const fs::path& dir) {
 }
 
 cv::Mat to_session_image(const Frame& f) {
-  if (f.width <= 0 || f.height <= 0) throw std::invalid_argument("frame has no size");
-  const int bpp = acquisition::bytes_per_pixel(f.format);
-  if (f.stride_bytes < f.width * bpp ||
-      f.pixels.size() < static_cast<std::size_t>(f.stride_bytes) * static_cast<std::size_t>(f.height - 1) +
-                            static_cast<std::size_t>(f.width * bpp))
-    throw std::invalid_argument("frame of " + std::to_string(f.width) + "x" + std::to_string(f.height) + " holds only " +
-                                std::to_string(f.pixels.size()) + " bytes");
+  acquisition::check_layout(f);
   cv::Mat out(f.height, f.width, CV_16UC1);
   for (int y = 0; y < f.height; ++y) {
     const std::uint8_t* in = f.pixels.data() + static_cast<std::size_t>(y) * static_cast<std::size_t>(f.stride_bytes);

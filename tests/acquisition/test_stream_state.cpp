@@ -2,7 +2,6 @@
 
 #include <string>
 
-#include "evar/acquisition/frame.hpp"
 #include "evar/acquisition/stream_state.hpp"
 
 using namespace evar::acquisition;
@@ -12,11 +11,4 @@ TEST(StreamState, OnlyAStreamingSourceMayBeShownAsLive) {
   for (auto s : {StreamState::Stopped, StreamState::Connecting, StreamState::Stalled, StreamState::Disconnected})
     EXPECT_FALSE(is_live(s)) << to_string(s);
   EXPECT_EQ(std::string(to_string(StreamState::Stalled)), "stalled");
-}
-
-TEST(PixelFormat, TwelveAndSixteenBitFramesUseTwoBytesPerPixel) {
-  EXPECT_EQ(bytes_per_pixel(PixelFormat::Mono8), 1);
-  EXPECT_EQ(bytes_per_pixel(PixelFormat::Mono12), 2);
-  EXPECT_EQ(bytes_per_pixel(PixelFormat::Mono16), 2);
-  EXPECT_EQ(std::string(to_string(PixelFormat::Mono12)), "Mono12");
 }

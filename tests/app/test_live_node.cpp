@@ -268,15 +268,21 @@ std::vector<std::unique_ptr<app::OutputSink>> recording(StatusRecorder*& shown) 
 
 // A frame source whose frames `from` to `to` (sequence numbers) cannot be read: their
 // rows are said to be one byte long (a grabber whose layout broke).
+// How a frame is spoiled: a stride shorter than a row, or a buffer missing its last rows
+// (read as declared, it would run past its end).
+enum class Spoil { Stride, Truncated };
+
 class SpoiledFrames final : public acquisition::FrameSource {
  public:
-  SpoiledFrames(acquisition::FrameSource& inner, std::uint64_t from, std::uint64_t to) : inner_(inner), from_(from), to_(to) {}
+  SpoiledFrames(acquisition::FrameSource& inner, std::uint64_t from, std::uint64_t to, Spoil how)
+      : inner_(inner), from_(from), to_(to), how_(how) {}
   void start(FrameCallback on_frame, StateCallback on_state) override {
     inner_.start(
         [this, on_frame](const acquisition::Frame& f) {
           if (f.sequence < from_ || f.sequence >= to_) return on_frame(f);
           acquisition::Frame spoiled = f;
-          spoiled.stride_bytes = 1;
+          if (how_ == Spoil::Stride) spoiled.stride_bytes = 1;
+          else spoiled.pixels.resize(spoiled.pixels.size() / 2);
           on_frame(spoiled);
         },
         std::move(on_state));
@@ -289,43 +295,48 @@ class SpoiledFrames final : public acquisition::FrameSource {
  private:
   acquisition::FrameSource& inner_;
   std::uint64_t from_, to_;
+  Spoil how_;
 };
 
 // Frames keep coming but cannot be shown: the screen does not freeze on the last good
 // frame as if it were live. It is held, marked so, with the reason among the alerts, and
 // the live video comes back by itself with the good frames.
 TEST_F(LiveNodeReplay, FramesThatCannotBeShownLeaveTheLastGoodOneHeldAndMarked) {
-  StatusRecorder* shown = nullptr;
-  app::LiveNode node(*scene_, stall_options(), recording(shown));
-  // The session's first fluoroscopy run is frames 1-60 at 15/s; replayed at 2x, frames
-  // 20-49 are a second of unreadable video within it.
-  sim::SessionReplay replay(session(), {2.0, 1});
-  SpoiledFrames frames(replay.frames(), 20, 50);
-  node.start(frames, replay.carm());
-  ASSERT_TRUE(replay.wait(std::chrono::seconds(60)));
-  node.stop();
+  for (const auto& [how, reason] : {std::pair{Spoil::Stride, "frame stride 1 bytes is shorter than a row"},
+                                    std::pair{Spoil::Truncated, "frame of 512 x 512 Mono16 holds 262144 bytes, not 524288"}}) {
+    SCOPED_TRACE(reason);
+    StatusRecorder* shown = nullptr;
+    app::LiveNode node(*scene_, stall_options(), recording(shown));
+    // The session's first fluoroscopy run is frames 1-60 at 15/s; replayed at 2x, frames
+    // 20-49 are a second of unreadable video within it.
+    sim::SessionReplay replay(session(), {2.0, 1});
+    SpoiledFrames frames(replay.frames(), 20, 50, how);
+    node.start(frames, replay.carm());
+    ASSERT_TRUE(replay.wait(std::chrono::seconds(60)));
+    node.stop();
 
-  const auto first_held = std::find_if(shown->frames.begin(), shown->frames.end(), [](const auto& f) { return f.held; });
-  ASSERT_NE(first_held, shown->frames.end()) << "no frame was held while the video could not be shown";
-  ASSERT_NE(first_held, shown->frames.begin());
-  const std::uint64_t last_good = std::prev(first_held)->sequence;
-  EXPECT_LT(last_good, 20u);
-  const auto back = std::find_if(first_held, shown->frames.end(), [](const auto& f) { return !f.held; });
-  ASSERT_NE(back, shown->frames.end()) << "the live video did not come back";
-  EXPECT_GE(back->sequence, 50u);
-  EXPECT_LE(back->sequence, 60u) << "the live video came back only after the run";
-  // 1 s without a frame shown, less the 300 ms before the stall, at one held frame per
-  // 200 ms: up to 4; at least 2 leaves room for a slow sanitizer build.
-  EXPECT_GE(back - first_held, 2);
-  EXPECT_TRUE(any_contains(first_held->status.alerts, "no frame shown for 300 ms"));
-  for (auto it = first_held; it != back; ++it) {
-    EXPECT_EQ(it->sequence, last_good) << "a held frame that is not the last good one";
-    ASSERT_FALSE(it->status.alerts.empty());
-    EXPECT_NE(it->status.alerts.front().find("LAST IMAGE HELD: no frame shown for"), std::string::npos)
-        << it->status.alerts.front();
-    EXPECT_TRUE(any_contains(it->status.alerts, "frame not shown: "));
+    const auto first_held = std::find_if(shown->frames.begin(), shown->frames.end(), [](const auto& f) { return f.held; });
+    ASSERT_NE(first_held, shown->frames.end()) << "no frame was held while the video could not be shown";
+    ASSERT_NE(first_held, shown->frames.begin());
+    const std::uint64_t last_good = std::prev(first_held)->sequence;
+    EXPECT_LT(last_good, 20u);
+    const auto back = std::find_if(first_held, shown->frames.end(), [](const auto& f) { return !f.held; });
+    ASSERT_NE(back, shown->frames.end()) << "the live video did not come back";
+    EXPECT_GE(back->sequence, 50u);
+    EXPECT_LE(back->sequence, 60u) << "the live video came back only after the run";
+    // 1 s without a frame shown, less the 300 ms before the stall, at one held frame per
+    // 200 ms: up to 4; at least 2 leaves room for a slow sanitizer build.
+    EXPECT_GE(back - first_held, 2);
+    EXPECT_TRUE(any_contains(first_held->status.alerts, "no frame shown for 300 ms"));
+    for (auto it = first_held; it != back; ++it) {
+      EXPECT_EQ(it->sequence, last_good) << "a held frame that is not the last good one";
+      ASSERT_FALSE(it->status.alerts.empty());
+      EXPECT_NE(it->status.alerts.front().find("LAST IMAGE HELD: no frame shown for"), std::string::npos)
+          << it->status.alerts.front();
+      EXPECT_TRUE(any_contains(it->status.alerts, std::string("frame not shown: ") + reason)) << reason;
+    }
+    EXPECT_FALSE(any_contains(back->status.alerts, "no frame shown for")) << "the stall was not cleared";
   }
-  EXPECT_FALSE(any_contains(back->status.alerts, "no frame shown for")) << "the stall was not cleared";
 }
 
 TEST_F(LiveNodeReplay, ASilentCArmLinkAndAStalledVideoAreReportedWhileFramesAreShown) {

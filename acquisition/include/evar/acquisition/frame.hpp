@@ -31,4 +31,8 @@ struct Frame {
   bool device_clock = false;
 };
 
+/// Throws std::invalid_argument naming the size, stride or byte count when `pixels` cannot
+/// hold the frame its fields declare: what reads its rows must check this first.
+void check_layout(const Frame& frame);
+
 }  // namespace evar::acquisition
