@@ -185,6 +185,7 @@ struct V4l2FrameSource::Impl {
   SequenceStats earlier;  // frames of openings before the current one
   SequenceTracker tracker{32, 1024};  // v4l2_buffer.sequence is 32 bits
   std::optional<bool> use_buffer_times;  // per connection: buffer times (true) or arrival
+  std::string refused;  // the last buffer refused since the last frame delivered (capture thread only)
 
   Impl(V4l2Options o, V4l2Io& i) : options(std::move(o)), io(i) {}
 
@@ -193,6 +194,9 @@ struct V4l2FrameSource::Impl {
   bool wait_for_stop(std::chrono::milliseconds d) {
     return wake.wait(d) || stop;
   }
+
+  // Why no frame came though buffers did ("" when none was refused since the last frame).
+  std::string refused_text() const { return refused.empty() ? std::string() : "; buffers refused: " + refused; }
 
   void note_error(const std::string& e) {
     std::lock_guard lock(mutex);
@@ -319,11 +323,13 @@ struct V4l2FrameSource::Impl {
     else
       bad = convert_v4l2_buffer(layout, d.buffer(buf.index, buf.bytesused), f);
     if (bad) {
+      refused = *bad;
       std::lock_guard lock(mutex);
       ++stats.bad_buffers;
       stats.last_error = d.path() + ": " + *bad;
       return;
     }
+    refused.clear();
     f.sequence = buf.sequence;
     f.host_arrival = arrival;
     const std::int64_t t_ns = std::int64_t{buf.timestamp.tv_sec} * 1'000'000'000 + std::int64_t{buf.timestamp.tv_usec} * 1000;
@@ -350,15 +356,20 @@ struct V4l2FrameSource::Impl {
 
   void run() {
     bool in_outage = false;
+    bool retrying = false;  // the last attempt to open failed: its reason stands until one succeeds
     int restarts_without_frames = 0;
     while (!stop) {
-      set_state(StreamState::Connecting, "opening " + options.device);
+      // Said before the first attempt, not before every retry: the listener would hear the
+      // two reasons in turn, twice a reconnect interval, for as long as the device is away.
+      if (!retrying) set_state(StreamState::Connecting, "opening " + options.device);
       std::unique_ptr<OpenDevice> device;
       std::string agreed;
       try {
         device = open_stream(agreed);
+        retrying = false;
       } catch (const V4l2Error& e) {
         device.reset();
+        retrying = true;
         note_error(e.what());
         set_state(StreamState::Connecting, std::string(e.what()) + "; retrying every " +
                                                std::to_string(options.reconnect_interval.count()) + " ms");
@@ -366,6 +377,7 @@ struct V4l2FrameSource::Impl {
         continue;
       }
       in_outage = false;
+      refused.clear();
       set_state(StreamState::Connecting, options.device + " open, " + agreed + ", waiting for the first frame");
       const Clock::time_point opened = Clock::now();
       Clock::time_point last_frame = opened;
@@ -389,10 +401,13 @@ struct V4l2FrameSource::Impl {
         if (silent > restart_after) {
           restart = true;
         } else if (silent > options.stall_after && last_frame == opened) {
-          set_state(StreamState::Connecting, options.device + " open, " + agreed +
-                                                 ", no frame yet (is there a video signal?)");
+          set_state(StreamState::Connecting, options.device + " open, " + agreed + ", no frame yet" +
+                                                 (refused.empty() ? " (is there a video signal?)" : refused_text()));
         } else if (silent > options.stall_after && reporter.state() != StreamState::Stalled) {
-          set_state(StreamState::Stalled, options.device + ": no frame for " + std::to_string(options.stall_after.count()) + " ms");
+          // Buffers that keep coming but are refused are said with the reason, as the
+          // screen's only clue to a grabber whose format changed under it.
+          set_state(StreamState::Stalled, options.device + ": no frame for " + std::to_string(options.stall_after.count()) +
+                                              " ms" + refused_text());
         }
       }
       device.reset();  // stream off, unmap, close: a clean slate for the reopen
