@@ -25,7 +25,7 @@
 #include "evar/sim/session_replay.hpp"
 #include "live_node.hpp"
 #include "logging.hpp"
-#include "support/stream_log.hpp"
+#include "support/node_screen.hpp"
 
 namespace {
 
@@ -33,52 +33,8 @@ using namespace evar;
 using namespace std::chrono_literals;
 namespace fs = std::filesystem;
 
-// What the screen showed, frame by frame, readable while the node runs.
-class ScreenLog final : public app::OutputSink {
- public:
-  struct Shown {
-    std::uint64_t version = 0;
-    bool held = false;
-    bool roadmap = false;
-    overlay::StatusBlock status;
-  };
-  std::string name() const override { return "screen log"; }
-  void write(const app::ComposedFrame& f) override {
-    log.record([&] {
-      frames.push_back({f.model ? f.model->version : 0, f.held, f.roadmap != overlay::RoadmapShown::None, f.status});
-    });
-  }
-  static bool alert(const Shown& f, const std::string& text) {
-    return std::any_of(f.status.alerts.begin(), f.status.alerts.end(),
-                       [&](const std::string& a) { return a.find(text) != std::string::npos; });
-  }
-  /// Waits until a frame from `from` on satisfies `what`; its index, or frames.size() after `limit`.
-  std::size_t wait_for(std::size_t from, const std::function<bool(const Shown&)>& what, std::chrono::seconds limit) {
-    std::size_t found = 0;
-    const bool ok = log.wait(
-        [&] {
-          for (std::size_t i = from; i < frames.size(); ++i)
-            if (what(frames[i])) return found = i, true;
-          return false;
-        },
-        limit);
-    std::lock_guard lock(log.mutex);
-    return ok ? found : frames.size();
-  }
-  std::size_t size() {
-    std::lock_guard lock(log.mutex);
-    return frames.size();
-  }
-
-  test::StreamLog log;  // its mutex guards frames
-  std::vector<Shown> frames;
-};
-
-std::size_t count_of(const std::string& text, const std::string& what) {
-  std::size_t n = 0;
-  for (auto at = text.find(what); at != std::string::npos; at = text.find(what, at + 1)) ++n;
-  return n;
-}
+using test::count_of;
+using test::ScreenLog;
 
 }  // namespace
 
