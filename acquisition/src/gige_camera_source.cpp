@@ -355,12 +355,18 @@ struct GigECameraSource::Impl {
 
   void run() {
     bool in_outage = false;
+    bool retrying = false;  // the last attempt failed: its reason stands until one succeeds
     Clock::time_point outage_since{};
     while (!stop) {
-      set_state(StreamState::Connecting, "looking for GigE camera " + (options.camera.empty() ? "(any)" : options.camera));
+      // Said before the first attempt, not before every retry: the listener would hear the
+      // two reasons in turn on every try for as long as the camera is away.
+      if (!retrying)
+        set_state(StreamState::Connecting, "looking for GigE camera " + (options.camera.empty() ? "(any)" : options.camera));
       try {
         connect();
+        retrying = false;
       } catch (const std::exception& e) {
+        retrying = true;
         teardown();
         set_state(StreamState::Connecting, std::string(e.what()) + "; retrying every " +
                                                std::to_string(options.reconnect_interval.count()) + " ms");

@@ -9,6 +9,7 @@
 #include <sys/wait.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <atomic>
 #include <chrono>
 #include <condition_variable>
@@ -19,6 +20,7 @@
 #include <functional>
 #include <mutex>
 #include <string>
+#include <thread>
 #include <vector>
 
 #include "evar/acquisition/gige_camera_source.hpp"
@@ -216,12 +218,27 @@ TEST(GigECameraSource, RecoversOnItsOwnWhenTheCameraGoesAwayAndComesBack) {
   ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= 10; }));
   camera.reset();  // the camera is switched off mid-stream
   ASSERT_TRUE(rx.wait([&] { return rx.saw(acq::StreamState::Disconnected); }, 60s));
+  // It stays off for a few tries (each a discovery of about a second, then 200 ms).
+  ASSERT_TRUE(rx.wait([&] { return rx.said({"retrying every 200 ms"}); }, 60s));
+  std::this_thread::sleep_for(3s);
   const std::size_t before = [&] {
     std::lock_guard lock(rx.mutex);
     return rx.frames.size();
   }();
   camera = std::make_unique<EmbeddedCamera>(serial);  // and back on
   ASSERT_TRUE(rx.wait([&] { return rx.frames.size() >= before + 10; }, 60s));
+  {
+    // Each state said once, not once a try: looking for the camera, not found (retrying),
+    // open, waiting for a frame. Before, the first two came again on every try: two
+    // warnings in the node's log a try for as long as the camera was away.
+    std::lock_guard lock(rx.mutex);
+    const auto lost = std::find_if(rx.streams.begin(), rx.streams.end(),
+                                   [](const auto& n) { return n.first == acq::StreamState::Disconnected; });
+    const auto connecting = std::count_if(lost, rx.streams.end(),
+                                          [](const auto& n) { return n.first == acq::StreamState::Connecting; });
+    EXPECT_GE(connecting, 2) << "Connecting notices since the camera was lost";
+    EXPECT_LE(connecting, 3) << "Connecting notices since the camera was lost";
+  }
   const auto st = source.gige_statistics();
   EXPECT_EQ(st.outages, 1u);
   EXPECT_EQ(st.connections, 2u);
