@@ -10,10 +10,12 @@ CArmLinkReceiver::CArmLinkReceiver(std::string name, std::chrono::milliseconds s
     : name_(std::move(name)), stale_after_(stale_after) {}
 
 void CArmLinkReceiver::set_callbacks(CArmGeometrySource::StateCallback on_state,
-                                     CArmGeometrySource::StreamCallback on_stream) {
+                                     CArmGeometrySource::StreamCallback on_stream,
+                                     CArmGeometrySource::NoticeCallback on_notice) {
   std::lock_guard lock(mutex_);
   on_state_ = std::move(on_state);
   on_stream_ = std::move(on_stream);
+  on_notice_ = std::move(on_notice);
 }
 
 // Notifications are collected under the mutex and delivered after it is released, so a
@@ -23,17 +25,22 @@ void CArmLinkReceiver::set_state(StreamState s, const std::string& reason) {
   if (s == state_ && reason == reason_) return;
   state_ = s;
   reason_ = reason;
-  pending_.push_back({s, reason});
+  pending_changes_.push_back({s, reason});
 }
 
 void CArmLinkReceiver::deliver(std::unique_lock<std::mutex>& lock, const std::vector<CArmState>& samples) {
-  std::vector<Notice> notices;
-  notices.swap(pending_);
+  std::vector<Change> changes;
+  changes.swap(pending_changes_);
+  std::vector<std::string> notices;
+  notices.swap(pending_notices_);
   auto on_state = on_state_;
   auto on_stream = on_stream_;
+  auto on_notice = on_notice_;
   lock.unlock();
-  for (const Notice& n : notices)
-    if (on_stream) on_stream(n.state, n.reason);
+  for (const Change& c : changes)
+    if (on_stream) on_stream(c.state, c.reason);
+  for (const std::string& n : notices)
+    if (on_notice) on_notice(n);
   for (const CArmState& s : samples)
     if (on_state) on_state(s);
 }
@@ -70,7 +77,7 @@ void CArmLinkReceiver::received(std::span<const std::uint8_t> bytes, Clock::time
         // The same status repeated within the interval is news once (a C-arm may repeat it every frame).
         const bool repeat = text == last_status_text_ && last_status_notice_ && now - *last_status_notice_ < kNoticeInterval;
         if (!repeat) {
-          pending_.push_back({state_, text});
+          pending_notices_.push_back(text);
           last_status_text_ = std::move(text);
           last_status_notice_ = now;
         }
@@ -90,12 +97,13 @@ void CArmLinkReceiver::received(std::span<const std::uint8_t> bytes, Clock::time
 void CArmLinkReceiver::report_errors(Clock::time_point now) {
   const std::uint64_t errors = stats_.link.errors();
   if (errors == errors_reported_ || (last_error_notice_ && now - *last_error_notice_ < kNoticeInterval)) return;
+  const std::string link = "C-arm link " + name_ + ": ";
   const std::string total = " (" + std::to_string(errors) + " bad frames so far)";
   if (!last_error_notice_ || errors - errors_reported_ == 1)
-    pending_.push_back({state_, name_ + ": " + decoder_.last_error() + total});
+    pending_notices_.push_back(link + decoder_.last_error() + total);
   else
-    pending_.push_back({state_, name_ + ": " + std::to_string(errors - errors_reported_) +
-                                    " bad frames since the last report" + total + "; the last: " + decoder_.last_error()});
+    pending_notices_.push_back(link + std::to_string(errors - errors_reported_) + " bad frames since the last report" +
+                               total + "; the last: " + decoder_.last_error());
   errors_reported_ = errors;
   last_error_notice_ = now;
 }

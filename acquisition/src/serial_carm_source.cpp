@@ -30,9 +30,9 @@ SerialCArmSource::~SerialCArmSource() {
   stop();
 }
 
-void SerialCArmSource::start(StateCallback on_state, StreamCallback on_stream) {
+void SerialCArmSource::start(StateCallback on_state, StreamCallback on_stream, NoticeCallback on_notice) {
   if (thread_.joinable()) throw std::logic_error("serial C-arm link: already started");
-  receiver_.set_callbacks(std::move(on_state), std::move(on_stream));
+  receiver_.set_callbacks(std::move(on_state), std::move(on_stream), std::move(on_notice));
   stop_ = false;
   wake_->clear();
   thread_ = std::thread([this] { run(); });

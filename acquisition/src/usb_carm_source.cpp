@@ -325,7 +325,7 @@ UsbCArmSource::UsbCArmSource(UsbLinkOptions options) {
 
 UsbCArmSource::~UsbCArmSource() { stop(); }
 
-void UsbCArmSource::start(StateCallback on_state, StreamCallback on_stream) {
+void UsbCArmSource::start(StateCallback on_state, StreamCallback on_stream, NoticeCallback on_notice) {
   if (impl_->thread.joinable()) throw std::logic_error("USB C-arm link: already started");
   if (!impl_->context) {
     impl_->context = std::make_unique<Context>();
@@ -335,7 +335,7 @@ void UsbCArmSource::start(StateCallback on_state, StreamCallback on_stream) {
                              impl_->options.device.vendor, impl_->options.device.product, LIBUSB_HOTPLUG_MATCH_ANY,
                              &Impl::on_hotplug, impl_.get(), &impl_->hotplug_handle) == LIBUSB_SUCCESS;
   }
-  impl_->receiver.set_callbacks(std::move(on_state), std::move(on_stream));
+  impl_->receiver.set_callbacks(std::move(on_state), std::move(on_stream), std::move(on_notice));
   impl_->stop = false;
   impl_->thread = std::thread([this] { impl_->run(); });
 }

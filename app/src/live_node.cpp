@@ -98,16 +98,19 @@ void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometry
             clear_alert("carm-source");
             log().info("C-arm link: {} ({})", acquisition::to_string(s), reason);
           } else {
-            set_alert("carm-source", std::string("C-arm link ") + acquisition::to_string(s) + ": " + reason, false);
+            set_alert("carm-source", std::string("C-arm link ") + acquisition::to_string(s) + ": " + reason, std::nullopt);
           }
-        });
+        },
+        // News on a link that has not changed state: shown for a while beside whatever
+        // the link's state says, the newest in place of the one before.
+        [this](const std::string& notice) { set_alert("carm-notice", notice, options_.carm_notice_hold); });
     frames.start([this](const acquisition::Frame& f) { on_frame(f); },
                  [this](acquisition::StreamState s, const std::string& reason) {
                    if (acquisition::is_live(s)) {
                      clear_alert("video-source");
                      log().info("video: {} ({})", acquisition::to_string(s), reason);
                    } else {
-                     set_alert("video-source", std::string("video ") + acquisition::to_string(s) + ": " + reason, false);
+                     set_alert("video-source", std::string("video ") + acquisition::to_string(s) + ": " + reason, std::nullopt);
                    }
                  });
   } catch (...) {
@@ -156,8 +159,8 @@ void LiveNode::on_frame(const acquisition::Frame& frame) {
   }
 }
 
-void LiveNode::set_alert(const std::string& key, const std::string& text, bool hold) {
-  const auto until = hold ? Clock::now() + options_.alert_hold : Clock::time_point::max();
+void LiveNode::set_alert(const std::string& key, const std::string& text, std::optional<std::chrono::milliseconds> hold) {
+  const auto until = hold ? Clock::now() + *hold : Clock::time_point::max();
   bool changed = true;
   {
     std::lock_guard lock(alerts_mutex_);
@@ -217,7 +220,7 @@ void LiveNode::watch_frame_loss(acquisition::FrameLossMonitor& monitor) {
                         "live but jerky (check the camera link)",
                         change->lost, change->expected, static_cast<double>(change->span.count()) / 1000.0,
                         100.0 * change->fraction()),
-            false);
+            std::nullopt);
 }
 
 void LiveNode::compose_loop() {
@@ -265,7 +268,7 @@ void LiveNode::compose_loop() {
       }
       set_alert("video-stall",
                 (showing_fails ? "no frame shown for " : "no video for ") + std::to_string(options_.video_stall.count()) + " ms",
-                false);
+                std::nullopt);
     }
     if (!f) {
       if (!stalled || !last_shown || Clock::now() - last_held < options_.held_frame_interval) continue;
@@ -290,22 +293,22 @@ void LiveNode::compose_loop() {
                   "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the detector's " +
                       std::to_string(options_.detector.cols) + " x " + std::to_string(options_.detector.rows) +
                       ": no roadmap",
-                  true);
+                  options_.alert_hold);
       {
         std::lock_guard lock(timeline_mutex_);
         g = timeline_.at(f->device_time_on_host);
       }
       if (!g) {
-        set_alert("geometry", "no C-arm geometry yet: roadmap hidden", false);
+        set_alert("geometry", "no C-arm geometry yet: roadmap hidden", std::nullopt);
       } else {
         // The alert names the condition; its changing age goes into the status line.
-        if (g->stale) set_alert("geometry", "C-arm geometry stale: roadmap at the last known position", false);
+        if (g->stale) set_alert("geometry", "C-arm geometry stale: roadmap at the last known position", std::nullopt);
         else clear_alert("geometry");
         if (!g->moving && size_ok) {
           try {
             view = frame_view(options_.detector, options_.registration, g->state);
           } catch (const std::invalid_argument& e) {
-            set_alert("geometry-unusable", std::string("C-arm geometry unusable: ") + e.what(), true);
+            set_alert("geometry-unusable", std::string("C-arm geometry unusable: ") + e.what(), options_.alert_hold);
           }
         }
       }
@@ -374,7 +377,7 @@ void LiveNode::compose_loop() {
       }
     } catch (const std::exception& e) {
       // The text stays the same from frame to frame (a frame number would log every frame).
-      set_alert("compose", std::string("frame not shown: ") + e.what(), true);
+      set_alert("compose", std::string("frame not shown: ") + e.what(), options_.alert_hold);
       if (!held_s) showing_fails = true;
       continue;
     }
@@ -444,7 +447,7 @@ void LiveNode::analysis_loop() {
         std::lock_guard lock(outcome_mutex_);
         outcome.swap(pair_outcome_);
       }
-      if (outcome) outcome->used ? selector.succeeded(outcome->earlier_frame) : selector.failed(outcome->earlier_frame);
+      if (outcome) outcome->used ? selector.succeeded(outcome->earlier) : selector.failed(outcome->earlier);
     }
     const auto analysis_start = Clock::now();
     FrameAnalysis r = analyse_frame(wrap(a->frame), a->view, options_.candidate);
@@ -496,7 +499,7 @@ void LiveNode::adaptation_loop() {
       }
       {
         std::lock_guard lock(outcome_mutex_);
-        pair_outcome_ = PairOutcome{true, pair->earlier.frame};
+        pair_outcome_ = PairOutcome{true, pair->earlier.id()};
       }
       clear_alert("adaptation");
       log().info("adapted model from frames {}+{}: device {} points, residual {:.2f} px; reconstruction {:.1f} ms, "
@@ -518,11 +521,11 @@ void LiveNode::adaptation_loop() {
       }
       {
         std::lock_guard lock(outcome_mutex_);
-        pair_outcome_ = PairOutcome{false, pair->earlier.frame};
+        pair_outcome_ = PairOutcome{false, pair->earlier.id()};
       }
       set_alert("adaptation", std::string("frames ") + std::to_string(pair->earlier.frame) + "+" +
                                   std::to_string(pair->later.frame) + ": " + e.what() + "; last good model kept",
-                true);
+                options_.alert_hold);
     }
   }
 }

@@ -58,6 +58,10 @@ struct NodeOptions {
   /// HELD" (ComposedFrame::held), so the screen says so and the window answers keys.
   std::chrono::milliseconds held_frame_interval{250};
   std::chrono::milliseconds alert_hold{5000};   ///< a failed adaptation stays on screen this long
+  /// A C-arm link notice (bad frames on a line that still delivers, a warning the C-arm
+  /// sent) stays on screen this long: longer than the links' 10 s between notices, so a
+  /// line that stays noisy keeps its alert up rather than flickering it.
+  std::chrono::milliseconds carm_notice_hold{15000};
   std::size_t input_queue = 4, output_queue = 8;
   /// Make the source wait when the input queue is full instead of dropping the oldest frame:
   /// for replays, whose source can wait; live sources cannot.
@@ -163,9 +167,9 @@ class LiveNode {
   void adaptation_loop();
   void output_loop();
   void publish(std::shared_ptr<const AdaptedModel> adapted);
-  /// hold: the alert clears itself after options_.alert_hold (a passing event); otherwise
-  /// it stays until clear_alert (a condition).
-  void set_alert(const std::string& key, const std::string& text, bool hold);
+  /// hold: the alert clears itself after this long (a passing event); none: it stays until
+  /// clear_alert (a condition). Logged when its text changes.
+  void set_alert(const std::string& key, const std::string& text, std::optional<std::chrono::milliseconds> hold);
   /// Samples the source's counts (compose thread) and raises or clears the frame-loss alert.
   void watch_frame_loss(acquisition::FrameLossMonitor& monitor);
   void clear_alert(const std::string& key);
@@ -188,7 +192,7 @@ class LiveNode {
   /// the earlier frame of its pair.
   struct PairOutcome {
     bool used = false;
-    std::uint64_t earlier_frame = 0;
+    CandidateId earlier;
   };
   std::mutex outcome_mutex_;
   std::optional<PairOutcome> pair_outcome_;

@@ -61,6 +61,7 @@ int run_record(const RecordCommand& cmd) {
       (acquisition::is_live(s.video) ? log().info("video: {}", s.video_reason) : log().warn("video: {}", s.video_reason));
     if (s.carm != shown.carm || s.carm_reason != shown.carm_reason)
       (acquisition::is_live(s.carm) ? log().info("C-arm: {}", s.carm_reason) : log().warn("C-arm: {}", s.carm_reason));
+    if (s.carm_notices != shown.carm_notices) log().warn("{}", s.carm_notice);  // the source rate-limits them
     shown = s;
     if (const auto since = status.due()) {
       const auto fs = frames->statistics();

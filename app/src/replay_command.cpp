@@ -62,7 +62,7 @@ int run_replay(const ReplayCommand& cmd) {
         in_force = s;
         moving_states += s.moving ? 1 : 0;
       },
-      nullptr);
+      nullptr, nullptr);
   replay.frames().start(
       [&](const acquisition::Frame& f) {
         if (camera) camera->show(f);  // outside the report's lock: it copies the whole frame

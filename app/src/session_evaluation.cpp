@@ -116,7 +116,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
           model = std::make_shared<const AdaptedModel>(
               adapt_model(deformer, *pair, options.adaptation, model ? &model->deformation : nullptr));
           ++result.adaptations;
-          selector.succeeded(pair->earlier.frame);
+          selector.succeeded(pair->earlier.id());
           DeviceError e = device_error(model->reconstruction.points, true_device);
           e.frame_earlier = pair->earlier.frame;
           e.frame_later = pair->later.frame;
@@ -124,7 +124,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
         } catch (const AdaptationError& e) {
           result.failures.push_back("frames " + std::to_string(pair->earlier.frame) + "+" +
                                     std::to_string(pair->later.frame) + ": " + e.what());
-          selector.failed(pair->earlier.frame);
+          selector.failed(pair->earlier.id());
         }
       }
     }

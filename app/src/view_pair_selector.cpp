@@ -15,18 +15,18 @@ ViewPairSelector::ViewPairSelector(double min_separation_deg, ViewPairOptions op
         "partner_failures >= 1");
 }
 
-void ViewPairSelector::failed(std::uint64_t earlier_frame) {
+void ViewPairSelector::failed(const CandidateId& earlier) {
   retry_ = true;
-  if (failed_partner_ == earlier_frame) {
+  if (failed_partner_ == earlier) {
     ++partner_failures_;
   } else {
-    failed_partner_ = earlier_frame;
+    failed_partner_ = earlier;
     partner_failures_ = 1;
   }
 }
 
-void ViewPairSelector::succeeded(std::uint64_t earlier_frame) {
-  if (failed_partner_ == earlier_frame) {
+void ViewPairSelector::succeeded(const CandidateId& earlier) {
+  if (failed_partner_ == earlier) {
     failed_partner_.reset();
     partner_failures_ = 0;
   }
@@ -50,7 +50,7 @@ std::optional<ViewPair> ViewPairSelector::add(ViewCandidate candidate) {
     if (views_.size() > options_.max_views) views_.erase(views_.begin());
   }
   if (failed_partner_ && partner_failures_ >= options_.partner_failures) {
-    std::erase_if(views_, [&](const ViewCandidate& v) { return v.frame == *failed_partner_ && v.frame != candidate.frame; });
+    std::erase_if(views_, [&](const ViewCandidate& v) { return v.id() == *failed_partner_ && v.id() != candidate.id(); });
     failed_partner_.reset();
     partner_failures_ = 0;
   }

@@ -17,11 +17,20 @@
 
 namespace evar::app {
 
+/// Which frame a candidate is: its number with its time, since a source that reconnects
+/// (a camera restarted, a grabber plugged back) numbers its frames from the start again.
+struct CandidateId {
+  std::uint64_t frame = 0;
+  std::int64_t time_ns = 0;
+  bool operator==(const CandidateId&) const = default;
+};
+
 struct ViewCandidate {
-  std::uint64_t frame = 0;              ///< the frame's sequence number
+  std::uint64_t frame = 0;              ///< the frame's sequence number (as the source numbers it)
   std::int64_t time_ns = 0;             ///< the frame's time (any one clock for all candidates)
   FrameView geometry;
   std::vector<Eigen::Vector2d> curve_px;  ///< the segmented device, tip first
+  CandidateId id() const { return {frame, time_ns}; }
 };
 
 struct ViewPair {
@@ -53,20 +62,20 @@ class ViewPairSelector {
 
   /// Takes a candidate; returns the pair it completes, if any.
   std::optional<ViewPair> add(ViewCandidate candidate);
-  /// A pair whose earlier frame was `earlier_frame` could not be used (reconstruction
+  /// A pair whose earlier candidate was `earlier` could not be used (reconstruction
   /// failed): the next candidate of the current view tries again with its newer frame;
-  /// after ViewPairOptions::partner_failures such failures in a row with that partner
-  /// frame, with the next older view far enough.
-  void failed(std::uint64_t earlier_frame);
-  /// A pair with that earlier frame was used: its failures so far no longer count.
-  void succeeded(std::uint64_t earlier_frame);
+  /// after ViewPairOptions::partner_failures such failures in a row with that partner,
+  /// with the next older view far enough.
+  void failed(const CandidateId& earlier);
+  /// A pair with that earlier candidate was used: its failures so far no longer count.
+  void succeeded(const CandidateId& earlier);
 
  private:
   double min_separation_deg_;
   ViewPairOptions options_;
   std::vector<ViewCandidate> views_;  // newest candidate per view, most recent view last
   bool retry_ = false;
-  std::optional<std::uint64_t> failed_partner_;  // the earlier frame of the failures in a row counted here
+  std::optional<CandidateId> failed_partner_;  // the earlier candidate of the failures in a row counted here
   int partner_failures_ = 0;
 };
 

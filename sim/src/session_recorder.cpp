@@ -425,7 +425,9 @@ struct SessionRecorder::Impl {
           {"refused_invalid", s.carm_refused},
           {"source", carm.description()},
           {"last_state", acquisition::to_string(s.carm)},
-          {"last_reason", s.carm_reason}}},
+          {"last_reason", s.carm_reason},
+          {"notices", s.carm_notices},
+          {"last_notice", s.carm_notice}}},
         {"last_error", s.last_error},
         {"session_written", session != nullptr}};
     if (session && !session->frames.empty())
@@ -494,6 +496,11 @@ void SessionRecorder::start() {
                  std::lock_guard lock(d.mutex);
                  d.stats.carm = s;
                  d.stats.carm_reason = why;
+               },
+               [&d](const std::string& notice) {
+                 std::lock_guard lock(d.mutex);
+                 d.stats.carm_notice = notice;
+                 ++d.stats.carm_notices;
                });
   d.frames.start([&d](const Frame& f) { d.on_frame(f); },
                  [&d](StreamState s, const std::string& why) {

@@ -73,7 +73,8 @@ acquisition::CArmState to_carm_state(const CArmSample& c, std::int64_t offset_ns
 class SessionReplay::CArm final : public acquisition::CArmGeometrySource {
  public:
   explicit CArm(SessionReplay& owner) : owner_(owner) {}
-  void start(StateCallback on_state, StreamCallback on_stream) override {
+  // A recording carries no line to be noisy and no C-arm status: no notices.
+  void start(StateCallback on_state, StreamCallback on_stream, NoticeCallback) override {
     owner_.refuse_from_replay_thread("start");
     std::lock_guard delivery(delivery_);
     on_state_ = std::move(on_state);

@@ -31,11 +31,10 @@ std::vector<std::uint8_t> good_sample(std::uint16_t sequence, std::int64_t t_ns)
 TEST(CArmLinkReceiver, ContinuousGarbageGivesOneNoticeAtOnceThenOneSummaryPerInterval) {
   CArmLinkReceiver rx("serial /dev/ttyX", 1000ms);
   std::vector<std::string> error_notices;
+  std::vector<StreamState> changes;
   int samples = 0;
-  rx.set_callbacks([&](const CArmState&) { ++samples; },
-                   [&](StreamState, const std::string& reason) {
-                     if (reason.find("bad frames") != std::string::npos) error_notices.push_back(reason);
-                   });
+  rx.set_callbacks([&](const CArmState&) { ++samples; }, [&](StreamState s, const std::string&) { changes.push_back(s); },
+                   [&](const std::string& notice) { error_notices.push_back(notice); });
   rx.connected();
   const auto t0 = CArmLinkReceiver::Clock::time_point{} + 1h;
   const std::vector<std::uint8_t> garbage{0x00, 0x03, 0x41, 0x42, 0x00};  // a frame too short to be a message
@@ -51,7 +50,10 @@ TEST(CArmLinkReceiver, ContinuousGarbageGivesOneNoticeAtOnceThenOneSummaryPerInt
   EXPECT_EQ(rx.statistics().link.errors(), 2500u);
   // At 0 s, 10 s and 20 s: three notices for 2500 bad frames, not 2500.
   ASSERT_EQ(error_notices.size(), 3u);
+  EXPECT_TRUE(error_notices[0].starts_with("C-arm link serial /dev/ttyX: ")) << error_notices[0];
   EXPECT_NE(error_notices[0].find("(1 bad frames so far)"), std::string::npos) << error_notices[0];
+  // News, not a change of state: the link went from connecting to streaming, and stayed.
+  EXPECT_EQ(changes, (std::vector<StreamState>{StreamState::Connecting, StreamState::Streaming}));
   EXPECT_NE(error_notices[1].find("1000 bad frames since the last report (1001 bad frames so far)"), std::string::npos)
       << error_notices[1];
   EXPECT_NE(error_notices[1].find("the last: "), std::string::npos) << error_notices[1];
@@ -68,10 +70,7 @@ TEST(CArmLinkReceiver, ContinuousGarbageGivesOneNoticeAtOnceThenOneSummaryPerInt
 TEST(CArmLinkReceiver, AStatusTheCArmRepeatsIsReportedOncePerInterval) {
   CArmLinkReceiver rx("usb 1209:ea01", 1000ms);
   std::vector<std::string> notices;
-  rx.set_callbacks([](const CArmState&) {},
-                   [&](StreamState, const std::string& reason) {
-                     if (reason.starts_with("C-arm ")) notices.push_back(reason);
-                   });
+  rx.set_callbacks([](const CArmState&) {}, nullptr, [&](const std::string& notice) { notices.push_back(notice); });
   rx.connected();
   const auto t0 = CArmLinkReceiver::Clock::time_point{} + 1h;
   carm_link::StatusMessage warning;

@@ -66,7 +66,8 @@ struct SerialCArmLink : ::testing::Test {
   }
   void start(acq::SerialCArmSource& source) {
     source.start([this](const acq::CArmState& s) { rec.on_state(s); },
-                 [this](acq::StreamState s, const std::string& r) { rec.on_stream(s, r); });
+                 [this](acq::StreamState s, const std::string& r) { rec.on_stream(s, r); },
+                 [this](const std::string& n) { rec.on_notice(n); });
   }
   // The source has the port open (it says so) before the peer sends.
   void wait_open() {
@@ -135,7 +136,9 @@ TEST_F(SerialCArmLink, GarbageBitFlipsAndTornFramesAreCountedAndTheLinkGoesOn) {
   EXPECT_EQ(st.link.crc_errors + st.link.framing_errors, bad);
   EXPECT_EQ(st.link.sequence.dropped, 60u - (expected - 1));  // the lost samples are known
   EXPECT_FALSE(st.last_error.empty());
-  EXPECT_TRUE(rec.wait([&] { return rec.said({"bad frames so far"}); }));
+  // Said as news, not as a change of state: the link streams on.
+  EXPECT_TRUE(rec.wait([&] { return rec.noticed({"C-arm link serial ", "bad frames so far"}); }));
+  EXPECT_FALSE(rec.said({"bad frames"}));
 }
 
 TEST_F(SerialCArmLink, ASilentLinkIsReportedStalledAndRecovers) {
@@ -192,7 +195,8 @@ TEST_F(SerialCArmLink, AMissingOrWrongDeviceIsReportedNotThrown) {
   std::ofstream(link_path) << "not a terminal";
   Recorder other;
   acq::SerialCArmSource file(options());
-  file.start([](const acq::CArmState&) {}, [&](acq::StreamState s, const std::string& r) { other.on_stream(s, r); });
+  file.start([](const acq::CArmState&) {}, [&](acq::StreamState s, const std::string& r) { other.on_stream(s, r); },
+             nullptr);
   ASSERT_TRUE(other.wait([&] { return other.said({"tcgetattr"}); }));
   file.stop();
 

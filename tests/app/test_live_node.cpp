@@ -245,7 +245,7 @@ TEST_F(LiveNodeReplay, AfterALaterAdaptationFailsTheLastGoodModelStaysOnScreenAn
 class SilentCArm final : public acquisition::CArmGeometrySource {
  public:
   explicit SilentCArm(acquisition::CArmState first) : first_(first) {}
-  void start(StateCallback on_state, StreamCallback) override {
+  void start(StateCallback on_state, StreamCallback, NoticeCallback) override {
     first_.host_arrival = std::chrono::steady_clock::now();
     on_state(first_);
   }
@@ -378,6 +378,70 @@ TEST_F(LiveNodeReplay, ASilentCArmLinkAndAStalledVideoAreReportedWhileFramesAreS
   EXPECT_EQ(s.frames_composited + s.frames_held, shown->frames.size() + s.dropped_output);
 }
 
+// A C-arm link that streams the replay's states and, after its `at`-th state, gives one
+// notice, as a link does when its line turns noisy or the C-arm sends a warning.
+class NoticingCArm final : public acquisition::CArmGeometrySource {
+ public:
+  NoticingCArm(acquisition::CArmGeometrySource& inner, std::size_t at, std::string notice)
+      : inner_(inner), at_(at), notice_(std::move(notice)) {}
+  void start(StateCallback on_state, StreamCallback on_stream, NoticeCallback on_notice) override {
+    inner_.start(
+        [this, on_state, on_notice](const acquisition::CArmState& s) {
+          on_state(s);
+          if (++states_ == at_) on_notice(notice_);
+        },
+        std::move(on_stream), nullptr);
+  }
+  void stop() override { inner_.stop(); }
+  acquisition::StreamState state() const override { return inner_.state(); }
+  std::string description() const override { return "a C-arm link with news"; }
+
+ private:
+  acquisition::CArmGeometrySource& inner_;
+  std::size_t at_, states_ = 0;
+  std::string notice_;
+};
+
+// News from a link that streams on (bad frames between good messages, a C-arm warning) is
+// shown on the live frames beside the roadmap for a while, logged once, and goes by itself;
+// it is not taken for the link going down.
+TEST_F(LiveNodeReplay, ANoticeFromTheCArmLinkIsShownForAWhileAndLoggedOnce) {
+  const std::string notice = "C-arm link serial /dev/ttyX: 12 bad frames since the last report (13 bad frames so far)";
+  std::ostringstream log;
+  auto log_sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log);
+  app::log().sinks().push_back(log_sink);
+  app::NodeOptions o = options();
+  o.carm_notice_hold = std::chrono::milliseconds(500);
+  StatusRecorder* shown = nullptr;
+  app::LiveNode node(*scene_, o, recording(shown));
+  // At 4x the session's 10 states a second, the 20th comes half a second in, with some
+  // 4 s of replay to go.
+  sim::SessionReplay replay(session(), {4.0, 1});
+  NoticingCArm carm(replay.carm(), 20, notice);
+  node.start(replay.frames(), carm);
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(60)));
+  node.stop();
+  app::log().sinks().pop_back();
+  const std::string text = log.str();
+
+  const auto saying = [&](const StatusRecorder::Shown& f) { return any_contains(f.status.alerts, notice); };
+  const auto first = std::find_if(shown->frames.begin(), shown->frames.end(), saying);
+  ASSERT_NE(first, shown->frames.end()) << "no frame showed the notice";
+  const auto gone = std::find_if_not(first, shown->frames.end(), saying);
+  ASSERT_NE(gone, shown->frames.end()) << "the notice stayed on screen to the end";
+  // Half a second at 60 frames a second: about 30; at least 5 leaves room for a slow
+  // sanitizer build.
+  EXPECT_GE(gone - first, 5);
+  for (auto it = first; it != gone; ++it) {
+    EXPECT_FALSE(it->held) << "the video went on";
+    EXPECT_FALSE(any_contains(it->status.alerts, "C-arm link streaming")) << "news is not a change of state";
+    EXPECT_FALSE(any_contains(it->status.alerts, "C-arm link stalled"));
+  }
+  EXPECT_TRUE(std::none_of(gone, shown->frames.end(), saying)) << "the notice came back";
+  EXPECT_EQ(count_of(text, notice), 1u) << text;
+  EXPECT_EQ(count_of(text, "[warning] " + notice), 1u) << text;
+}
+
 namespace {
 // A view-pair candidate at these angles (degrees) and time (s) on a 256 px detector.
 app::ViewCandidate view_candidate(std::uint64_t frame, double primary, double secondary = 0.0, double t_s = 0.0) {
@@ -408,7 +472,7 @@ TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView
   EXPECT_EQ(pair->earlier.frame, 3u);                 // the newest view far enough (30°)
   EXPECT_NEAR(pair->separation_deg, 30.0, 0.5);
   EXPECT_FALSE(selector.add(candidate(5, 40, 0)));    // still the same view: no new pair
-  selector.failed(3);                                 // the pair failed
+  selector.failed(pair->earlier.id());  // the pair failed
   const auto again = selector.add(candidate(6, 40, 0));
   ASSERT_TRUE(again);
   EXPECT_EQ(again->later.frame, 6u);
@@ -427,19 +491,19 @@ TEST(ViewPairSelector, APartnerThatKeepsFailingIsForgottenForAnOlderView) {
   auto pair = selector.add(candidate(3, 30));     // LAO 30: the newest view far enough is frame 2 (40°)
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 2u);
-  selector.failed(2);
+  selector.failed(pair->earlier.id());
   pair = selector.add(candidate(4, 30));          // a newer frame, the same partner
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 2u);
-  selector.failed(2);                             // failed again with frame 2: it goes
+  selector.failed(pair->earlier.id());  // failed again with frame 2: it goes
   pair = selector.add(candidate(5, 30));
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 1u);             // AP, 30° away
-  selector.failed(1);
+  selector.failed(pair->earlier.id());
   pair = selector.add(candidate(6, 30));
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 1u);
-  selector.failed(1);                             // AP fails twice too: nothing left to pair with
+  selector.failed(pair->earlier.id());  // AP fails twice too: nothing left to pair with
   EXPECT_FALSE(selector.add(candidate(7, 30)));
   // The C-arm goes back to a view: a new candidate there pairs again.
   pair = selector.add(candidate(8, -10));
@@ -455,19 +519,46 @@ TEST(ViewPairSelector, OnlyFailuresInARowWithThePairsOwnPartnerCount) {
   EXPECT_FALSE(selector.add(view_candidate(1, 0)));
   auto pair = selector.add(view_candidate(2, 30));
   ASSERT_TRUE(pair);
-  selector.failed(1);
+  selector.failed(pair->earlier.id());
   pair = selector.add(view_candidate(3, 30));     // tried again with the newer frame
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 1u);
-  selector.succeeded(1);                          // and it worked: the failure before is forgotten
+  selector.succeeded(pair->earlier.id());  // and it worked: the failure before is forgotten
   EXPECT_FALSE(selector.add(view_candidate(4, 30)));
   pair = selector.add(view_candidate(5, 35));     // a new view, 5° on: AP is its partner again
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 1u);
-  selector.failed(1);                             // one failure since the success: AP stays
+  selector.failed(pair->earlier.id());  // one failure since the success: AP stays
   pair = selector.add(view_candidate(6, 35));
   ASSERT_TRUE(pair);
   EXPECT_EQ(pair->earlier.frame, 1u);
+}
+
+// A source that reconnects (a camera restarted, a grabber plugged back) numbers its frames
+// from the start again: a frame number seen before is another frame. Forgetting a partner
+// that kept failing forgets that frame only, not an older view that had the same number
+// (before session 20 both went, and with them the only view left to pair with).
+TEST(ViewPairSelector, AFrameNumberUsedAgainAfterAReconnectIsAnotherFrame) {
+  app::ViewPairSelector selector(20.0);
+  EXPECT_FALSE(selector.add(view_candidate(5, 0, 0.0, 1.0)));  // AP, frame 5
+  // The camera reconnects and numbers from 1 again; its frame 5 is RAO 30.
+  auto pair = selector.add(view_candidate(5, -30, 0.0, 20.0));
+  ASSERT_TRUE(pair);
+  EXPECT_EQ(pair->earlier.time_ns, 1'000'000'000);  // AP
+  selector.succeeded(pair->earlier.id());
+  // LAO 30 pairs with RAO 30 (60° apart), which fails twice: RAO's frame 5 is forgotten.
+  for (std::uint64_t frame : {9, 10}) {
+    pair = selector.add(view_candidate(frame, 30, 0.0, 30.0 + static_cast<double>(frame)));
+    ASSERT_TRUE(pair);
+    EXPECT_EQ(pair->earlier.frame, 5u);
+    EXPECT_EQ(pair->earlier.time_ns, 20'000'000'000) << "RAO";
+    selector.failed(pair->earlier.id());
+  }
+  // AP's frame 5 is another frame: it stays, and pairs with the current view.
+  pair = selector.add(view_candidate(11, 30, 0.0, 41.0));
+  ASSERT_TRUE(pair) << "the AP view went with the failed frame of the same number";
+  EXPECT_EQ(pair->earlier.time_ns, 1'000'000'000);
+  EXPECT_NEAR(pair->separation_deg, 30.0, 0.5);
 }
 
 TEST(ViewPairSelector, AViewOlderThanTheGapOrFromBeforeATimeRestartIsNotPaired) {

@@ -5,8 +5,9 @@
 // then carries nothing but garbage (every message spoiled, random bytes between them), then
 // is clean again. The node keeps running and keeps its adapted model; line noise with good
 // messages between costs neither the link nor the roadmap; a link of nothing but garbage is
-// shown as a stalled link and stale geometry; the bad frames are logged at once and then at
-// most once per notice interval (not once per read); and the node recovers by itself.
+// shown as a stalled link and stale geometry; the bad frames are shown on the live frames
+// and logged, at once and then at most once per notice interval (not once per read); a
+// warning the C-arm sends is shown; and the node recovers by itself.
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -16,6 +17,7 @@
 #include <mutex>
 #include <random>
 #include <sstream>
+#include <utility>
 
 #include "evar/acquisition/carm_link_protocol.hpp"
 #include "evar/acquisition/carm_link_receiver.hpp"
@@ -49,11 +51,27 @@ class NoisyCArmAdapter {
   };
   explicit NoisyCArmAdapter(const std::string& link) : pty_(link) {}
   void set_line(Line line) { line_.store(line); }
+  /// The C-arm's own warning, sent (clean) before the next geometry message.
+  void warn(const std::string& text) {
+    std::lock_guard lock(warning_mutex_);
+    warning_ = text;
+  }
   void send(const acquisition::CArmState& state) {
+    std::vector<std::uint8_t> message, out;
+    {
+      std::lock_guard lock(warning_mutex_);
+      if (!warning_.empty()) {
+        wire::StatusMessage w;
+        w.sequence = sequence_++;
+        w.level = wire::StatusLevel::Warning;
+        w.text = std::exchange(warning_, {});
+        out = wire::encode(w);
+      }
+    }
     wire::GeometryMessage m;
     m.sequence = sequence_++;
     m.state = state;
-    std::vector<std::uint8_t> message = wire::encode(m), out;
+    message = wire::encode(m);
     const Line line = line_.load();
     if (line == Line::Noisy) {
       for (std::size_t n = 1 + rng_() % 30; n > 0; --n) out.push_back(static_cast<std::uint8_t>(1 + rng_() % 255));
@@ -70,6 +88,8 @@ class NoisyCArmAdapter {
  private:
   acquisition::PseudoTerminal pty_;
   std::atomic<Line> line_{Line::Clean};
+  std::mutex warning_mutex_;
+  std::string warning_;
   std::uint16_t sequence_ = 0;
   std::mt19937 rng_{7};
 };
@@ -85,7 +105,7 @@ std::size_t lines_saying(const std::string& text, const std::string& what) {
 
 }  // namespace
 
-TEST(NodeOverTransports, GarbageOnTheCArmLinkCostsNeitherModelNorLinkAndIsLoggedOncePerInterval) {
+TEST(NodeOverTransports, GarbageOnTheCArmLinkCostsNeitherModelNorLinkAndIsShownAndLoggedOncePerInterval) {
   const fs::path dir = fs::path(testing::TempDir()) / ("evar_node_carm_garbage_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   sim::SessionPlan plan;
@@ -102,7 +122,7 @@ TEST(NodeOverTransports, GarbageOnTheCArmLinkCostsNeitherModelNorLinkAndIsLogged
   sim::GigEFrameServer camera(serial);
   NoisyCArmAdapter adapter(link);
   sim::SessionReplay replay(session, {1.0, 0});
-  replay.carm().start([&](const acquisition::CArmState& s) { adapter.send(s); }, nullptr);
+  replay.carm().start([&](const acquisition::CArmState& s) { adapter.send(s); }, nullptr, nullptr);
   replay.frames().start([&](const acquisition::Frame& f) { camera.show(f); }, nullptr);
 
   // The node's side, as `evarnode run` makes it (the link's defaults: stalled after 1 s).
@@ -152,16 +172,23 @@ TEST(NodeOverTransports, GarbageOnTheCArmLinkCostsNeitherModelNorLinkAndIsLogged
   const std::size_t cleaned = screen.size();
   adapter.set_line(NoisyCArmAdapter::Line::Clean);
 
-  // 4. The clean line: the link streams again and the roadmap comes back without help.
+  // 4. The clean line: the link streams again and the roadmap comes back without help
+  //    (the notice of the bad frames may stay up a while: the garbage was real).
   const std::size_t back = screen.wait_for(
       cleaned,
       [](const ScreenLog::Shown& f) {
-        return !f.held && f.roadmap && !ScreenLog::alert(f, "C-arm") && !ScreenLog::alert(f, "stale");
+        return !f.held && f.roadmap && !ScreenLog::alert(f, "C-arm link stalled") && !ScreenLog::alert(f, "stale");
       },
       30s);
   ASSERT_LT(back, screen.size()) << "the C-arm link did not come back on its own";
   ASSERT_TRUE(screen.wait_until_shown(back + 31, 30s))
       << "the frames stopped after the link was clean again";
+
+  // 5. The C-arm itself sends a warning: shown on the live frames.
+  adapter.warn("tube temperature high");
+  const std::size_t warned = screen.wait_for(
+      back, [](const ScreenLog::Shown& f) { return ScreenLog::alert(f, "C-arm warning: tube temperature high"); }, 30s);
+  ASSERT_LT(warned, screen.size()) << "the C-arm's warning was not shown";
 
   node.stop();
   const auto noise_span = Clock::now() - noise_began;
@@ -180,13 +207,20 @@ TEST(NodeOverTransports, GarbageOnTheCArmLinkCostsNeitherModelNorLinkAndIsLogged
   EXPECT_GE(garbage - noisy, 30u) << "frames during the noise";
   // Line noise costs neither the link nor the roadmap: no noisy frame said the link was
   // down, and most had fresh geometry (a bit-flipped message leaves 200 ms between two
-  // good ones, within the timeline's 250 ms; a late one under load may pass it).
-  std::size_t stale_while_noisy = 0;
+  // good ones, within the timeline's 250 ms; a late one under load may pass it). The
+  // screen says the line is noisy, naming the link, while the roadmap stays.
+  std::size_t stale_while_noisy = 0, said_noisy = 0;
   for (std::size_t i = noisy; i < garbage; ++i) {
-    EXPECT_FALSE(ScreenLog::alert(shown[i], "C-arm link")) << "frame " << i << ": " << shown[i].status.alerts.front();
+    for (const char* down : {"C-arm link stalled", "C-arm link disconnected", "C-arm link connecting"})
+      EXPECT_FALSE(ScreenLog::alert(shown[i], down)) << "frame " << i << ": " << down;
     stale_while_noisy += ScreenLog::alert(shown[i], "C-arm geometry stale");
+    said_noisy += ScreenLog::alert(shown[i], "C-arm link serial " + link + ": ") &&
+                  ScreenLog::alert(shown[i], "bad frames so far") && shown[i].roadmap;
   }
   EXPECT_LE(stale_while_noisy, (garbage - noisy) / 4) << "of " << garbage - noisy << " frames";
+  EXPECT_GE(said_noisy, 1u) << "no live frame with the roadmap said the line was noisy";
+  EXPECT_TRUE(ScreenLog::alert(shown[warned], "C-arm warning: tube temperature high"));
+  EXPECT_TRUE(shown[warned].roadmap && !shown[warned].held) << "the warning is shown on the live roadmap";
   // (c) Garbage alone: the stalled link and the stale geometry on screen, with its age.
   EXPECT_TRUE(ScreenLog::alert(shown[stalled], "C-arm geometry stale")) << "frame " << stalled;
   EXPECT_TRUE(ScreenLog::line(shown[stalled], "s old")) << "frame " << stalled;
@@ -204,6 +238,7 @@ TEST(NodeOverTransports, GarbageOnTheCArmLinkCostsNeitherModelNorLinkAndIsLogged
   const std::size_t bad_frame_lines = lines_saying(text, "bad frames so far");
   EXPECT_GE(bad_frame_lines, 1u) << text;
   EXPECT_LE(bad_frame_lines, 1 + intervals) << text;
+  EXPECT_EQ(count_of(text, "] C-arm warning: tube temperature high"), 1u) << text;
   EXPECT_EQ(count_of(text, "] C-arm link stalled: serial " + link + ": no geometry for 1000 ms"), 1u) << text;
   EXPECT_EQ(count_of(text, "resolved: C-arm link stalled"), 1u) << text;
   // (e) Resolved after it was said.

@@ -62,7 +62,7 @@ TEST(NodeOverTransports, KeepsItsModelThroughCameraAndLinkFaultsAndSaysEachOnce)
         std::lock_guard lock(ends);
         if (carm_link) carm_link->send(s);
       },
-      nullptr);
+      nullptr, nullptr);
   replay.frames().start(
       [&](const acquisition::Frame& f) {
         std::lock_guard lock(ends);

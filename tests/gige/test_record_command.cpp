@@ -67,7 +67,7 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
   // The replay loops over the session until the recording is done, so however long the
   // command takes to find the camera and open the link, whole loops get recorded.
   sim::SessionReplay replay(original, {1.0, 0});
-  replay.carm().start([&](const evar::acquisition::CArmState& st) { carm_link.send(st); }, nullptr);
+  replay.carm().start([&](const evar::acquisition::CArmState& st) { carm_link.send(st); }, nullptr, nullptr);
   replay.frames().start([&](const evar::acquisition::Frame& f) { camera.show(f); }, nullptr);
   const int code = evar::app::run_cli({"record", "--camera", serial, "--width", "128", "--height", "96", "--fps", "40",
                                        "--carm", "serial:" + link + ",baud=115200", "--scene",

@@ -76,13 +76,14 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
       [&](acq::StreamState st, const std::string& r) { video.on_stream(st, r); });
   serial_source.start(
       [&](const acq::CArmState& st) { carm.record([&] { states.push_back(st); }); },
-      [&](acq::StreamState st, const std::string& r) { carm.on_stream(st, r); });
+      [&](acq::StreamState st, const std::string& r) { carm.on_stream(st, r); },
+      [&](const std::string& n) { carm.on_notice(n); });
   ASSERT_TRUE(video.wait([&] { return video.saw(acq::StreamState::Streaming); }));
   ASSERT_TRUE(carm.wait([&] { return carm.said({"waiting for the first geometry sample"}); }));
 
   // The replay drives the far ends in real time.
   sim::SessionReplay replay(session, {1.0, 1});
-  replay.carm().start([&](const acq::CArmState& st) { carm_link.send(st); }, nullptr);
+  replay.carm().start([&](const acq::CArmState& st) { carm_link.send(st); }, nullptr, nullptr);
   replay.frames().start([&](const acq::Frame& f) { camera.show(f); }, nullptr);
   ASSERT_TRUE(replay.wait(30s));
   std::this_thread::sleep_for(300ms);  // the last picture stays on; let a few frames of it arrive
@@ -101,5 +102,9 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
   EXPECT_EQ(gige.gige_statistics().frames.dropped, 0u) << "stream: " << gige.gige_statistics().completed << " completed, " << gige.gige_statistics().failed << " failed, " << gige.gige_statistics().underruns << " underruns";
   EXPECT_EQ(serial_source.statistics().link.errors(), 0u);
   EXPECT_EQ(carm_link.dropped(), 0u);
+  {
+    std::lock_guard lock(carm.mutex);
+    EXPECT_TRUE(carm.notices.empty()) << "a clean link gave a notice: " << carm.notices.front();
+  }
   fs::remove_all(dir);
 }

@@ -135,14 +135,19 @@ class ScriptedFrames final : public acquisition::FrameSource {
 
 class ScriptedCArm final : public acquisition::CArmGeometrySource {
  public:
-  void start(StateCallback on_state, StreamCallback) override { on_state_ = std::move(on_state); }
+  void start(StateCallback on_state, StreamCallback, NoticeCallback on_notice) override {
+    on_state_ = std::move(on_state);
+    on_notice_ = std::move(on_notice);
+  }
   void stop() override { on_state_ = nullptr; }
   acquisition::StreamState state() const override { return acquisition::StreamState::Streaming; }
   std::string description() const override { return "scripted C-arm"; }
   void deliver(const acquisition::CArmState& s) const { on_state_(s); }
+  void notice(const std::string& n) const { on_notice_(n); }
 
  private:
   StateCallback on_state_;
+  NoticeCallback on_notice_;
 };
 
 TEST_F(Recording, FramesAtTheStartOfAStreamAreTimedAsExactlyAsTheRest) {
@@ -238,6 +243,8 @@ TEST_F(Recording, CArmStatesTheFormatRefusesAreLeftOutAndCounted) {
   carm.deliver(carm_state(std::numeric_limits<double>::quiet_NaN(), 1200, 800));
   carm.deliver(carm_state(12, 700, 800));
   carm.deliver(carm_state(14, 1200, 800));
+  carm.notice("C-arm link serial /dev/ttyX: 1 bad frames so far");  // kept in the report
+  carm.notice("C-arm warning: tube temperature high");
   for (std::uint64_t k = 0; k < 3; ++k) frames.deliver(grey_frame(k));
   const Session s = recorder.finish();
   EXPECT_EQ(s.carm.size(), 2u);
@@ -249,6 +256,8 @@ TEST_F(Recording, CArmStatesTheFormatRefusesAreLeftOutAndCounted) {
   const auto report = nlohmann::json::parse(std::ifstream(root_ / "recorded" / "record_report.json"));
   EXPECT_EQ(report["carm"]["refused_invalid"], 4);
   EXPECT_EQ(report["carm"]["samples"], 2);
+  EXPECT_EQ(report["carm"]["notices"], 2);
+  EXPECT_EQ(report["carm"]["last_notice"], "C-arm warning: tube temperature high");
 }
 
 // A frame the disk refused was only the last error: received, written, not recorded and

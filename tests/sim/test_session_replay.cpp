@@ -87,7 +87,7 @@ void attach(SessionReplay& replay, Received& r) {
         std::lock_guard lock(r.m);
         r.carm.push_back(s);
       },
-      nullptr);
+      nullptr, nullptr);
   replay.frames().start(
       [&](const acquisition::Frame& f) {
         std::lock_guard lock(r.m);
@@ -226,7 +226,7 @@ TEST_F(Replay, StartingAgainRestartsTheReplayAndIsLiveAgain) {
 
 TEST_F(Replay, ACallbackThatStopsItsSourceEndsTheReplayWithAnError) {
   SessionReplay replay(session_, {0.0, 1}, std::make_shared<FakeClock>());
-  replay.carm().start(nullptr, nullptr);
+  replay.carm().start(nullptr, nullptr, nullptr);
   replay.frames().start([&](const acquisition::Frame&) { replay.frames().stop(); }, nullptr);
   ASSERT_TRUE(replay.wait(std::chrono::seconds(20)));
   EXPECT_NE(replay.error().find("called from a replay callback"), std::string::npos) << replay.error();

@@ -19,6 +19,10 @@ class StreamLog {
   void on_stream(acquisition::StreamState s, const std::string& reason) {
     record([&] { streams.emplace_back(s, reason); });
   }
+  /// A C-arm link's notice: news that changed no state.
+  void on_notice(const std::string& notice) {
+    record([&] { notices.push_back(notice); });
+  }
   /// Runs `change` under the log's mutex and wakes the waiters.
   void record(const std::function<void()>& change) {
     std::lock_guard lock(mutex);
@@ -36,20 +40,30 @@ class StreamLog {
       if (streams[i].first == s) return true;
     return false;
   }
-  /// A notice whose reason contains every one of `parts` (and, if given, in state `s`).
+  /// A state change whose reason contains every one of `parts` (and, if given, in state `s`).
   bool said(std::initializer_list<const char*> parts, const acquisition::StreamState* s = nullptr) const {
-    for (const auto& [state, reason] : streams) {
-      if (s && state != *s) continue;
-      bool all = true;
-      for (const char* p : parts) all &= reason.find(p) != std::string::npos;
-      if (all) return true;
-    }
+    for (const auto& [state, reason] : streams)
+      if ((!s || state == *s) && contains_all(reason, parts)) return true;
+    return false;
+  }
+  /// A notice that contains every one of `parts`.
+  bool noticed(std::initializer_list<const char*> parts) const {
+    for (const std::string& n : notices)
+      if (contains_all(n, parts)) return true;
     return false;
   }
 
   std::mutex mutex;
   std::condition_variable cv;
   std::vector<std::pair<acquisition::StreamState, std::string>> streams;
+  std::vector<std::string> notices;
+
+ private:
+  static bool contains_all(const std::string& text, std::initializer_list<const char*> parts) {
+    for (const char* p : parts)
+      if (text.find(p) == std::string::npos) return false;
+    return true;
+  }
 };
 
 }  // namespace evar::test

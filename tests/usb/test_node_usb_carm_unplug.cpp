@@ -114,7 +114,7 @@ TEST(NodeOverUsbCArmLink, AnUnpluggedAdapterIsShownAndSaidOnceTheModelKeptAndThe
         m.state = s;
         adapter.send(wire::encode(m));
       },
-      nullptr);
+      nullptr, nullptr);
   const auto pull = [&] {
     std::lock_guard lock(plug_mutex);
     plugged = false;

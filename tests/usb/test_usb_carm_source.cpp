@@ -43,6 +43,9 @@ struct Recorder : evar::test::StreamLog {
   acq::CArmGeometrySource::StreamCallback stream_callback() {
     return [this](acq::StreamState s, const std::string& r) { on_stream(s, r); };
   }
+  acq::CArmGeometrySource::NoticeCallback notice_callback() {
+    return [this](const std::string& n) { on_notice(n); };
+  }
 };
 
 acq::UsbLinkOptions options() {
@@ -113,7 +116,7 @@ TEST(UsbDevices, ListsTheEmulatedAdapterWithItsEndpoints) {
 TEST(UsbCArmSource, AMissingDeviceIsReportedAndLookedForAgain) {
   Recorder rec;
   acq::UsbCArmSource source(options());
-  source.start(rec.state_callback(), rec.stream_callback());
+  source.start(rec.state_callback(), rec.stream_callback(), rec.notice_callback());
   ASSERT_TRUE(rec.wait([&] { return rec.said({"no USB device 1209:ea01 is connected"}); }, 10s));
   EXPECT_EQ(source.state(), acq::StreamState::Connecting);
   source.stop();
@@ -125,7 +128,7 @@ TEST(UsbCArmSource, ReadsGeometryThroughGarbageAndReconnectsAfterAnUnplug) {
   adapter.plug();
   Recorder rec;
   acq::UsbCArmSource source(options());
-  source.start(rec.state_callback(), rec.stream_callback());
+  source.start(rec.state_callback(), rec.stream_callback(), rec.notice_callback());
 
   // Samples, then garbage and a bit-flipped frame, then more samples.
   std::vector<std::uint8_t> bytes;

@@ -25,12 +25,17 @@ struct CArmState {
 class CArmGeometrySource {
  public:
   using StateCallback = std::function<void(const CArmState&)>;
+  /// Each change of the link's state, with the reason (shown to users).
   using StreamCallback = std::function<void(StreamState, const std::string& reason)>;
+  /// News that changes no state: bad frames on a line that still delivers, a warning or
+  /// fault the C-arm itself reports. Worded to stand alone on screen ("C-arm link …",
+  /// "C-arm warning: …"); a source rate-limits its notices, so each may be shown and logged.
+  using NoticeCallback = std::function<void(const std::string& notice)>;
 
   virtual ~CArmGeometrySource() = default;
-  /// Starts delivering states (on the source's own thread). Throws std::runtime_error
-  /// when the link cannot be opened.
-  virtual void start(StateCallback on_state, StreamCallback on_stream) = 0;
+  /// Starts delivering states (on the source's own thread); any callback may be empty.
+  /// Throws std::runtime_error when the link cannot be opened.
+  virtual void start(StateCallback on_state, StreamCallback on_stream, NoticeCallback on_notice) = 0;
   /// Stops delivery; no callback runs after stop() returns.
   virtual void stop() = 0;
   virtual StreamState state() const = 0;

@@ -32,7 +32,8 @@ class CArmLinkReceiver {
   /// `stale_after`: a streaming link that delivers no geometry for this long is Stalled.
   CArmLinkReceiver(std::string name, std::chrono::milliseconds stale_after);
 
-  void set_callbacks(CArmGeometrySource::StateCallback on_state, CArmGeometrySource::StreamCallback on_stream);
+  void set_callbacks(CArmGeometrySource::StateCallback on_state, CArmGeometrySource::StreamCallback on_stream,
+                     CArmGeometrySource::NoticeCallback on_notice);
   /// The transport is trying to (re)connect; `reason` says why it is not up (shown to users).
   void connecting(const std::string& reason);
   /// The transport is up; the link streams once the first good sample arrives.
@@ -47,7 +48,7 @@ class CArmLinkReceiver {
   CArmLinkStatistics statistics() const;
 
  private:
-  struct Notice {
+  struct Change {
     StreamState state;
     std::string reason;
   };
@@ -59,6 +60,7 @@ class CArmLinkReceiver {
   std::chrono::milliseconds stale_after_;
   CArmGeometrySource::StateCallback on_state_;
   CArmGeometrySource::StreamCallback on_stream_;
+  CArmGeometrySource::NoticeCallback on_notice_;
   mutable std::mutex mutex_;
   carm_link::Decoder decoder_;
   StreamState state_ = StreamState::Stopped;
@@ -69,7 +71,8 @@ class CArmLinkReceiver {
   std::string last_status_text_;
   std::optional<Clock::time_point> last_status_notice_;
   CArmLinkStatistics stats_;
-  std::vector<Notice> pending_;
+  std::vector<Change> pending_changes_;
+  std::vector<std::string> pending_notices_;
 };
 
 }  // namespace evar::acquisition

@@ -31,7 +31,7 @@ class SerialCArmSource final : public CArmGeometrySource {
   /// Starts the link thread. Never throws for a missing device: it keeps trying and reports
   /// Connecting with the reason. Callbacks run on the link thread; they may ask for state()
   /// and statistics() but must not call start() or stop().
-  void start(StateCallback on_state, StreamCallback on_stream) override;
+  void start(StateCallback on_state, StreamCallback on_stream, NoticeCallback on_notice) override;
   void stop() override;
   StreamState state() const override;
   std::string description() const override;

@@ -67,7 +67,7 @@ class UsbCArmSource final : public CArmGeometrySource {
   ~UsbCArmSource() override;
   /// Starts the link thread. Throws only when libusb cannot start at all; a missing device
   /// is reported as Connecting with the reason and looked for again.
-  void start(StateCallback on_state, StreamCallback on_stream) override;
+  void start(StateCallback on_state, StreamCallback on_stream, NoticeCallback on_notice) override;
   void stop() override;
   StreamState state() const override;
   std::string description() const override;

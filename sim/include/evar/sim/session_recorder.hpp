@@ -47,6 +47,8 @@ struct RecorderStatistics {
   std::uint64_t carm_refused = 0;         ///< not recorded: values the format refuses (carm_sample_problem)
   acquisition::StreamState video = acquisition::StreamState::Stopped, carm = acquisition::StreamState::Stopped;
   std::string video_reason, carm_reason;  ///< the sources' last words
+  std::string carm_notice;                ///< the C-arm link's last notice (bad frames, a C-arm warning)
+  std::uint64_t carm_notices = 0;
   std::string last_error;                 ///< the last frame or sample that could not be recorded, named
   double seconds = 0.0;                   ///< since start()
 };
