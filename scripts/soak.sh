@@ -79,7 +79,9 @@ while kill -0 "$pid" 2>/dev/null; do
     rss=$(awk '/^VmRSS:/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
     threads=$(awk '/^Threads:/ {print $2}' "/proc/$pid/status" 2>/dev/null || true)
     fds=$(ls "/proc/$pid/fd" 2>/dev/null | wc -l || true)
-    snaps=$(du -sk "$out/run/snapshots" 2>/dev/null | cut -f1 || echo 0)
+    # du still prints the total when a picture is deleted under it (the snapshot budget)
+    # but then fails, which must not add a line of its own to the sample.
+    snaps=$({ du -sk "$out/run/snapshots" 2>/dev/null || true; } | cut -f1)
     [ -n "$rss" ] && echo "$(($(date +%s) - start)),$rss,$fds,$threads,${snaps:-0}" >> "$out/samples.csv"
   fi
   sleep "$interval"

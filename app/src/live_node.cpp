@@ -103,7 +103,14 @@ void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometry
         },
         // News on a link that has not changed state: shown for a while beside whatever
         // the link's state says, the newest in place of the one before.
-        [this](const std::string& notice) { set_alert("carm-notice", notice, options_.carm_notice_hold); });
+        [this](const std::string& notice) {
+          {
+            std::lock_guard lock(stats_mutex_);
+            ++stats_.carm_notices;
+            stats_.last_carm_notice = notice;
+          }
+          set_alert("carm-notice", notice, options_.carm_notice_hold);
+        });
     frames.start([this](const acquisition::Frame& f) { on_frame(f); },
                  [this](acquisition::StreamState s, const std::string& reason) {
                    if (acquisition::is_live(s)) {

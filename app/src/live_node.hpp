@@ -124,6 +124,8 @@ struct NodeStatistics {
   std::uint64_t adaptations = 0, adaptation_failures = 0;
   std::uint64_t video_stalls = 0, stale_geometry_frames = 0, moving_frames = 0, sink_errors = 0;
   std::uint64_t frame_loss_alerts = 0;  ///< times the source began losing frames (NodeOptions::frame_loss)
+  std::uint64_t carm_notices = 0;       ///< the C-arm link's news: bad frames, the C-arm's warnings
+  std::string last_carm_notice;
   Percentiles latency_ms;            ///< frame arrival → composited, over the last kLatencyWindow frames
   Percentiles adaptation_ms;         ///< second view's frame arrival → model ready, over the last kLatencyWindow adaptations
   std::string last_failure;          ///< the last adaptation failure ("" if none)

@@ -226,6 +226,8 @@ int run_node(const RunCommand& cmd) {
       {"latency_ms", to_json(s.latency_ms)},
       {"video_stalls", s.video_stalls},
       {"frame_loss_alerts", s.frame_loss_alerts},
+      {"carm_notices", s.carm_notices},
+      {"last_carm_notice", s.last_carm_notice},
       {"sink_errors", s.sink_errors},
       {"outputs", {{"video", video ? (cmd.out / cmd.video).string() : ""},
                    {"video_frames", video ? video->frames() : 0},

@@ -440,6 +440,8 @@ TEST_F(LiveNodeReplay, ANoticeFromTheCArmLinkIsShownForAWhileAndLoggedOnce) {
   EXPECT_TRUE(std::none_of(gone, shown->frames.end(), saying)) << "the notice came back";
   EXPECT_EQ(count_of(text, notice), 1u) << text;
   EXPECT_EQ(count_of(text, "[warning] " + notice), 1u) << text;
+  EXPECT_EQ(node.statistics().carm_notices, 1u);
+  EXPECT_EQ(node.statistics().last_carm_notice, notice);
 }
 
 namespace {
