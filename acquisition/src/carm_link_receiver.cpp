@@ -25,22 +25,23 @@ void CArmLinkReceiver::set_state(StreamState s, const std::string& reason) {
   if (s == state_ && reason == reason_) return;
   state_ = s;
   reason_ = reason;
-  pending_changes_.push_back({s, reason});
+  pending_.emplace_back(Change{s, reason});
 }
 
 void CArmLinkReceiver::deliver(std::unique_lock<std::mutex>& lock, const std::vector<CArmState>& samples) {
-  std::vector<Change> changes;
-  changes.swap(pending_changes_);
-  std::vector<std::string> notices;
-  notices.swap(pending_notices_);
+  std::vector<Pending> pending;
+  pending.swap(pending_);
   auto on_state = on_state_;
   auto on_stream = on_stream_;
   auto on_notice = on_notice_;
   lock.unlock();
-  for (const Change& c : changes)
-    if (on_stream) on_stream(c.state, c.reason);
-  for (const std::string& n : notices)
-    if (on_notice) on_notice(n);
+  for (const Pending& p : pending) {
+    if (const auto* c = std::get_if<Change>(&p)) {
+      if (on_stream) on_stream(c->state, c->reason);
+    } else if (on_notice) {
+      on_notice(std::get<LinkNotice>(p));
+    }
+  }
   for (const CArmState& s : samples)
     if (on_state) on_state(s);
 }
@@ -74,12 +75,17 @@ void CArmLinkReceiver::received(std::span<const std::uint8_t> bytes, Clock::time
       stats_.last_status = status;
       if (status.level != carm_link::StatusLevel::Info) {
         std::string text = "C-arm " + std::string(to_string(status.level)) + ": " + status.text;
-        // The same status repeated within the interval is news once (a C-arm may repeat it every frame).
-        const bool repeat = text == last_status_text_ && last_status_notice_ && now - *last_status_notice_ < kNoticeInterval;
-        if (!repeat) {
-          pending_notices_.push_back(text);
-          last_status_text_ = std::move(text);
-          last_status_notice_ = now;
+        // A status repeated within the interval is news once (a C-arm may repeat its
+        // warnings every frame, several in turn): texts are remembered for one interval.
+        // A peer sending ever new texts is held to kMaxStatusTexts notices per interval.
+        std::erase_if(status_noticed_, [&](const auto& e) { return now - e.second >= kNoticeInterval; });
+        if (!status_noticed_.contains(text)) {
+          if (status_noticed_.size() < kMaxStatusTexts) {
+            status_noticed_.emplace(text, now);
+            pending_.emplace_back(LinkNotice{LinkNotice::Kind::CArmStatus, std::move(text)});
+          } else {
+            ++stats_.statuses_not_reported;
+          }
         }
       }
     }
@@ -99,11 +105,11 @@ void CArmLinkReceiver::report_errors(Clock::time_point now) {
   if (errors == errors_reported_ || (last_error_notice_ && now - *last_error_notice_ < kNoticeInterval)) return;
   const std::string link = "C-arm link " + name_ + ": ";
   const std::string total = " (" + std::to_string(errors) + " bad frames so far)";
-  if (!last_error_notice_ || errors - errors_reported_ == 1)
-    pending_notices_.push_back(link + decoder_.last_error() + total);
-  else
-    pending_notices_.push_back(link + std::to_string(errors - errors_reported_) + " bad frames since the last report" +
-                               total + "; the last: " + decoder_.last_error());
+  std::string text = !last_error_notice_ || errors - errors_reported_ == 1
+                         ? link + decoder_.last_error() + total
+                         : link + std::to_string(errors - errors_reported_) + " bad frames since the last report" +
+                               total + "; the last: " + decoder_.last_error();
+  pending_.emplace_back(LinkNotice{LinkNotice::Kind::BadFrames, std::move(text)});
   errors_reported_ = errors;
   last_error_notice_ = now;
 }

@@ -102,14 +102,15 @@ void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometry
           }
         },
         // News on a link that has not changed state: shown for a while beside whatever
-        // the link's state says, the newest in place of the one before.
-        [this](const std::string& notice) {
+        // the link's state says, the newest of its kind in place of the one before.
+        [this](const acquisition::LinkNotice& notice) {
           {
             std::lock_guard lock(stats_mutex_);
             ++stats_.carm_notices;
-            stats_.last_carm_notice = notice;
+            stats_.last_carm_notice = notice.text;
           }
-          set_alert("carm-notice", notice, options_.carm_notice_hold);
+          const bool status = notice.kind == acquisition::LinkNotice::Kind::CArmStatus;
+          set_alert(status ? "carm-status" : "carm-bad-frames", notice.text, options_.carm_notice_hold);
         });
     frames.start([this](const acquisition::Frame& f) { on_frame(f); },
                  [this](acquisition::StreamState s, const std::string& reason) {
@@ -173,7 +174,8 @@ void LiveNode::set_alert(const std::string& key, const std::string& text, std::o
     std::lock_guard lock(alerts_mutex_);
     auto it = std::find_if(alerts_.begin(), alerts_.end(), [&](const auto& a) { return a.first == key; });
     if (it != alerts_.end()) {
-      changed = it->second.text != text;
+      // One that expired unseen (no frame composed since) is news again.
+      changed = it->second.text != text || it->second.until <= Clock::now();
       it->second = {text, until};
     } else {
       alerts_.push_back({key, {text, until}});

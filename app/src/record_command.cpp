@@ -2,6 +2,7 @@
 // the session format (docs/SESSION_FORMAT.md) with live statistics on the terminal; and
 // `evarnode record --recover OUT`, the session of a recording that was killed.
 
+#include <algorithm>
 #include <cstdio>
 #include <cstring>
 #include <memory>
@@ -18,6 +19,16 @@
 namespace evar::app {
 
 namespace {
+
+// The C-arm link's notices since `before` (each once; the source rate-limits them). More
+// than the recorder keeps between two looks are counted, not lost silently.
+void log_new_notices(const sim::RecorderStatistics& now, const sim::RecorderStatistics& before) {
+  const std::uint64_t fresh = now.carm_notices - before.carm_notices;
+  const auto kept = static_cast<std::uint64_t>(now.recent_carm_notices.size());
+  if (fresh > kept) log().warn("C-arm link: {} notices not shown (they came too fast)", fresh - kept);
+  for (std::size_t i = static_cast<std::size_t>(kept - std::min(fresh, kept)); i < now.recent_carm_notices.size(); ++i)
+    log().warn("{}", now.recent_carm_notices[i]);
+}
 
 int run_recover(const std::filesystem::path& directory) {
   log().info("recovering the recording in {} from its journal", directory.string());
@@ -61,7 +72,7 @@ int run_record(const RecordCommand& cmd) {
       (acquisition::is_live(s.video) ? log().info("video: {}", s.video_reason) : log().warn("video: {}", s.video_reason));
     if (s.carm != shown.carm || s.carm_reason != shown.carm_reason)
       (acquisition::is_live(s.carm) ? log().info("C-arm: {}", s.carm_reason) : log().warn("C-arm: {}", s.carm_reason));
-    if (s.carm_notices != shown.carm_notices) log().warn("{}", s.carm_notice);  // the source rate-limits them
+    log_new_notices(s, shown);
     shown = s;
     if (const auto since = status.due()) {
       const auto fs = frames->statistics();
@@ -79,6 +90,7 @@ int run_record(const RecordCommand& cmd) {
   if (interrupt.interrupted()) log().info("{}: finishing the recording", ::strsignal(interrupt.signal_received()));
   const sim::Session session = recorder.finish();
   s = recorder.statistics();
+  log_new_notices(s, shown);
   log().info("{}: {} frames and {} C-arm states in {:.1f} s; {} frames dropped by the source, {} not recorded",
              cmd.out.string(), session.frames.size(), session.carm.size(), s.seconds, frames->statistics().dropped,
              s.frames_not_recorded + s.frames_refused + s.frames_write_failed);

@@ -427,7 +427,7 @@ struct SessionRecorder::Impl {
           {"last_state", acquisition::to_string(s.carm)},
           {"last_reason", s.carm_reason},
           {"notices", s.carm_notices},
-          {"last_notice", s.carm_notice}}},
+          {"recent_notices", s.recent_carm_notices}}},
         {"last_error", s.last_error},
         {"session_written", session != nullptr}};
     if (session && !session->frames.empty())
@@ -497,9 +497,11 @@ void SessionRecorder::start() {
                  d.stats.carm = s;
                  d.stats.carm_reason = why;
                },
-               [&d](const std::string& notice) {
+               [&d](const acquisition::LinkNotice& notice) {
                  std::lock_guard lock(d.mutex);
-                 d.stats.carm_notice = notice;
+                 auto& recent = d.stats.recent_carm_notices;
+                 if (recent.size() == RecorderStatistics::kRecentNotices) recent.erase(recent.begin());
+                 recent.push_back(notice.text);
                  ++d.stats.carm_notices;
                });
   d.frames.start([&d](const Frame& f) { d.on_frame(f); },

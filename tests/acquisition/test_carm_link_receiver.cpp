@@ -4,6 +4,7 @@
 // and good samples in between still arrive.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <string>
 #include <vector>
@@ -34,7 +35,10 @@ TEST(CArmLinkReceiver, ContinuousGarbageGivesOneNoticeAtOnceThenOneSummaryPerInt
   std::vector<StreamState> changes;
   int samples = 0;
   rx.set_callbacks([&](const CArmState&) { ++samples; }, [&](StreamState s, const std::string&) { changes.push_back(s); },
-                   [&](const std::string& notice) { error_notices.push_back(notice); });
+                   [&](const LinkNotice& notice) {
+                     EXPECT_EQ(notice.kind, LinkNotice::Kind::BadFrames);
+                     error_notices.push_back(notice.text);
+                   });
   rx.connected();
   const auto t0 = CArmLinkReceiver::Clock::time_point{} + 1h;
   const std::vector<std::uint8_t> garbage{0x00, 0x03, 0x41, 0x42, 0x00};  // a frame too short to be a message
@@ -70,7 +74,10 @@ TEST(CArmLinkReceiver, ContinuousGarbageGivesOneNoticeAtOnceThenOneSummaryPerInt
 TEST(CArmLinkReceiver, AStatusTheCArmRepeatsIsReportedOncePerInterval) {
   CArmLinkReceiver rx("usb 1209:ea01", 1000ms);
   std::vector<std::string> notices;
-  rx.set_callbacks([](const CArmState&) {}, nullptr, [&](const std::string& notice) { notices.push_back(notice); });
+  rx.set_callbacks([](const CArmState&) {}, nullptr, [&](const LinkNotice& notice) {
+    EXPECT_EQ(notice.kind, LinkNotice::Kind::CArmStatus);
+    notices.push_back(notice.text);
+  });
   rx.connected();
   const auto t0 = CArmLinkReceiver::Clock::time_point{} + 1h;
   carm_link::StatusMessage warning;
@@ -86,4 +93,34 @@ TEST(CArmLinkReceiver, AStatusTheCArmRepeatsIsReportedOncePerInterval) {
   rx.received(carm_link::encode(warning), t0 + 25s + 10ms);
   ASSERT_EQ(notices.size(), 4u);
   EXPECT_EQ(notices[3], "C-arm warning: collimator moving");
+}
+
+// A C-arm that repeats two warnings in turn, every message, says each once per interval
+// (before session 20 only the last text was remembered: each turn was news, ten a second).
+// A peer sending ever new texts is held to kMaxStatusTexts notices per interval.
+TEST(CArmLinkReceiver, WarningsTakingTurnsAreReportedOncePerIntervalEachAndNewTextsAreCapped) {
+  CArmLinkReceiver rx("usb 1209:ea01", 1000ms);
+  std::vector<std::string> notices;
+  rx.set_callbacks([](const CArmState&) {}, nullptr, [&](const LinkNotice& notice) { notices.push_back(notice.text); });
+  rx.connected();
+  const auto t0 = CArmLinkReceiver::Clock::time_point{} + 1h;
+  carm_link::StatusMessage warning;
+  warning.level = carm_link::StatusLevel::Warning;
+  for (int k = 0; k < 2500; ++k) {  // every 10 ms for 25 s, two texts in turn
+    warning.sequence = static_cast<std::uint16_t>(k);
+    warning.text = k % 2 ? "collimator moving" : "tube temperature high";
+    rx.received(carm_link::encode(warning), t0 + k * 10ms);
+  }
+  ASSERT_EQ(notices.size(), 6u);  // each at 0, 10 and 20 s
+  EXPECT_EQ(std::count(notices.begin(), notices.end(), "C-arm warning: collimator moving"), 3);
+
+  notices.clear();
+  const auto t1 = t0 + 60s;
+  for (int k = 0; k < 100; ++k) {  // 100 different texts within a second
+    warning.sequence = static_cast<std::uint16_t>(k);
+    warning.text = "fault " + std::to_string(k);
+    rx.received(carm_link::encode(warning), t1 + k * 10ms);
+  }
+  EXPECT_EQ(notices.size(), CArmLinkReceiver::kMaxStatusTexts);
+  EXPECT_EQ(rx.statistics().statuses_not_reported, 100u - CArmLinkReceiver::kMaxStatusTexts);
 }

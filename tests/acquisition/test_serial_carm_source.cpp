@@ -67,7 +67,7 @@ struct SerialCArmLink : ::testing::Test {
   void start(acq::SerialCArmSource& source) {
     source.start([this](const acq::CArmState& s) { rec.on_state(s); },
                  [this](acq::StreamState s, const std::string& r) { rec.on_stream(s, r); },
-                 [this](const std::string& n) { rec.on_notice(n); });
+                 [this](const acq::LinkNotice& n) { rec.on_notice(n); });
   }
   // The source has the port open (it says so) before the peer sends.
   void wait_open() {
@@ -138,7 +138,9 @@ TEST_F(SerialCArmLink, GarbageBitFlipsAndTornFramesAreCountedAndTheLinkGoesOn) {
   EXPECT_FALSE(st.last_error.empty());
   // Said as news, not as a change of state: the link streams on.
   EXPECT_TRUE(rec.wait([&] { return rec.noticed({"C-arm link serial ", "bad frames so far"}); }));
+  std::lock_guard lock(rec.mutex);  // the source runs on
   EXPECT_FALSE(rec.said({"bad frames"}));
+  EXPECT_EQ(rec.notices.front().kind, acq::LinkNotice::Kind::BadFrames);
 }
 
 TEST_F(SerialCArmLink, ASilentLinkIsReportedStalledAndRecovers) {

@@ -177,7 +177,7 @@ TEST(NodeOverTransports, KeepsItsModelThroughCameraAndLinkFaultsAndSaysEachOnce)
   const std::size_t relinked = screen.wait_for(
       hangup,
       [](const ScreenLog::Shown& f) {
-        return !f.held && f.roadmap && !ScreenLog::alert(f, "C-arm link") && !ScreenLog::alert(f, "stale");
+        return !f.held && f.roadmap && !ScreenLog::carm_link_down(f) && !ScreenLog::alert(f, "stale");
       },
       30s);
   ASSERT_LT(relinked, screen.size()) << "the C-arm link did not come back on its own";

@@ -77,7 +77,7 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
   serial_source.start(
       [&](const acq::CArmState& st) { carm.record([&] { states.push_back(st); }); },
       [&](acq::StreamState st, const std::string& r) { carm.on_stream(st, r); },
-      [&](const std::string& n) { carm.on_notice(n); });
+      [&](const acq::LinkNotice& n) { carm.on_notice(n); });
   ASSERT_TRUE(video.wait([&] { return video.saw(acq::StreamState::Streaming); }));
   ASSERT_TRUE(carm.wait([&] { return carm.said({"waiting for the first geometry sample"}); }));
 
@@ -104,7 +104,7 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
   EXPECT_EQ(carm_link.dropped(), 0u);
   {
     std::lock_guard lock(carm.mutex);
-    EXPECT_TRUE(carm.notices.empty()) << "a clean link gave a notice: " << carm.notices.front();
+    EXPECT_TRUE(carm.notices.empty()) << "a clean link gave a notice: " << carm.notices.front().text;
   }
   fs::remove_all(dir);
 }

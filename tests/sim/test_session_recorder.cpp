@@ -143,7 +143,7 @@ class ScriptedCArm final : public acquisition::CArmGeometrySource {
   acquisition::StreamState state() const override { return acquisition::StreamState::Streaming; }
   std::string description() const override { return "scripted C-arm"; }
   void deliver(const acquisition::CArmState& s) const { on_state_(s); }
-  void notice(const std::string& n) const { on_notice_(n); }
+  void notice(const std::string& n) const { on_notice_({acquisition::LinkNotice::Kind::BadFrames, n}); }
 
  private:
   StateCallback on_state_;
@@ -257,7 +257,8 @@ TEST_F(Recording, CArmStatesTheFormatRefusesAreLeftOutAndCounted) {
   EXPECT_EQ(report["carm"]["refused_invalid"], 4);
   EXPECT_EQ(report["carm"]["samples"], 2);
   EXPECT_EQ(report["carm"]["notices"], 2);
-  EXPECT_EQ(report["carm"]["last_notice"], "C-arm warning: tube temperature high");
+  EXPECT_EQ(report["carm"]["recent_notices"],
+            nlohmann::json::array({"C-arm link serial /dev/ttyX: 1 bad frames so far", "C-arm warning: tube temperature high"}));
 }
 
 // A frame the disk refused was only the last error: received, written, not recorded and

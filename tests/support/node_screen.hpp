@@ -39,6 +39,11 @@ class ScreenLog final : public app::OutputSink {
     return std::any_of(f.status.alerts.begin(), f.status.alerts.end(),
                        [&](const std::string& a) { return a.find(text) != std::string::npos; });
   }
+  /// The frame says the C-arm link is down (its state, not its news: a notice of bad
+  /// frames may stay up a while after the link is back).
+  static bool carm_link_down(const Shown& f) {
+    return alert(f, "C-arm link stalled") || alert(f, "C-arm link disconnected") || alert(f, "C-arm link connecting");
+  }
   static bool line(const Shown& f, const std::string& text) {
     return std::any_of(f.status.lines.begin(), f.status.lines.end(),
                        [&](const std::string& l) { return l.find(text) != std::string::npos; });

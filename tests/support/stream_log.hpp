@@ -10,6 +10,7 @@
 #include <utility>
 #include <vector>
 
+#include "evar/acquisition/carm_geometry_source.hpp"
 #include "evar/acquisition/stream_state.hpp"
 
 namespace evar::test {
@@ -20,7 +21,7 @@ class StreamLog {
     record([&] { streams.emplace_back(s, reason); });
   }
   /// A C-arm link's notice: news that changed no state.
-  void on_notice(const std::string& notice) {
+  void on_notice(const acquisition::LinkNotice& notice) {
     record([&] { notices.push_back(notice); });
   }
   /// Runs `change` under the log's mutex and wakes the waiters.
@@ -48,15 +49,15 @@ class StreamLog {
   }
   /// A notice that contains every one of `parts`.
   bool noticed(std::initializer_list<const char*> parts) const {
-    for (const std::string& n : notices)
-      if (contains_all(n, parts)) return true;
+    for (const acquisition::LinkNotice& n : notices)
+      if (contains_all(n.text, parts)) return true;
     return false;
   }
 
   std::mutex mutex;
   std::condition_variable cv;
   std::vector<std::pair<acquisition::StreamState, std::string>> streams;
-  std::vector<std::string> notices;
+  std::vector<acquisition::LinkNotice> notices;
 
  private:
   static bool contains_all(const std::string& text, std::initializer_list<const char*> parts) {

@@ -167,7 +167,7 @@ TEST(NodeOverUsbCArmLink, AnUnpluggedAdapterIsShownAndSaidOnceTheModelKeptAndThe
   const std::size_t back = screen.wait_for(
       replugged,
       [](const ScreenLog::Shown& f) {
-        return !f.held && f.roadmap && !ScreenLog::alert(f, "C-arm") && !ScreenLog::alert(f, "stale");
+        return !f.held && f.roadmap && !ScreenLog::carm_link_down(f) && !ScreenLog::alert(f, "stale");
       },
       30s);
   ASSERT_LT(back, screen.size()) << "the C-arm link did not come back on its own";
@@ -189,7 +189,7 @@ TEST(NodeOverUsbCArmLink, AnUnpluggedAdapterIsShownAndSaidOnceTheModelKeptAndThe
   // with its age; none said the link was fine.
   bool stale_said = false;
   for (std::size_t i = said; i < replugged; ++i) {
-    EXPECT_TRUE(ScreenLog::alert(shown[i], "C-arm link")) << "frame " << i << " of the outage does not say so";
+    EXPECT_TRUE(ScreenLog::carm_link_down(shown[i])) << "frame " << i << " of the outage does not say so";
     stale_said |= ScreenLog::alert(shown[i], "C-arm geometry stale") && ScreenLog::line(shown[i], "s old");
   }
   EXPECT_TRUE(stale_said) << "no frame of the outage said the geometry was stale";

@@ -44,7 +44,7 @@ struct Recorder : evar::test::StreamLog {
     return [this](acq::StreamState s, const std::string& r) { on_stream(s, r); };
   }
   acq::CArmGeometrySource::NoticeCallback notice_callback() {
-    return [this](const std::string& n) { on_notice(n); };
+    return [this](const acq::LinkNotice& n) { on_notice(n); };
   }
 };
 
@@ -159,6 +159,8 @@ TEST(UsbCArmSource, ReadsGeometryThroughGarbageAndReconnectsAfterAnUnplug) {
   EXPECT_EQ(stats.link.geometry, 39u);
   EXPECT_GE(stats.link.crc_errors + stats.link.framing_errors, 1u);
   EXPECT_EQ(stats.connections, 1u);
+  // The bad frames are news from a link that streams on, naming the adapter.
+  EXPECT_TRUE(rec.wait([&] { return rec.noticed({"C-arm link USB 1209:ea01", "bad frames so far"}); }, 10s));
 
   // Pulled: reported, then found again when plugged back in.
   adapter.unplug();

@@ -22,15 +22,23 @@ struct CArmState {
   bool moving = false;               ///< geometry not settled
 };
 
+/// News from a link that changes no state: bad frames on a line that still delivers, a
+/// warning or fault the C-arm itself reports. The text is worded to stand alone on screen
+/// ("C-arm link serial /dev/ttyUSB0: 12 bad frames …", "C-arm warning: …").
+struct LinkNotice {
+  enum class Kind { BadFrames, CArmStatus };
+  Kind kind = Kind::BadFrames;
+  std::string text;
+};
+
 class CArmGeometrySource {
  public:
   using StateCallback = std::function<void(const CArmState&)>;
   /// Each change of the link's state, with the reason (shown to users).
   using StreamCallback = std::function<void(StreamState, const std::string& reason)>;
-  /// News that changes no state: bad frames on a line that still delivers, a warning or
-  /// fault the C-arm itself reports. Worded to stand alone on screen ("C-arm link …",
-  /// "C-arm warning: …"); a source rate-limits its notices, so each may be shown and logged.
-  using NoticeCallback = std::function<void(const std::string& notice)>;
+  /// News that changes no state (LinkNotice); a source rate-limits its notices, so each
+  /// may be shown and logged.
+  using NoticeCallback = std::function<void(const LinkNotice& notice)>;
 
   virtual ~CArmGeometrySource() = default;
   /// Starts delivering states (on the source's own thread); any callback may be empty.

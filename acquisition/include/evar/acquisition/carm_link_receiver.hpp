@@ -3,10 +3,12 @@
 // the stream state (connecting → streaming → stalled / disconnected), the C-arm's status
 // messages and the counters. Transports feed it bytes and tell it about their connection.
 #include <chrono>
+#include <map>
 #include <mutex>
 #include <optional>
 #include <span>
 #include <string>
+#include <variant>
 #include <vector>
 
 #include "evar/acquisition/carm_geometry_source.hpp"
@@ -20,15 +22,19 @@ struct CArmLinkStatistics {
   std::uint64_t disconnections = 0;
   std::string last_error;          ///< the decoder's last error, with the byte it ended at
   std::optional<carm_link::StatusMessage> last_status;
+  std::uint64_t statuses_not_reported = 0;  ///< warnings past CArmLinkReceiver::kMaxStatusTexts in an interval
 };
 
 class CArmLinkReceiver {
  public:
   using Clock = std::chrono::steady_clock;
   /// Bad frames are reported at once, then summed into at most one notice per interval,
-  /// and a C-arm status message repeated within it is reported once, so a link that spews
-  /// garbage or the same warning cannot flood the log or the screen.
+  /// and each C-arm status message repeated within it is reported once (several warnings
+  /// taking turns too), so a link that spews garbage or the same warnings cannot flood the
+  /// log or the screen.
   static constexpr std::chrono::seconds kNoticeInterval{10};
+  /// Different status texts reported per interval at most (a peer sending ever new ones).
+  static constexpr std::size_t kMaxStatusTexts = 16;
   /// `stale_after`: a streaming link that delivers no geometry for this long is Stalled.
   CArmLinkReceiver(std::string name, std::chrono::milliseconds stale_after);
 
@@ -52,6 +58,7 @@ class CArmLinkReceiver {
     StreamState state;
     std::string reason;
   };
+  using Pending = std::variant<Change, LinkNotice>;  // in the order they happened
   void set_state(StreamState s, const std::string& reason);  // mutex_ held by the caller
   void report_errors(Clock::time_point now);                 // mutex_ held by the caller
   void deliver(std::unique_lock<std::mutex>& lock, const std::vector<CArmState>& samples);
@@ -68,11 +75,9 @@ class CArmLinkReceiver {
   std::optional<Clock::time_point> last_sample_;
   std::uint64_t errors_reported_ = 0;
   std::optional<Clock::time_point> last_error_notice_;
-  std::string last_status_text_;
-  std::optional<Clock::time_point> last_status_notice_;
+  std::map<std::string, Clock::time_point> status_noticed_;  // each status text's last notice, within the interval
   CArmLinkStatistics stats_;
-  std::vector<Change> pending_changes_;
-  std::vector<std::string> pending_notices_;
+  std::vector<Pending> pending_;
 };
 
 }  // namespace evar::acquisition

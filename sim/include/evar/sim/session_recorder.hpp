@@ -47,8 +47,9 @@ struct RecorderStatistics {
   std::uint64_t carm_refused = 0;         ///< not recorded: values the format refuses (carm_sample_problem)
   acquisition::StreamState video = acquisition::StreamState::Stopped, carm = acquisition::StreamState::Stopped;
   std::string video_reason, carm_reason;  ///< the sources' last words
-  std::string carm_notice;                ///< the C-arm link's last notice (bad frames, a C-arm warning)
-  std::uint64_t carm_notices = 0;
+  std::uint64_t carm_notices = 0;         ///< the C-arm link's news (bad frames, a C-arm warning)
+  std::vector<std::string> recent_carm_notices;  ///< the last kRecentNotices of them, oldest first
+  static constexpr std::size_t kRecentNotices = 32;
   std::string last_error;                 ///< the last frame or sample that could not be recorded, named
   double seconds = 0.0;                   ///< since start()
 };
