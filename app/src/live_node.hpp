@@ -170,7 +170,7 @@ class LiveNode {
   void output_loop();
   void publish(std::shared_ptr<const AdaptedModel> adapted);
   /// hold: the alert clears itself after this long (a passing event); none: it stays until
-  /// clear_alert (a condition). Logged when its text changes.
+  /// clear_alert (a condition). Logged when its text changes or it comes back after expiring.
   void set_alert(const std::string& key, const std::string& text, std::optional<std::chrono::milliseconds> hold);
   /// Samples the source's counts (compose thread) and raises or clears the frame-loss alert.
   void watch_frame_loss(acquisition::FrameLossMonitor& monitor);

@@ -25,7 +25,7 @@ namespace {
 void log_new_notices(const sim::RecorderStatistics& now, const sim::RecorderStatistics& before) {
   const std::uint64_t fresh = now.carm_notices - before.carm_notices;
   const auto kept = static_cast<std::uint64_t>(now.recent_carm_notices.size());
-  if (fresh > kept) log().warn("C-arm link: {} notices not shown (they came too fast)", fresh - kept);
+  if (fresh > kept) log().warn("C-arm link: {} notices came too fast to log; the last {} follow", fresh - kept, kept);
   for (std::size_t i = static_cast<std::size_t>(kept - std::min(fresh, kept)); i < now.recent_carm_notices.size(); ++i)
     log().warn("{}", now.recent_carm_notices[i]);
 }
