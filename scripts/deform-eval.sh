@@ -7,6 +7,7 @@
 # table of docs/SYNTHETIC_PATIENTS.md) and prints the table.
 #
 #   scripts/deform-eval.sh [FIRST LAST] [OUT]     defaults: 1 20, out/deform-eval
+#   EVAR_DIFFICULTY=mild|paper EVAR_PHYSICS=beam|conforming   the patients (default mild, beam)
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 first=${1:-1}
@@ -24,7 +25,8 @@ for seed in $(seq "$first" "$last"); do
   dir=$out/seed-$seed
   if [ ! -f "$dir/patient/scene.json" ]; then
     rm -rf "$dir"
-    if ! "$bin" sim patient --seed "$seed" --out "$dir/patient" > "$dir.log" 2>&1; then
+    if ! "$bin" sim patient --seed "$seed" --difficulty "${EVAR_DIFFICULTY:-mild}" --physics "${EVAR_PHYSICS:-beam}" \
+      --out "$dir/patient" > "$dir.log" 2>&1; then
       refused+=("$seed")
       continue
     fi

@@ -97,6 +97,21 @@ int run_cli(const std::vector<std::string>& args) {
         ->check(CLI::Range(300, 2000000))
         ->capture_default_str();
   };
+  // How hard a synthetic patient is and which mechanics makes its truth (sim patient, sim session).
+  const auto add_truth_options = [](CLI::App* c, std::string& difficulty, std::string& physics) {
+    c->add_option("--difficulty", difficulty,
+                  "mild: moderately tortuous iliacs, 30-60 mm bending-length wires, exact registration;\n"
+                  "paper: the seed paper's initial error (tortuous iliacs, Amplatz Super Stiff to Lunderquist\n"
+                  "wires, a pelvis shifted against the renal level, and in sessions a registration residual of up\n"
+                  "to 5 deg and 1 mm about the renal level)")
+        ->check(CLI::IsMember({"mild", "paper"}))
+        ->capture_default_str();
+    c->add_option("--physics", physics,
+                  "the ground truth's mechanics: beam (centerline beams pushed by contact) or conforming\n"
+                  "(the iliac threaded on the wire, folding and sliding; docs/SYNTHETIC_PATIENTS.md)")
+        ->check(CLI::IsMember({"beam", "conforming"}))
+        ->capture_default_str();
+  };
   SyntheticSceneCommand example;
   auto* e = app.add_subcommand("example",
                                "Write the bundled synthetic aorto-iliac example scene (meshes, centerlines,\n"
@@ -176,6 +191,7 @@ int run_cli(const std::vector<std::string>& args) {
   sp->add_option("--seed", sim_patient.seed, "patient seed (the same seed gives the same patient)")->capture_default_str();
   sp->add_option("--out", sim_patient.out, "output directory (created if missing)")->required();
   add_mesh_options(sp, sim_patient);
+  add_truth_options(sp, sim_patient.difficulty, sim_patient.physics);
 
   SimSessionCommand sim_session;
   auto* ss = sim->add_subcommand(
@@ -194,6 +210,7 @@ int run_cli(const std::vector<std::string>& args) {
       ->check(CLI::Range(0.1, 600.0))
       ->capture_default_str();
   ss->add_option("--fps", sim_session.fluoro_fps, "pulsed fluoroscopy rate")->check(CLI::Range(1.0, 60.0))->capture_default_str();
+  add_truth_options(ss, sim_session.difficulty, sim_session.physics);
   ss->add_flag("!--no-progress", sim_session.progress, "no progress bar");
 
   ReplayCommand replay;
@@ -362,7 +379,7 @@ int run_cli(const std::vector<std::string>& args) {
       "deformation) and in every settled frame after the first adapted model the landmarks projected\n"
       "from the preoperative and from the adapted model are compared with the true ostia: Euclidean\n"
       "and vertical 2D distances in mm at the isocenter. Writes OUT/eval.json, OUT/eval.md,\n"
-      "OUT/per_case.png, OUT/histogram.png and OUT/snapshots/. Exit 1 when no session gave a model.");
+      "OUT/per_case.png, OUT/distribution.png and OUT/snapshots/. Exit 1 when no session gave a model.");
   ev->add_option("sessions", eval.sessions, "session directories")->required()->check(CLI::ExistingDirectory);
   ev->add_option("--out", eval.out, "output directory (created)")->required();
   ev->add_flag("!--no-progress", eval.progress, "no progress bars");

@@ -44,6 +44,8 @@ struct SyntheticSceneCommand {
   std::string format = "stl";
   int aorta_vertices = 7500;
   int iliac_vertices = 3500;
+  std::string difficulty = "mild";  ///< sim patient only (sim::parse_difficulty)
+  std::string physics = "beam";     ///< sim patient only (sim::parse_truth_physics)
 };
 int run_example(const SyntheticSceneCommand& cmd);
 int run_sim_patient(const SyntheticSceneCommand& cmd);
@@ -54,6 +56,8 @@ struct SimSessionCommand {
   int detector_px = 1024;
   double fluoro_seconds = 4.0;
   double fluoro_fps = 15.0;
+  std::string difficulty = "mild";
+  std::string physics = "beam";
   bool progress = true;
 };
 int run_sim_session(const SimSessionCommand& cmd);

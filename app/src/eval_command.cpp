@@ -2,6 +2,7 @@
 // eval.json, eval.md and the pictures (evaluation_plots.hpp) in --out.
 #include <algorithm>
 #include <cstdio>
+#include <map>
 #include <sstream>
 
 #include "commands.hpp"
@@ -33,45 +34,9 @@ std::string fmt(const Statistic& s) {
   return b;
 }
 
-}  // namespace
-
-int run_eval(const EvalCommand& cmd) {
-  std::filesystem::create_directories(cmd.out);
-  std::vector<CaseEvaluation> cases;
-  nlohmann::json jcases = nlohmann::json::array();
-  for (const auto& dir : cmd.sessions) {
-    ProgressBar bar(dir.filename().string(), cmd.progress);
-    CaseEvaluation c = evaluate_session(dir, {}, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
-    bar.finish();
-    nlohmann::json lm = nlohmann::json::array();
-    for (const auto& l : c.landmarks) lm.push_back(to_json(l));
-    nlohmann::json model = nullptr;
-    if (c.model)
-      model = {{"frames", {c.model->frame_earlier, c.model->frame_later}},
-               {"separation_deg", c.model->reconstruction.separation_deg},
-               {"mean_residual_px", c.model->reconstruction.mean_residual_px},
-               {"device_points", c.model->reconstruction.points.size()},
-               {"matched_fraction", {c.model->reconstruction.matched_fraction_1, c.model->reconstruction.matched_fraction_2}},
-               {"reliable_fraction", c.model->reconstruction.reliable_fraction},
-               {"kept_fraction", c.model->reconstruction.kept_fraction},
-               {"reconstruct_ms", c.model->reconstruct_ms},
-               {"deform_ms", c.model->deform_ms}};
-    nlohmann::json devices = nlohmann::json::array();
-    for (const DeviceError& e : c.devices)
-      devices.push_back({{"frames", {e.frame_earlier, e.frame_later}}, {"mean_mm", e.mean_mm}, {"max_mm", e.max_mm}});
-    jcases.push_back({{"session", dir.string()}, {"frames", c.frames}, {"candidates", c.candidates}, {"pairs", c.pairs},
-                      {"adaptations", c.adaptations}, {"failures", c.failures}, {"frames_evaluated", c.frames_evaluated},
-                      {"landmarks", lm}, {"model", model}, {"device_errors", devices},
-                      {"device_iliac", c.device_iliac}, {"seconds", c.seconds}});
-    if (!c.model) log().warn("{}: no adapted model ({} candidates, {} pairs{}{})", dir.string(), c.candidates, c.pairs,
-                             c.failures.empty() ? "" : "; ", c.failures.empty() ? "" : c.failures.back());
-    else
-      log().info("{}: {} frames evaluated, model from frames {}+{} ({:.0f}° apart)", dir.string(), c.frames_evaluated,
-                 c.model->frame_earlier, c.model->frame_later, c.model->reconstruction.separation_deg);
-    cases.push_back(std::move(c));
-  }
-  nlohmann::json summary;
-  std::ostringstream md;
+// The table over `cases`: every landmark, the paper's protocol (the internal iliac ostia of
+// iliacs carrying the device) and the reconstruction's share; into `summary` and `md`.
+void summarize(const std::vector<CaseEvaluation>& cases, nlohmann::json& summary, std::ostringstream& md) {
   md << "| distance | initial (mm) | adapted (mm) |\n|---|---|---|\n";
   std::size_t without_model = 0;
   for (const auto& c : cases) without_model += c.model ? 0 : 1;
@@ -112,11 +77,67 @@ int run_eval(const EvalCommand& cmd) {
   }
   summary["sessions"] = cases.size();
   summary["sessions_without_model"] = without_model;
+}
+
+}  // namespace
+
+int run_eval(const EvalCommand& cmd) {
+  std::filesystem::create_directories(cmd.out);
+  std::vector<CaseEvaluation> cases;
+  nlohmann::json jcases = nlohmann::json::array();
+  for (const auto& dir : cmd.sessions) {
+    ProgressBar bar(dir.filename().string(), cmd.progress);
+    CaseEvaluation c = evaluate_session(dir, {}, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
+    bar.finish();
+    nlohmann::json lm = nlohmann::json::array();
+    for (const auto& l : c.landmarks) lm.push_back(to_json(l));
+    nlohmann::json model = nullptr;
+    if (c.model)
+      model = {{"frames", {c.model->frame_earlier, c.model->frame_later}},
+               {"separation_deg", c.model->reconstruction.separation_deg},
+               {"mean_residual_px", c.model->reconstruction.mean_residual_px},
+               {"device_points", c.model->reconstruction.points.size()},
+               {"matched_fraction", {c.model->reconstruction.matched_fraction_1, c.model->reconstruction.matched_fraction_2}},
+               {"reliable_fraction", c.model->reconstruction.reliable_fraction},
+               {"kept_fraction", c.model->reconstruction.kept_fraction},
+               {"reconstruct_ms", c.model->reconstruct_ms},
+               {"deform_ms", c.model->deform_ms}};
+    nlohmann::json devices = nlohmann::json::array();
+    for (const DeviceError& e : c.devices)
+      devices.push_back({{"frames", {e.frame_earlier, e.frame_later}}, {"mean_mm", e.mean_mm}, {"max_mm", e.max_mm}});
+    jcases.push_back({{"session", dir.string()}, {"frames", c.frames}, {"candidates", c.candidates}, {"pairs", c.pairs},
+                      {"adaptations", c.adaptations}, {"failures", c.failures}, {"frames_evaluated", c.frames_evaluated},
+                      {"landmarks", lm}, {"model", model}, {"device_errors", devices},
+                      {"device_iliac", c.device_iliac}, {"physics", c.physics}, {"difficulty", c.difficulty},
+                      {"registration_residual_deg", c.registration_residual_deg}, {"seconds", c.seconds}});
+    if (!c.model) log().warn("{}: no adapted model ({} candidates, {} pairs{}{})", dir.string(), c.candidates, c.pairs,
+                             c.failures.empty() ? "" : "; ", c.failures.empty() ? "" : c.failures.back());
+    else
+      log().info("{}: {} frames evaluated, model from frames {}+{} ({:.0f}° apart)", dir.string(), c.frames_evaluated,
+                 c.model->frame_earlier, c.model->frame_later, c.model->reconstruction.separation_deg);
+    cases.push_back(std::move(c));
+  }
+  nlohmann::json summary;
+  std::ostringstream md;
+  summarize(cases, summary, md);
+  // Each simulated physics and difficulty on its own (docs/SYNTHETIC_PATIENTS.md): a method
+  // must hold on each, not only on their mix.
+  std::map<std::string, std::vector<CaseEvaluation>> groups;
+  for (const auto& c : cases) groups[c.physics + " physics, " + c.difficulty + " difficulty"].push_back(c);
+  if (groups.size() > 1 || (groups.size() == 1 && cases.front().physics != "unknown")) {
+    for (const auto& [name, group] : groups) {
+      std::ostringstream part;
+      summarize(group, summary["by_physics"][name], part);
+      md << "\n## " << name << "\n\n" << part.str();
+    }
+  }
+  std::size_t without_model = 0;
+  for (const auto& c : cases) without_model += c.model ? 0 : 1;
   write_json(cmd.out / "eval.json", {{"summary", summary}, {"cases", jcases}});
   write_text(cmd.out / "eval.md", "# Ostium distances, initial versus adapted\n\n" + md.str());
   write_evaluation_plots(cmd.out, cases);
   std::fputs(md.str().c_str(), stdout);
-  log().info("wrote {} (eval.json, eval.md, per_case.png, histogram.png, snapshots/)", cmd.out.string());
+  log().info("wrote {} (eval.json, eval.md, per_case.png, distribution.png, snapshots/)", cmd.out.string());
   return without_model == cases.size() ? 1 : 0;
 }
 

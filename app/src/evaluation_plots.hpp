@@ -1,8 +1,7 @@
 #pragma once
-// The pictures of `evarnode eval`: per_case.png (per session, the mean ostium distance
-// before and after adaptation as paired bars), histogram.png (the distribution of all
-// per-landmark distances, initial against adapted) and snapshots/<session>.png (the last
-// evaluated frame with both roadmaps and the true ostia as white crosses).
+// The pictures of `evarnode eval`: the charts per_case.png and distribution.png
+// (evaluation_charts.hpp) and snapshots/<session>.png (the last evaluated frame with both
+// roadmaps and the true ostia as white crosses).
 #include <filesystem>
 #include <vector>
 

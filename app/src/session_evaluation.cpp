@@ -7,7 +7,11 @@
 #include <numeric>
 #include <stdexcept>
 
+#include <Eigen/Geometry>
+#include <numbers>
+
 #include "evar/geometry/input_error.hpp"
+#include "evar/geometry/json_fields.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/polyline.hpp"
 #include "evar/geometry/scene.hpp"
@@ -88,8 +92,22 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   const deform::SceneDeformer deformer(scene, options.deform);
   geometry::Polyline true_device;
   for (const auto& p : geometry::read_curve(directory / session.truth->device, 2).points) true_device.push_back(p.position_lps);
-
+  // Where the registration given to the node is off (sessions at the paper's difficulty),
+  // the true device is compared in the node's CT frame: x_node = given⁻¹ · true · x.
   CaseEvaluation result;
+  if (session.truth->ct_to_carm) {
+    const Eigen::Matrix4d M = session.ct_to_carm.inverse() * *session.truth->ct_to_carm;
+    for (auto& p : true_device) p = M.topLeftCorner<3, 3>() * p + M.topRightCorner<3, 1>();
+    const Eigen::AngleAxisd turn(Eigen::Matrix3d(M.topLeftCorner<3, 3>()));
+    result.registration_residual_deg = turn.angle() * 180.0 / std::numbers::pi;
+  }
+  // The simulator's description of the case, when the scene is a synthetic patient's.
+  if (const auto patient = (directory / session.scene).parent_path() / "patient.json"; std::filesystem::is_regular_file(patient)) {
+    const nlohmann::json j = geometry::detail::parse_json_file(patient);
+    result.difficulty = j.value("difficulty", "mild");
+    if (j.contains("ground_truth") && j["ground_truth"].is_object()) result.physics = j["ground_truth"].value("physics", "beam");
+  }
+
   result.session = directory;
   result.frames = session.frames.size();
   ViewPairSelector selector(options.adaptation.reconstruction.min_separation_deg, options.pairs);

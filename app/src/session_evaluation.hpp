@@ -85,6 +85,9 @@ struct CaseEvaluation {
   std::vector<LandmarkError> landmarks;  ///< only those measured
   std::vector<DeviceError> devices;      ///< each adapted model's reconstruction against the true device
   std::string device_iliac;              ///< the iliac the true device runs in ("" if none)
+  std::string physics = "unknown";       ///< the simulator's truth physics (patient.json), if any
+  std::string difficulty = "unknown";    ///< the simulator's difficulty (patient.json), if any
+  double registration_residual_deg = 0.0;  ///< the given registration's rotation off the true one
   std::shared_ptr<const AdaptedModel> model;  ///< the last adapted model (null when none)
   std::shared_ptr<const sim::Session> recording;  ///< as read (for pictures)
   std::shared_ptr<const geometry::Scene> scene;   ///< as loaded (for pictures)

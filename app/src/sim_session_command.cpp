@@ -13,6 +13,8 @@ int run_sim_session(const SimSessionCommand& cmd) {
   plan.pixel_spacing_mm = 0.3 * 1024.0 / cmd.detector_px;  // the same 30 cm panel at any resolution
   plan.fluoro_seconds = cmd.fluoro_seconds;
   plan.fluoro_fps = cmd.fluoro_fps;
+  plan.difficulty = sim::parse_difficulty(cmd.difficulty);
+  plan.physics = sim::parse_truth_physics(cmd.physics);
   ProgressBar bar("frames", cmd.progress);
   const auto generated = sim::generate_session(plan, cmd.out, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
   bar.finish();
@@ -20,6 +22,12 @@ int run_sim_session(const SimSessionCommand& cmd) {
   log().info("session seed {}: {} frames ({}x{} px), {} C-arm samples, device in the {}, {} true ostium positions; {:.1f} s",
              cmd.seed, s.frames.size(), s.detector.cols, s.detector.rows, s.carm.size(), generated.carrier,
              s.truth ? s.truth->ostia.size() : 0, generated.render_seconds);
+  if (!generated.residual.is_identity()) {
+    const auto& r = generated.residual;
+    log().info("registration residual about the renal level: rotation {:.1f}, {:.1f}, {:.1f} deg (x, y, z), shift {:.1f}, {:.1f}, {:.1f} mm",
+               r.rotation_deg.x(), r.rotation_deg.y(), r.rotation_deg.z(), r.translation_mm.x(), r.translation_mm.y(),
+               r.translation_mm.z());
+  }
   log().info("wrote {} (play it with: evarnode replay {})", cmd.out.string(), cmd.out.string());
   return 0;
 }

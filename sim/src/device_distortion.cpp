@@ -10,64 +10,14 @@
 #include <stdexcept>
 
 #include "evar/geometry/closest_point.hpp"
-#include "evar/geometry/ray_caster.hpp"
 #include "evar/sim/tube_mesh.hpp"
+#include "section_sweep.hpp"
+#include "truth_checks.hpp"
 
 namespace evar::sim {
 namespace {
 
 using geometry::Polyline;
-
-// Moves points near `from` with the centerline's displacement `to - from` at the place
-// they project to (linear between centerline points): every cross-section is translated,
-// so the sections of a tube stay discs of their radius in planes parallel to the
-// preoperative ones, and the map folds only where the centerline is compressed along
-// itself by more than its own length, which a beam never is.
-class SectionSweep {
- public:
-  SectionSweep(const Polyline& from, const Polyline& to) : from_(from), to_(to), projector_(from), arc_(geometry::arc_lengths(from)) {
-    if (from.size() != to.size() || from.size() < 2)
-      throw std::invalid_argument("resweep: the moved centerline needs the same (>= 2) points");
-  }
-
-  Eigen::Vector3d map(const Eigen::Vector3d& x, int* hint) const {
-    int segment = 0;
-    const auto proj = projector_.project(x, *hint, &segment);
-    *hint = segment;
-    const auto j = static_cast<std::size_t>(segment);
-    const double len = arc_[j + 1] - arc_[j];
-    const double f = len > 0.0 ? std::clamp((proj.arc_length_mm - arc_[j]) / len, 0.0, 1.0) : 0.0;
-    return x + (1.0 - f) * (to_[j] - from_[j]) + f * (to_[j + 1] - from_[j + 1]);
-  }
-
- private:
-  const Polyline& from_;
-  const Polyline& to_;
-  geometry::PolylineProjector projector_;
-  std::vector<double> arc_;
-};
-
-// Where the device crosses the plane through `centre` with normal `normal`: the crossing
-// nearest the centre, if any lies within `reach` mm of it.
-std::optional<Eigen::Vector3d> device_crossing(const Polyline& device, const Eigen::Vector3d& centre,
-                                               const Eigen::Vector3d& normal, double reach) {
-  std::optional<Eigen::Vector3d> best;
-  double best_d2 = reach * reach;
-  double s0 = (device[0] - centre).dot(normal);
-  for (std::size_t k = 0; k + 1 < device.size(); ++k) {
-    const double s1 = (device[k + 1] - centre).dot(normal);
-    if ((s0 <= 0.0) != (s1 <= 0.0)) {
-      const Eigen::Vector3d x = device[k] + (s0 / (s0 - s1)) * (device[k + 1] - device[k]);
-      const double d2 = (x - centre).squaredNorm();
-      if (d2 < best_d2) {
-        best_d2 = d2;
-        best = x;
-      }
-    }
-    s0 = s1;
-  }
-  return best;
-}
 
 // Is x inside the tube of radii `radii` (per point, along the rest arc lengths `arc`)
 // around `centerline` (moved; `length_mm` its length), by at least `margin`?
@@ -177,30 +127,10 @@ double bending_of(const DistortionOptions& o, bool aorta, double arc_mm) {
   return std::pow(l, 4);  // 1 mm spacing: λ = (l / h)^4
 }
 
-// Number of leading iliac points inside the aorta's lumen (at least 1): the overlap that
-// moves with the bifurcation.
-std::size_t overlap_length(const ExampleVessel& iliac, const ExampleVessel& aorta, const std::vector<double>& aorta_arc,
-                        double* start_arc_on_aorta) {
-  const geometry::PolylineProjector projector(aorta.centerline);
-  std::size_t n = 0;
-  for (; n < iliac.centerline.size(); ++n) {
-    const auto proj = projector.project(iliac.centerline[n]);
-    if (n == 0) *start_arc_on_aorta = proj.arc_length_mm;
-    if (n > 0 && (proj.beyond_end || proj.distance_mm > interpolate_along(aorta_arc, aorta.radii_mm, proj.arc_length_mm)))
-      break;
-  }
-  return std::max<std::size_t>(n, 1);
-}
-
 }  // namespace
 
 geometry::TriangleMesh resweep(const geometry::TriangleMesh& mesh, const Polyline& centerline, const Polyline& moved) {
-  const SectionSweep sweep(centerline, moved);
-  geometry::TriangleMesh out = mesh;
-  int hint = -1;
-  for (Eigen::Index v = 0; v < mesh.V.rows(); ++v)
-    out.V.row(v) = sweep.map(mesh.V.row(v).transpose(), &hint).transpose();
-  return out;
+  return detail::SectionSweep(centerline, moved).map(mesh);
 }
 
 DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOptions& o) {
@@ -229,7 +159,7 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
   double hub_arc = aorta_arc.back();
   for (const auto* iliac : iliacs) {
     double start_arc = 0.0;
-    overlaps.push_back(overlap_length(*iliac, *aorta, aorta_arc, &start_arc));
+    overlaps.push_back(detail::overlap_length(*iliac, *aorta, aorta_arc, &start_arc));
     hub_arc = std::min(hub_arc, start_arc);
   }
   if (!(hub_arc > 10.0)) throw std::invalid_argument("distort_by_device: the iliacs start too high in the aorta");
@@ -315,10 +245,10 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
         for (std::size_t i = 1; i + 1 < c.size(); ++i) {
           const std::size_t k = first[vi] + i;
           if (!beams.pushed[k]) continue;
-          // The section is the preoperative one translated (see SectionSweep): its plane
+          // The section is the preoperative one translated (see detail::SectionSweep): its plane
           // keeps the preoperative normal.
           const Eigen::Vector3d t = (beams.rest[k + 1] - beams.rest[k - 1]).normalized();
-          const auto x = device_crossing(scene.device, c[i], t, beams.radius[k] + 15.0);
+          const auto x = detail::device_crossing(scene.device, c[i], t, beams.radius[k] + 15.0);
           if (!x) continue;
           const Eigen::Vector3d e = *x - c[i];
           const double over = e.norm() - (beams.radius[k] - wall);
@@ -357,41 +287,21 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
 
     // Check the result on the meshes themselves: every device point inside the union of the
     // distorted vessels (ray parity) or within Δd of a wall.
-    out.device_points_outside = 0;
-    out.worst_outside_mm = 0.0;
-    out.worst_outside_point = 0;
+    const auto outside = detail::device_outside(scene.device, out.vessels, scene.device_thickness_mm);
+    detail::record_outside(outside, out);
     bool pushed_more = false;
-    std::vector<geometry::RayCaster> casters;
-    for (const auto& v : out.vessels) casters.emplace_back(v.mesh, geometry::RayCaster::BuildQuality::Low);
-    for (std::size_t k = 0; k < scene.device.size(); ++k) {
-      bool inside = false;
-      for (const auto& c : casters) inside = inside || c.contains(scene.device[k]);
-      if (inside) continue;
-      geometry::SurfacePoint nearest;
-      std::size_t nearest_vessel = 0;
-      nearest.distance_mm = std::numeric_limits<double>::infinity();
-      for (std::size_t vi = 0; vi < out.vessels.size(); ++vi) {
-        const auto sp = geometry::closest_point_on_mesh(out.vessels[vi].mesh, scene.device[k]);
-        if (sp.distance_mm < nearest.distance_mm) nearest = sp, nearest_vessel = vi;
-      }
-      const double gap = nearest.distance_mm;
-      if (gap <= scene.device_thickness_mm) continue;
-      ++out.device_points_outside;
-      if (gap > out.worst_outside_mm) {
-        out.worst_outside_mm = gap;
-        out.worst_outside_point = k;
-      }
-      // The section that carries that wall point moves toward the device point, past it
-      // by the device's half thickness and the clearance.
-      if (pass == kMeshPasses) continue;
-      const auto proj = geometry::project_onto(out.vessels[nearest_vessel].centerline, nearest.point);
-      const auto& arc = geometry::arc_lengths(out.vessels[nearest_vessel].centerline);
+    // The section that carries each such wall point moves toward the device point, past it
+    // by the device's half thickness and the clearance.
+    for (const auto& o : outside) {
+      if (pass == kMeshPasses) break;
+      const auto proj = geometry::project_onto(out.vessels[o.vessel].centerline, o.wall_point);
+      const auto& arc = geometry::arc_lengths(out.vessels[o.vessel].centerline);
       const std::size_t i = static_cast<std::size_t>(
           std::lower_bound(arc.begin(), arc.end(), proj.arc_length_mm) - arc.begin());
-      const std::size_t node = first[nearest_vessel] + std::min(i, arc.size() - 1);
+      const std::size_t node = first[o.vessel] + std::min(i, arc.size() - 1);
       if (!beams.pushed[node]) continue;
       const Eigen::Vector3d from = beams.active[node] ? beams.target[node] : Eigen::Vector3d(u.row(static_cast<Eigen::Index>(node)).transpose());
-      beams.target[node] = from + (gap + wall + 0.02) * (scene.device[k] - nearest.point).normalized();
+      beams.target[node] = from + (o.gap_mm + wall + 0.02) * (scene.device[o.point] - o.wall_point).normalized();
       beams.active[node] = 1;
       pushed_more = true;
     }
@@ -402,17 +312,8 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
 
   // A landmark moves with the vessel whose wall it sits on (|distance to centerline - radius| least).
   for (const auto& lm : scene.landmarks) {
-    std::size_t best = 0;
-    double best_gap = std::numeric_limits<double>::infinity();
-    for (std::size_t vi = 0; vi < scene.vessels.size(); ++vi) {
-      const auto proj = geometry::project_onto(scene.vessels[vi].centerline, lm.position_lps);
-      const double gap = std::abs(proj.distance_mm - interpolate_along(arcs[vi], scene.vessels[vi].radii_mm, proj.arc_length_mm));
-      if (gap < best_gap) {
-        best_gap = gap;
-        best = vi;
-      }
-    }
-    const SectionSweep sweep(scene.vessels[best].centerline, out.vessels[best].centerline);
+    const std::size_t best = detail::wall_vessel(scene.vessels, lm.position_lps);
+    const detail::SectionSweep sweep(scene.vessels[best].centerline, out.vessels[best].centerline);
     int hint = -1;
     out.landmarks.push_back({lm.label, sweep.map(lm.position_lps, &hint)});
   }

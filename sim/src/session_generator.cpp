@@ -31,7 +31,8 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
       !(plan.sod_mm > 0.0 && plan.sod_mm < plan.sid_mm))
     throw std::invalid_argument("generate_session: implausible plan (sizes, rates and durations must be positive, SOD < SID)");
   const auto start = std::chrono::steady_clock::now();
-  const SyntheticPatient patient = make_patient(plan.seed, plan.aorta_vertices, plan.iliac_vertices);
+  const SyntheticPatient patient =
+      make_patient(PatientPlan{plan.seed, plan.difficulty, plan.physics, plan.aorta_vertices, plan.iliac_vertices});
   write_patient(patient, dir / "patient");
 
   GeneratedSession out;
@@ -51,6 +52,19 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
   s.ct_to_carm.setIdentity();
   s.ct_to_carm.topLeftCorner<3, 3>() = R;
   s.ct_to_carm.topRightCorner<3, 1>() = -R * centre_ct;
+  // At the paper's difficulty the models are registered to the renal arteries as the
+  // paper's are: moved so that the preoperative renal ostia's midpoint lies on the true
+  // (distorted) one, then off by the residual, which turns about that point.
+  const auto renal_midpoint = [](const std::vector<geometry::ControlPoint>& landmarks) {
+    Eigen::Vector3d sum = Eigen::Vector3d::Zero();
+    int n = 0;
+    for (const auto& lm : landmarks)
+      if (lm.label.rfind("renal", 0) == 0) sum += lm.position_lps, ++n;
+    return n > 0 ? Eigen::Vector3d(sum / n) : Eigen::Vector3d::Zero();
+  };
+  const Eigen::Vector3d renal_true = renal_midpoint(patient.truth.landmarks);
+  out.residual = draw_registration_residual(plan.seed, plan.difficulty, renal_true);
+  if (plan.difficulty == Difficulty::Paper) out.residual.alignment_mm = renal_true - renal_midpoint(patient.preoperative.landmarks);
 
   // The views: AP, LAO 35, and the carrier's bifurcation (contralateral oblique, caudal),
   // with the table moved so the bifurcation is at the isocenter.
@@ -134,7 +148,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
 
   // Render: the noise-free image once per (view, contrast), a detector readout per frame.
   std::map<std::pair<std::size_t, double>, XRayExpected> cache;
-  SessionTruth truth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv", {}};
+  SessionTruth truth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv", {}, std::nullopt};
   char name[32];
   for (std::size_t i = 0; i < frames.size(); ++i) {
     const FramePlan& f = frames[i];
@@ -167,6 +181,12 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
           px && px->x() >= -0.5 && px->y() >= -0.5 && px->x() <= s.detector.cols - 0.5 && px->y() <= s.detector.rows - 0.5)
         truth.ostia.push_back({record.frame, lm.label, *px});
     if (progress) progress(i + 1, frames.size());
+  }
+  // What the node is given: the true registration composed with the residual, so the
+  // scene it draws is the true anatomy moved by the residual.
+  if (!out.residual.is_identity()) {
+    truth.ct_to_carm = s.ct_to_carm;
+    s.ct_to_carm = s.ct_to_carm * out.residual.transform();
   }
   s.truth = std::move(truth);
   write_session_files(dir, s);

@@ -35,6 +35,7 @@ using detail::quote;
 
 constexpr const char* kFormat = "evarnode-session";
 constexpr int kVersion = 1;
+constexpr const char* kTruthRegistration = "truth/registration.json";
 constexpr const char* kFramesHeader = "frame,timestamp_ns,source,file";
 constexpr const char* kOstiaHeader = "frame,label,u_px,v_px";
 constexpr const char* kCArmHeader =
@@ -239,6 +240,7 @@ Session read_session(const std::filesystem::path& directory) {
     truth.scene = truth_file("scene");
     truth.device = truth_file("device");
     truth.ostia_2d = truth_file("ostia_2d");
+    if (g.contains("registration")) truth.ct_to_carm = geometry::read_registration(directory / truth_file("registration"));
     const fs::path ostia = directory / truth.ostia_2d;
     for_each_row(ostia, kOstiaHeader, 4, CutLastLine::Refuse, [&](std::size_t line, const std::vector<std::string>& f) {
       OstiumTruth o;
@@ -314,16 +316,21 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
   }
 
   fs::create_directories(directory / "frames");
-  // The registration is checked by its reader: written, then read back.
-  nlohmann::json rows = nlohmann::json::array();
-  for (int r = 0; r < 4; ++r)
-    rows.push_back({session.ct_to_carm(r, 0), session.ct_to_carm(r, 1), session.ct_to_carm(r, 2), session.ct_to_carm(r, 3)});
-  write_text(directory / "registration.json", nlohmann::json{{"matrix", rows}}.dump(2) + "\n");
-  try {
-    geometry::read_registration(directory / "registration.json");
-  } catch (const geometry::InputError& e) {
-    refuse(std::string("registration: ") + e.what());
-  }
+  // A registration is checked by its reader: written, then read back.
+  const auto write_registration = [&](const fs::path& file, const Eigen::Matrix4d& M, const std::string& what) {
+    nlohmann::json rows = nlohmann::json::array();
+    for (int r = 0; r < 4; ++r) rows.push_back({M(r, 0), M(r, 1), M(r, 2), M(r, 3)});
+    fs::create_directories(file.parent_path());
+    write_text(file, nlohmann::json{{"matrix", rows}}.dump(2) + "\n");
+    try {
+      geometry::read_registration(file);
+    } catch (const geometry::InputError& e) {
+      refuse(what + ": " + e.what());
+    }
+  };
+  write_registration(directory / "registration.json", session.ct_to_carm, "registration");
+  if (session.truth && session.truth->ct_to_carm)
+    write_registration(directory / kTruthRegistration, *session.truth->ct_to_carm, "ground truth registration");
   std::string index = std::string(kFramesHeader) + "\n";
   for (const auto& f : session.frames)
     index += std::to_string(f.frame) + "," + std::to_string(f.timestamp_ns) + "," + f.source + "," + f.file.generic_string() + "\n";
@@ -351,6 +358,7 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
     fs::create_directories((directory / t.ostia_2d).parent_path());
     write_text(directory / t.ostia_2d, ostia);
     j["ground_truth"] = {{"scene", t.scene.generic_string()}, {"device", t.device.generic_string()}, {"ostia_2d", t.ostia_2d.generic_string()}};
+    if (t.ct_to_carm) j["ground_truth"]["registration"] = kTruthRegistration;
   }
   // session.json last: a reader never finds it naming files not yet written.
   write_text(directory / "session.json", j.dump(2) + "\n");

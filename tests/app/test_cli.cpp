@@ -596,7 +596,7 @@ TEST_F(Cli, EvalMeasuresTheOstiaBeforeAndAfterAndTheReconstructedDevice) {
   ASSERT_EQ(evarnode({"sim", "session", "--seed", "1", "--detector-px", "256", "--out", (out / "s1").string()}).code, 0);
   const auto r = evarnode({"eval", (out / "s1").string(), "--out", (out / "e").string()});
   ASSERT_EQ(r.code, 0) << r.err;
-  for (const char* f : {"eval.json", "eval.md", "per_case.png", "histogram.png"}) EXPECT_TRUE(fs::exists(out / "e" / f)) << f;
+  for (const char* f : {"eval.json", "eval.md", "per_case.png", "distribution.png"}) EXPECT_TRUE(fs::exists(out / "e" / f)) << f;
   const auto j = nlohmann::json::parse(std::ifstream(out / "e" / "eval.json"));
   ASSERT_EQ(j["cases"].size(), 1u);
   const auto& c = j["cases"][0];
@@ -637,6 +637,35 @@ TEST_F(Cli, EvalMeasuresTheOstiaBeforeAndAfterAndTheReconstructedDevice) {
   std::ifstream md(out / "e" / "eval.md");
   const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("Reconstructed device against the true device"), std::string::npos) << text;
+}
+
+// At the paper's difficulty the registration given to the node is off by a residual: eval
+// still measures the reconstructed device against the true one in the node's frame (a
+// device compared across the residual would be millimetres off), says which physics and
+// difficulty each case is, and reports each physics on its own.
+TEST_F(Cli, EvalOfAPaperDifficultySessionReportsItsPhysicsAndTheResidual) {
+  const auto out = scratch("eval_paper");
+  ASSERT_EQ(evarnode({"sim", "session", "--seed", "3", "--difficulty", "paper", "--physics", "conforming", "--detector-px",
+                      "256", "--fluoro-seconds", "1", "--out", (out / "s").string()})
+                .code,
+            0);
+  const auto r = evarnode({"eval", (out / "s").string(), "--out", (out / "e").string(), "--no-progress"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(std::ifstream(out / "e" / "eval.json"));
+  const auto& c = j["cases"][0];
+  EXPECT_EQ(c["physics"], "conforming");
+  EXPECT_EQ(c["difficulty"], "paper");
+  EXPECT_GT(c["registration_residual_deg"].get<double>(), 0.1);
+  EXPECT_LT(c["registration_residual_deg"].get<double>(), 5.0 * std::sqrt(3.0));
+  ASSERT_TRUE(j["summary"]["by_physics"].contains("conforming physics, paper difficulty")) << j["summary"].dump();
+  EXPECT_LT(j["summary"]["device_reconstruction"]["mean_mm"].get<double>(), 0.4);
+  for (const auto& l : c["landmarks"])
+    if (l["label"].get<std::string>().rfind("renal", 0) == 0) {
+      EXPECT_LT(l["initial_mm"].get<double>(), 3.0) << l["label"];
+    }
+  std::ifstream md(out / "e" / "eval.md");
+  const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("## conforming physics, paper difficulty"), std::string::npos) << text;
 }
 
 // A recording without ground truth cannot be evaluated: said with the file and the field.

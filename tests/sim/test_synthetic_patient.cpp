@@ -6,12 +6,15 @@
 #include <Eigen/Geometry>
 #include <cmath>
 #include <filesystem>
+#include <numbers>
 #include <sstream>
 
 #include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/ray_caster.hpp"
 #include "evar/geometry/scene.hpp"
+#include "evar/geometry/polyline.hpp"
+#include "evar/sim/registration_residual.hpp"
 #include "evar/sim/synthetic_patient.hpp"
 #include "evar/sim/tube_mesh.hpp"
 
@@ -161,6 +164,125 @@ TEST(SyntheticPatient, WrittenTruthIsALoadableSceneWithTheSameVertexOrder) {
   EXPECT_TRUE(std::filesystem::exists(dir / "patient.json"));
   EXPECT_TRUE(std::filesystem::exists(dir / "device.mrk.json"));
   std::filesystem::remove_all(dir);
+}
+
+
+// The second truth physics holds the device the same way, at both difficulties, and keeps
+// what it says it keeps: the aorta does not move above the renal level (its visceral and
+// renal branches hold it), and no wall turns inside out.
+TEST(ConformingTruth, HoldsTheDeviceAndTheAortaStaysAboveTheRenalLevel) {
+  for (const Difficulty difficulty : {Difficulty::Mild, Difficulty::Paper})
+    for (std::uint64_t seed = 1; seed <= 8; ++seed) {
+      const auto patient = make_patient(PatientPlan{seed, difficulty, TruthPhysics::Conforming, kAorta, kIliac});
+      const std::string which = std::string(to_string(difficulty)) + " seed " + std::to_string(seed);
+      const auto& scene = patient.preoperative;
+      std::vector<const geometry::TriangleMesh*> after;
+      for (const auto& v : patient.truth.vessels) after.push_back(&v.mesh);
+      EXPECT_EQ(device_points_outside(scene.device, after, scene.device_thickness_mm), "") << which;
+      EXPECT_LE(patient.truth.max_intrusion_mm, 0.01) << which;
+      const auto& aorta = scene.vessel("aorta");
+      for (std::size_t i = 0; i < aorta.centerline.size(); ++i)
+        if (aorta.centerline[i].z() > patient.params.renal_z_mm + 1.0) {
+          ASSERT_EQ((patient.truth.vessels[0].centerline[i] - aorta.centerline[i]).norm(), 0.0) << which << ", point " << i;
+        }
+      for (std::size_t v = 0; v < scene.vessels.size(); ++v)
+        EXPECT_EQ(flipped_triangles(scene.vessels[v].mesh, patient.truth.vessels[v].mesh), 0) << which << ", " << scene.vessels[v].name;
+      // The renal ostia stay (within 0.01 mm: they sit at the held level, and the first
+      // sections below it give way by a hair).
+      for (std::size_t k = 0; k < scene.landmarks.size(); ++k)
+        if (scene.landmarks[k].label.rfind("renal", 0) == 0) {
+          EXPECT_LT((patient.truth.landmarks[k].position_lps - scene.landmarks[k].position_lps).norm(), 0.01) << which;
+        }
+    }
+}
+
+// Threaded on a straighter wire, the carrier iliac keeps its wall length when it slides
+// along the wire (fold fraction 0) and is shortened to the wire's course when it folds
+// (fold fraction 1); the two differ by the excess length the tortuous course had.
+TEST(ConformingTruth, ASlidingIliacKeepsItsLengthAFoldingOneShortens) {
+  const auto patient = make_patient(PatientPlan{5, Difficulty::Paper, TruthPhysics::Conforming, kAorta, kIliac});
+  ExampleScene scene = patient.preoperative;  // on the table, where the device lies
+  apply(patient.posture, scene);
+  const std::size_t carrier = patient.params.device_in_left_iliac ? 1 : 2;
+  const auto length = [](const geometry::Polyline& c) { return geometry::arc_lengths(c).back(); };
+  const double rest = length(scene.vessels[carrier].centerline);
+  ConformingOptions slide, fold;
+  slide.fold_fraction = 0.0;
+  fold.fold_fraction = 1.0;
+  const double slid = length(distort_by_conforming(scene, slide).vessels[carrier].centerline);
+  const double folded = length(distort_by_conforming(scene, fold).vessels[carrier].centerline);
+  EXPECT_NEAR(slid / rest, 1.0, 0.03);
+  EXPECT_LT(folded, 0.92 * rest) << "a tortuous iliac (index " << rest << " mm of wall) straightened by the wire";
+}
+
+TEST(ResweepTurning, SameCenterlineGivesTheMeshBackAndATranslationTranslates) {
+  const auto patient = make_patient(4, kAorta, kIliac);
+  const auto& v = patient.preoperative.vessel("iliac_right");
+  EXPECT_LT((resweep_turning(v.mesh, v.centerline, v.centerline).V - v.mesh.V).cwiseAbs().maxCoeff(), 1e-9);
+  const Eigen::Vector3d t(-3, 8, 2);
+  geometry::Polyline moved;
+  for (const auto& c : v.centerline) moved.push_back(c + t);
+  const auto out = resweep_turning(v.mesh, v.centerline, moved);
+  EXPECT_LT((out.V.rowwise() - t.transpose() - v.mesh.V).cwiseAbs().maxCoeff(), 1e-9);
+}
+
+// The paper's difficulty draws from the same seed a more tortuous anatomy and a stiffer
+// wire, within the documented ranges; the mild level is the simulator as it was.
+TEST(PaperDifficulty, MoreTortuousIliacsAndStifferWiresWithinTheirRanges) {
+  for (std::uint64_t seed = 1; seed <= 50; ++seed) {
+    const auto mild = draw_patient_params(seed), paper = draw_patient_params(seed, Difficulty::Paper);
+    EXPECT_EQ(mild.aneurysm_max_radius_mm, paper.aneurysm_max_radius_mm) << "the rest of the anatomy is the seed's";
+    EXPECT_GE(paper.iliac_tortuosity_x_mm, 18.0);
+    EXPECT_LT(paper.iliac_tortuosity_x_mm, 38.0);
+    EXPECT_GE(paper.iliac_tortuosity_y_mm, 10.0);
+    EXPECT_LT(paper.iliac_tortuosity_y_mm, 24.0);
+    EXPECT_GE(paper.device_stiffness_length_mm, 60.0);
+    EXPECT_LT(paper.device_stiffness_length_mm, 120.0);
+    EXPECT_LT(mild.device_stiffness_length_mm, 60.0);
+  }
+}
+
+// The registration residual: none at the mild level; at the paper's a few degrees and about
+// a millimetre, turning about the renal level, after the shift that registers the models to
+// the renal arteries.
+TEST(RegistrationResidual, NoneWhenMildSmallAboutTheRenalLevelAtThePapersDifficulty) {
+  const Eigen::Vector3d renal(2, -5, 120);
+  EXPECT_TRUE(draw_registration_residual(3, Difficulty::Mild, renal).is_identity());
+  for (std::uint64_t seed = 1; seed <= 40; ++seed) {
+    RegistrationResidual r = draw_registration_residual(seed, Difficulty::Paper, renal);
+    EXPECT_FALSE(r.is_identity());
+    EXPECT_LE(r.rotation_deg.cwiseAbs().maxCoeff(), 5.0);
+    EXPECT_LE(r.translation_mm.cwiseAbs().maxCoeff(), 1.0);
+    r.alignment_mm = Eigen::Vector3d(1.5, -0.5, 4.0);
+    const Eigen::Matrix4d M = r.transform();
+    // The preoperative renal level (renal - alignment) lands on the true one, off by the
+    // translation only; a point 150 mm below moves by the lever of the rotation.
+    const Eigen::Vector3d pre = renal - r.alignment_mm;
+    EXPECT_LT((M.topLeftCorner<3, 3>() * pre + M.topRightCorner<3, 1>() - (renal + r.translation_mm)).norm(), 1e-9);
+    const Eigen::Vector3d below = pre - Eigen::Vector3d(0, 0, 150);
+    const double moved = (M.topLeftCorner<3, 3>() * below + M.topRightCorner<3, 1>() - (below + r.alignment_mm)).norm();
+    EXPECT_LE(moved, 150.0 * std::sqrt(3.0) * 5.0 * std::numbers::pi / 180.0 + std::sqrt(3.0));
+    EXPECT_TRUE((M.topLeftCorner<3, 3>() * M.topLeftCorner<3, 3>().transpose()).isIdentity(1e-12));
+  }
+}
+
+// The pelvis on the table against the CT: nothing at or above the renal level moves, the
+// whole shift applies from the bifurcation down, smoothly in between; the written device is
+// the one on the table, which the truth holds.
+TEST(PostureChange, NothingAboveTheRenalLevelAllBelowTheBifurcation) {
+  EXPECT_TRUE(draw_posture_change(9, Difficulty::Mild, 120.0).is_none());
+  const PostureChange c = draw_posture_change(9, Difficulty::Paper, 120.0);
+  ASSERT_FALSE(c.is_none());
+  EXPECT_LE(std::abs(c.pelvis_shift_mm.z()), 12.0);
+  EXPECT_EQ(c.shift_at({0, 0, 121.0}), Eigen::Vector3d::Zero());
+  EXPECT_EQ(c.shift_at({5, 3, 120.0}), Eigen::Vector3d::Zero());
+  EXPECT_LT((c.shift_at({0, 0, -40.0}) - c.pelvis_shift_mm).norm(), 1e-12);
+  EXPECT_LT((c.shift_at({0, 0, 60.0}) - 0.5 * c.pelvis_shift_mm).norm(), 1e-12);
+  const auto patient = make_patient(PatientPlan{9, Difficulty::Paper, TruthPhysics::Beam, kAorta, kIliac});
+  const auto plain = make_example_scene(patient.params);
+  ASSERT_EQ(plain.device.size(), patient.preoperative.device.size());
+  for (std::size_t k = 0; k < plain.device.size(); ++k)
+    ASSERT_LT((patient.preoperative.device[k] - plain.device[k] - patient.posture.shift_at(plain.device[k])).norm(), 1e-9) << k;
 }
 
 }  // namespace

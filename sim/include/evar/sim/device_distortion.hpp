@@ -56,6 +56,7 @@ struct DeviceDistortion {
   int device_points_outside = 0;
   double worst_outside_mm = 0.0;     ///< the farthest of those from a wall
   std::size_t worst_outside_point = 0;  ///< its device index (tip = 0)
+  std::string worst_outside_vessel;     ///< the vessel whose wall is nearest it
 };
 
 /// Distorts `scene`'s vessels (closed tubes swept along their centerlines with

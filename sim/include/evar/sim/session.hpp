@@ -64,6 +64,10 @@ struct SessionTruth {
   std::filesystem::path device;   ///< the true device, a Curve markup (CT LPS)
   std::filesystem::path ostia_2d; ///< CSV frame,label,u_px,v_px
   std::vector<OstiumTruth> ostia;
+  /// The true CT-to-C-arm registration where the session's own (`Session::ct_to_carm`, what
+  /// the node is given) is off by a residual; absent when they agree. Written as
+  /// truth/registration.json (ground_truth.registration in session.json).
+  std::optional<Eigen::Matrix4d> ct_to_carm;
 };
 
 struct Session {

@@ -9,6 +9,8 @@
 #include <string>
 #include <vector>
 
+#include "evar/sim/patient_plan.hpp"
+#include "evar/sim/registration_residual.hpp"
 #include "evar/sim/session.hpp"
 #include "evar/sim/xray_render.hpp"
 
@@ -16,6 +18,8 @@ namespace evar::sim {
 
 struct SessionPlan {
   std::uint64_t seed = 1;           ///< patient and noise
+  Difficulty difficulty = Difficulty::Mild;  ///< anatomy, wire and registration residual
+  TruthPhysics physics = TruthPhysics::Beam; ///< the ground-truth mechanics
   int detector_px = 1024;           ///< square detector
   double pixel_spacing_mm = 0.3;    ///< at the detector (a 30 cm panel at 1024)
   double sid_mm = 1200.0, sod_mm = 800.0;
@@ -32,12 +36,15 @@ struct SessionPlan {
 struct GeneratedSession {
   Session session;
   std::string carrier;      ///< the iliac holding the device
+  RegistrationResidual residual;  ///< what the registration given to the node is off by
   double render_seconds = 0.0;
 };
 
 /// Renders and writes the session into `directory` (created): session.json, frames,
 /// carm.csv, registration.json, patient/ (the synthetic patient: preoperative scene,
-/// device, truth/) and truth/ostia_2d.csv. The views: AP, LAO 35°, and the bifurcation
+/// device, truth/) and truth/ostia_2d.csv. Frames and true ostia are rendered through the
+/// true registration; registration.json holds it moved by the plan's registration residual
+/// (truth/registration.json the true one, when they differ). The views: AP, LAO 35°, and the bifurcation
 /// view of the carrier iliac (25° contralateral oblique, 15° caudal), each settled before
 /// its fluoroscopy run; the DSA run is in the last view. `progress(done, total)` is
 /// called after each frame. Throws what make_patient throws (a refused seed) and

@@ -1,0 +1,192 @@
+#include "evaluation_charts.hpp"
+
+#include <plplot/plstream.h>
+
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <map>
+#include <optional>
+#include <stdexcept>
+#include <string>
+
+namespace evar::app {
+namespace {
+
+// The seed paper's Table 1, Euclidean means (mm).
+constexpr double kPaperInitialMm = 19.81, kPaperAdaptedMm = 4.56;
+
+enum Colour { kBlack = 1, kInitial, kAdapted, kPaper, kGrid };
+
+// One PNG page of `panels` charts stacked vertically; PLplot writes the file when the
+// stream ends (finish(), or the destructor on an error path).
+class Page {
+ public:
+  Page(const std::filesystem::path& path, int panels) : path_(path) {
+    std::filesystem::remove(path_);
+    plstream& pls = pls_.emplace();
+    pls.sdev("pngcairo");
+    pls.sfnam(path_.string().c_str());
+    pls.spage(0, 0, 1200, 60 + 380 * std::max(1, panels), 0, 0);
+    pls.scolbg(255, 255, 255);
+    pls.scol0(kBlack, 40, 40, 40);
+    pls.scol0(kInitial, 120, 150, 175);
+    pls.scol0(kAdapted, 240, 140, 40);
+    pls.scol0(kPaper, 190, 40, 40);
+    pls.scol0(kGrid, 215, 215, 215);
+    pls.ssub(1, std::max(1, panels));
+    pls.init();
+    pls.schr(0.0, 0.85);
+  }
+  plstream& operator*() { return *pls_; }
+  plstream* operator->() { return &*pls_; }
+  /// Ends the stream and checks that the file is there.
+  void finish() {
+    pls_.reset();
+    if (!std::filesystem::is_regular_file(path_) || std::filesystem::file_size(path_) == 0)
+      throw std::runtime_error(path_.string() + ": cannot write (PLplot's pngcairo device wrote nothing)");
+  }
+
+ private:
+  std::filesystem::path path_;
+  std::optional<plstream> pls_;
+};
+
+struct Pair {
+  double initial = 0.0, adapted = 0.0;
+};
+
+// Per group ("beam physics, paper difficulty"), per session in order: the protocol's
+// ostia (on an iliac carrying the device) averaged, or none.
+std::map<std::string, std::vector<std::pair<std::size_t, Pair>>> protocol_by_group(const std::vector<CaseEvaluation>& cases) {
+  std::map<std::string, std::vector<std::pair<std::size_t, Pair>>> groups;
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const CaseEvaluation& c = cases[i];
+    Pair p;
+    int n = 0;
+    for (const auto& l : c.landmarks)
+      if (l.on_device_vessel) {
+        p.initial += l.initial_mm;
+        p.adapted += l.adapted_mm;
+        ++n;
+      }
+    const std::string group = c.physics == "unknown" ? "sessions" : c.physics + " physics, " + c.difficulty + " difficulty";
+    auto& rows = groups[group];
+    if (n > 0) rows.push_back({i + 1, {p.initial / n, p.adapted / n}});
+  }
+  return groups;
+}
+
+std::string mm(double v) {
+  char b[32];
+  std::snprintf(b, sizeof b, "%.1f", v);
+  return b;
+}
+
+// The paper's means as dashed lines across the frame (horizontal, or vertical for a
+// distribution); their values are in the legend, so nothing is written over the bars.
+void paper_lines(plstream& pls, double x0, double x1, bool vertical, double y_top) {
+  pls.col0(kPaper);
+  pls.lsty(2);
+  for (const double v : {kPaperInitialMm, kPaperAdaptedMm}) {
+    PLFLT x[2] = {x0, x1}, y[2] = {v, v};
+    if (vertical) x[0] = x[1] = v, y[0] = 0.0, y[1] = y_top;
+    pls.line(2, x, y);
+  }
+  pls.lsty(1);
+}
+
+// The legend in the top margin: each series' name in its colour.
+void legend(plstream& pls) {
+  pls.col0(kInitial);
+  pls.mtex("t", 0.8, 0.0, 0.0, "initial (preoperative)");
+  pls.col0(kAdapted);
+  pls.mtex("t", 0.8, 0.22, 0.0, "adapted");
+  pls.col0(kPaper);
+  pls.mtex("t", 0.8, 0.34, 0.0, ("- - - the paper's Table 1 means: initial " + mm(kPaperInitialMm) + " mm, adapted " +
+                                 mm(kPaperAdaptedMm) + " mm").c_str());
+  pls.col0(kBlack);
+}
+
+void bar(plstream& pls, double x0, double x1, double height, Colour colour) {
+  PLFLT x[4] = {x0, x0, x1, x1}, y[4] = {0.0, height, height, 0.0};
+  pls.col0(colour);
+  pls.fill(4, x, y);
+}
+
+double mean(const std::vector<std::pair<std::size_t, Pair>>& rows, double Pair::*m) {
+  double s = 0.0;
+  for (const auto& [i, p] : rows) s += p.*m;
+  return rows.empty() ? 0.0 : s / static_cast<double>(rows.size());
+}
+
+}  // namespace
+
+void write_per_case_chart(const std::filesystem::path& path, const std::vector<CaseEvaluation>& cases) {
+  const auto groups = protocol_by_group(cases);
+  Page page(path, static_cast<int>(groups.size()));
+  for (const auto& [name, rows] : groups) {
+    page->adv(0);
+    double top = kPaperInitialMm;
+    for (const auto& [i, p] : rows) top = std::max({top, p.initial, p.adapted});
+    top = 1.15 * top;
+    const double n = static_cast<double>(std::max<std::size_t>(rows.size(), 1));
+    page->vpor(0.07, 0.97, 0.14, 0.82);
+    page->wind(0.4, n + 0.6, 0.0, top);
+    page->col0(kGrid);
+    page->box("", 0.0, 0, "g", 0.0, 0);
+    for (std::size_t k = 0; k < rows.size(); ++k) {
+      const double x = static_cast<double>(k + 1);
+      bar(*page, x - 0.36, x, rows[k].second.initial, kInitial);
+      bar(*page, x, x + 0.36, rows[k].second.adapted, kAdapted);
+    }
+    paper_lines(*page, 0.4, n + 0.6, false, top);
+    page->col0(kBlack);
+    page->box("bcnst", rows.size() <= 15 ? 1.0 : 5.0, 1, "bcnstv", 0.0, 0);
+    page->lab("session (in the order given to eval)", "distance at the isocenter (mm)", "");
+    const std::string title = name + ": internal iliac ostium of the iliac carrying the device, " +
+                              std::to_string(rows.size()) + " sessions, mean " + mm(mean(rows, &Pair::initial)) +
+                              " -> " + mm(mean(rows, &Pair::adapted)) + " mm";
+    page->mtex("t", 2.4, 0.5, 0.5, title.c_str());
+    legend(*page);
+  }
+  page.finish();
+}
+
+void write_distribution_chart(const std::filesystem::path& path, const std::vector<CaseEvaluation>& cases) {
+  const auto groups = protocol_by_group(cases);
+  Page page(path, static_cast<int>(groups.size()));
+  constexpr double kBinMm = 2.0;
+  for (const auto& [name, rows] : groups) {
+    page->adv(0);
+    double right = kPaperInitialMm + 5.0;
+    for (const auto& [i, p] : rows) right = std::max({right, p.initial + kBinMm, p.adapted + kBinMm});
+    const auto bins = static_cast<std::size_t>(std::ceil(right / kBinMm));
+    std::vector<double> initial(bins, 0.0), adapted(bins, 0.0);
+    for (const auto& [i, p] : rows) {
+      initial[std::min(bins - 1, static_cast<std::size_t>(p.initial / kBinMm))] += 1.0;
+      adapted[std::min(bins - 1, static_cast<std::size_t>(p.adapted / kBinMm))] += 1.0;
+    }
+    const double top = 1.25 * std::max(1.0, std::max(*std::max_element(initial.begin(), initial.end()),
+                                                     *std::max_element(adapted.begin(), adapted.end())));
+    page->vpor(0.07, 0.97, 0.14, 0.82);
+    page->wind(0.0, static_cast<double>(bins) * kBinMm, 0.0, top);
+    page->col0(kGrid);
+    page->box("", 0.0, 0, "g", 0.0, 0);
+    for (std::size_t b = 0; b < bins; ++b) {
+      const double x = static_cast<double>(b) * kBinMm;
+      if (initial[b] > 0) bar(*page, x + 0.1, x + 0.5 * kBinMm, initial[b], kInitial);
+      if (adapted[b] > 0) bar(*page, x + 0.5 * kBinMm, x + kBinMm - 0.1, adapted[b], kAdapted);
+    }
+    paper_lines(*page, 0.0, static_cast<double>(bins) * kBinMm, true, top);
+    page->col0(kBlack);
+    page->box("bcnst", 0.0, 0, "bcnstv", top <= 12.0 ? 1.0 : 0.0, top <= 12.0 ? 1 : 0);  // whole sessions
+    page->lab("distance at the isocenter (mm), 2 mm bins", "sessions", "");
+    page->mtex("t", 2.4, 0.5, 0.5, (name + ": internal iliac ostium of the iliac carrying the device, " +
+                                    std::to_string(rows.size()) + " sessions").c_str());
+    legend(*page);
+  }
+  page.finish();
+}
+
+}  // namespace evar::app
