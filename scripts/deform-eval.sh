@@ -23,6 +23,12 @@ refused=()
 failed=()
 for seed in $(seq "$first" "$last"); do
   dir=$out/seed-$seed
+  # A patient made earlier is kept only if it is of the difficulty and physics asked for.
+  if [ -f "$dir/patient/patient.json" ] &&
+    ! grep -q "\"difficulty\": \"${EVAR_DIFFICULTY:-mild}\"" "$dir/patient/patient.json" ||
+    { [ -f "$dir/patient/patient.json" ] && ! grep -q "\"physics\": \"${EVAR_PHYSICS:-beam}\"" "$dir/patient/patient.json"; }; then
+    rm -rf "$dir"
+  fi
   if [ ! -f "$dir/patient/scene.json" ]; then
     rm -rf "$dir"
     if ! "$bin" sim patient --seed "$seed" --difficulty "${EVAR_DIFFICULTY:-mild}" --physics "${EVAR_PHYSICS:-beam}" \

@@ -103,7 +103,7 @@ int run_cli(const std::vector<std::string>& args) {
                   "mild: moderately tortuous iliacs, 30-60 mm bending-length wires, exact registration;\n"
                   "paper: the seed paper's initial error (tortuous iliacs, Amplatz Super Stiff to Lunderquist\n"
                   "wires, a pelvis shifted against the renal level, and in sessions a registration residual of up\n"
-                  "to 5 deg and 1 mm about the renal level)")
+                  "to 5 deg about each axis and 1 mm along each, about the renal level)")
         ->check(CLI::IsMember({"mild", "paper"}))
         ->capture_default_str();
     c->add_option("--physics", physics,

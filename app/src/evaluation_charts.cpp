@@ -9,6 +9,7 @@
 #include <optional>
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace evar::app {
 namespace {
@@ -23,6 +24,18 @@ enum Colour { kBlack = 1, kInitial, kAdapted, kPaper, kGrid };
 class Page {
  public:
   Page(const std::filesystem::path& path, int panels) : path_(path) {
+    // Without its driver PLplot would ask on the terminal for another device and then exit
+    // the process: look for it first.
+    int count = 0;
+    std::vector<const char*> menu(256), names(256);
+    count = static_cast<int>(names.size());
+    const char** menu_out = menu.data();
+    const char** names_out = names.data();
+    plgDevs(&menu_out, &names_out, &count);
+    bool have = false;
+    for (int i = 0; i < count; ++i) have = have || std::string(names_out[i]) == "pngcairo";
+    if (!have)
+      throw std::runtime_error(path_.string() + ": cannot draw it: PLplot has no pngcairo device (install plplot-driver-cairo)");
     std::filesystem::remove(path_);
     plstream& pls = pls_.emplace();
     pls.sdev("pngcairo");
@@ -130,20 +143,22 @@ void write_per_case_chart(const std::filesystem::path& path, const std::vector<C
     double top = kPaperInitialMm;
     for (const auto& [i, p] : rows) top = std::max({top, p.initial, p.adapted});
     top = 1.15 * top;
-    const double n = static_cast<double>(std::max<std::size_t>(rows.size(), 1));
+    // Bars at the session's place among all sessions given (its number in eval.json's cases).
+    const double first = rows.empty() ? 1.0 : static_cast<double>(rows.front().first);
+    const double last = rows.empty() ? 1.0 : static_cast<double>(rows.back().first);
     page->vpor(0.07, 0.97, 0.14, 0.82);
-    page->wind(0.4, n + 0.6, 0.0, top);
+    page->wind(first - 0.6, last + 0.6, 0.0, top);
     page->col0(kGrid);
     page->box("", 0.0, 0, "g", 0.0, 0);
-    for (std::size_t k = 0; k < rows.size(); ++k) {
-      const double x = static_cast<double>(k + 1);
-      bar(*page, x - 0.36, x, rows[k].second.initial, kInitial);
-      bar(*page, x, x + 0.36, rows[k].second.adapted, kAdapted);
+    for (const auto& [index, pair] : rows) {
+      const double x = static_cast<double>(index);
+      bar(*page, x - 0.36, x, pair.initial, kInitial);
+      bar(*page, x, x + 0.36, pair.adapted, kAdapted);
     }
-    paper_lines(*page, 0.4, n + 0.6, false, top);
+    paper_lines(*page, first - 0.6, last + 0.6, false, top);
     page->col0(kBlack);
-    page->box("bcnst", rows.size() <= 15 ? 1.0 : 5.0, 1, "bcnstv", 0.0, 0);
-    page->lab("session (in the order given to eval)", "distance at the isocenter (mm)", "");
+    page->box("bcnst", last - first < 15.0 ? 1.0 : 5.0, 1, "bcnstv", 0.0, 0);
+    page->lab("session (its number among those given to eval)", "distance at the isocenter (mm)", "");
     const std::string title = name + ": internal iliac ostium of the iliac carrying the device, " +
                               std::to_string(rows.size()) + " sessions, mean " + mm(mean(rows, &Pair::initial)) +
                               " -> " + mm(mean(rows, &Pair::adapted)) + " mm";

@@ -102,10 +102,15 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     result.registration_residual_deg = turn.angle() * 180.0 / std::numbers::pi;
   }
   // The simulator's description of the case, when the scene is a synthetic patient's.
+  // A patient.json that cannot be read only leaves the case unlabelled ("unknown").
   if (const auto patient = (directory / session.scene).parent_path() / "patient.json"; std::filesystem::is_regular_file(patient)) {
-    const nlohmann::json j = geometry::detail::parse_json_file(patient);
-    result.difficulty = j.value("difficulty", "mild");
-    if (j.contains("ground_truth") && j["ground_truth"].is_object()) result.physics = j["ground_truth"].value("physics", "beam");
+    try {
+      const nlohmann::json j = geometry::detail::parse_json_file(patient);
+      result.difficulty = j.value("difficulty", "mild");
+      if (j.contains("ground_truth") && j["ground_truth"].is_object()) result.physics = j["ground_truth"].value("physics", "beam");
+    } catch (const std::exception&) {
+      result.difficulty = result.physics = "unknown";
+    }
   }
 
   result.session = directory;

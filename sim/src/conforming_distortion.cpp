@@ -148,8 +148,9 @@ DeviceDistortion distort_by_conforming(const ExampleScene& scene, const Conformi
   // across, turned with its centerline, would sweep through its neighbours), and contact is
   // found in the preoperative section planes.
   const auto aorta_tangent = detail::point_tangents(aorta.centerline);
-  // Aortic contact: sections below the renal level that the wire crosses outside the lumen (less the wire's half thickness and the clearance) get a
-  // target just past it; the string is solved again until none is intruded.
+  // Aortic contact: sections below the renal level that the wire crosses outside the lumen
+  // (less the wire's half thickness and the clearance) get a target just past it; the
+  // string is solved again until none is intruded.
   const double wall = 0.5 * scene.device_thickness_mm + o.clearance_mm;
   const std::size_t na = aorta.centerline.size();
   std::vector<char> active(na, 0);
@@ -239,6 +240,9 @@ DeviceDistortion distort_by_conforming(const ExampleScene& scene, const Conformi
     const geometry::PolylineProjector on_wire(wire.points());
     const double top = on_wire.project(v.centerline[j0]).arc_length_mm;
     const double bottom = on_wire.project(v.centerline.back()).arc_length_mm;
+    if (!(top - bottom > 1.0))
+      throw std::invalid_argument("distort_by_conforming: the device does not run down the " + v.name +
+                                  " (its course there is " + std::to_string(top - bottom) + " mm long)");
     const double ratio = (top - bottom) / free_length;
     const double scale = ratio >= 1.0 ? ratio : 1.0 - o.fold_fraction * (1.0 - ratio);
     std::vector<Eigen::Vector3d> offset(c.size(), Eigen::Vector3d::Zero());

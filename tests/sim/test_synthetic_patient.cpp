@@ -201,8 +201,9 @@ TEST(ConformingTruth, HoldsTheDeviceAndTheAortaStaysAboveTheRenalLevel) {
 // (fold fraction 1); the two differ by the excess length the tortuous course had.
 TEST(ConformingTruth, ASlidingIliacKeepsItsLengthAFoldingOneShortens) {
   const auto patient = make_patient(PatientPlan{5, Difficulty::Paper, TruthPhysics::Conforming, kAorta, kIliac});
-  ExampleScene scene = patient.preoperative;  // on the table, where the device lies
+  ExampleScene scene = make_example_scene(patient.params);  // the CT's anatomy, moved onto the table
   apply(patient.posture, scene);
+  ASSERT_EQ(scene.device, patient.preoperative.device) << "the device lies in the anatomy on the table";
   const std::size_t carrier = patient.params.device_in_left_iliac ? 1 : 2;
   const auto length = [](const geometry::Polyline& c) { return geometry::arc_lengths(c).back(); };
   const double rest = length(scene.vessels[carrier].centerline);
@@ -213,6 +214,27 @@ TEST(ConformingTruth, ASlidingIliacKeepsItsLengthAFoldingOneShortens) {
   const double folded = length(distort_by_conforming(scene, fold).vessels[carrier].centerline);
   EXPECT_NEAR(slid / rest, 1.0, 0.03);
   EXPECT_LT(folded, 0.92 * rest) << "a tortuous iliac (index " << rest << " mm of wall) straightened by the wire";
+}
+
+// A straight tube turned rigidly about a point off its axis: each section turns by the
+// least rotation between its old and new tangent, which for a turn about an axis across
+// the tube is the turn itself, so the whole mesh turns rigidly.
+TEST(ResweepTurning, ATurnedStraightTubeTurnsItsSections) {
+  geometry::Polyline line;
+  for (int i = 0; i <= 80; ++i) line.push_back(Eigen::Vector3d(3.0, -2.0, 100.0 - i));
+  const std::vector<double> radii(line.size(), 6.0);
+  const auto mesh = tube_mesh(line, radii, tube_options_for_vertex_count(80.0, 6.0, 1500));
+  const Eigen::Matrix3d R = Eigen::AngleAxisd(0.3, Eigen::Vector3d(1, 1, 0).normalized()).toRotationMatrix();
+  const Eigen::Vector3d pivot(10, 0, 40);
+  geometry::Polyline turned;
+  for (const auto& p : line) turned.push_back(R * (p - pivot) + pivot);
+  const auto out = resweep_turning(mesh, line, turned);
+  double worst = 0.0;
+  for (Eigen::Index i = 0; i < mesh.V.rows(); ++i)
+    worst = std::max(worst, (out.V.row(i).transpose() - (R * (mesh.V.row(i).transpose() - pivot) + pivot)).norm());
+  EXPECT_LT(worst, 1e-9);
+  // Translated only (turn = false), the sections keep their orientation: not the turned mesh.
+  EXPECT_GT((resweep_turning(mesh, line, turned, false).V - out.V).cwiseAbs().maxCoeff(), 1.0);
 }
 
 TEST(ResweepTurning, SameCenterlineGivesTheMeshBackAndATranslationTranslates) {

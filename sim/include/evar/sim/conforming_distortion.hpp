@@ -10,7 +10,8 @@
 // * A straightened vessel keeps its wall length. The excess length of the tortuous iliac
 //   over the wire's course is taken up partly by folds (the accordion or concertina seen
 //   with stiff wires; endografts in severely tortuous iliacs shorten by about 13 %) and
-//   partly by sliding distally along the wire past the access (`fold_fraction` splits it).
+//   partly by sliding distally along the wire past the access (`fold_fraction` splits it);
+//   in the rare vessel shorter than the wire's course through it, it is stretched to it.
 //   Its branches' ostia move along the wire with the wall they sit on.
 // * What holds the aorta is its visceral and renal branches: it does not move above the
 //   renal level, and below it the wall gives way where the wire presses, as a string under

@@ -23,8 +23,8 @@ namespace evar::sim {
 /// (bending length 30–60 mm) through the left or right iliac, tip 10 mm below the renal
 /// ostia to 10 mm below the aortic top. Deterministic: the same seed gives the same
 /// parameters on any platform. Mesh resolution is left at the defaults. At
-/// Difficulty::Paper the same draws map to more tortuous iliacs (lateral 14–32 mm,
-/// antero-posterior 8–20 mm) and stiffer wires (bending length 60–120 mm).
+/// Difficulty::Paper the same draws map to more tortuous iliacs (lateral 18–38 mm,
+/// antero-posterior 10–24 mm) and stiffer wires (bending length 60–120 mm).
 ExampleSceneParams draw_patient_params(std::uint64_t seed, Difficulty difficulty = Difficulty::Mild);
 
 struct SyntheticPatient {
