@@ -116,6 +116,33 @@ TEST(Session, RoundTripsBitExactly) {
   EXPECT_FALSE(r.truth.has_value());
 }
 
+// The true registration of a session whose given one is off (the paper's difficulty):
+// written as truth/registration.json, read back exactly, absent when not set, and a
+// missing file is named.
+TEST(Session, ATrueRegistrationRoundTripsAndAMissingOneIsNamed) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  auto s = small_session(images);
+  fs::create_directories(dir.path / "patient" / "truth");
+  std::ofstream(dir.path / "patient" / "truth" / "scene.json") << "{}";
+  std::ofstream(dir.path / "patient" / "device.mrk.json") << "{}";
+  s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv", {}, std::nullopt};
+  sim::write_session(dir.path, s, images);
+  EXPECT_FALSE(sim::read_session(dir.path).truth->ct_to_carm.has_value());
+  EXPECT_FALSE(fs::exists(dir.path / "truth" / "registration.json"));
+  Eigen::Matrix4d truth = s.ct_to_carm;
+  truth.topRightCorner<3, 1>() += Eigen::Vector3d(0.25, -1.0 / 3.0, 2.0);
+  s.truth->ct_to_carm = truth;
+  sim::write_session(dir.path, s, images);
+  const auto r = sim::read_session(dir.path);
+  ASSERT_TRUE(r.truth->ct_to_carm.has_value());
+  EXPECT_EQ(*r.truth->ct_to_carm, truth);
+  EXPECT_EQ(r.ct_to_carm, s.ct_to_carm);
+  fs::remove(dir.path / "truth" / "registration.json");
+  EXPECT_NE(error_reading(dir.path).find("ground_truth.registration: truth/registration.json is missing"), std::string::npos)
+      << error_reading(dir.path);
+}
+
 TEST(Session, GroundTruthRoundTripsAndItsErrorsAreNamed) {
   TempDir dir;
   std::vector<cv::Mat> images;
