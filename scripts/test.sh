@@ -14,6 +14,8 @@ if [ "${EVAR_SANITIZE:-0}" = 1 ]; then
   # exit non-zero; stack traces for the log.
   export ASAN_OPTIONS=${ASAN_OPTIONS:-detect_leaks=1:strict_string_checks=1}
   export UBSAN_OPTIONS=${UBSAN_OPTIONS:-print_stacktrace=1:halt_on_error=1}
+  # Third-party caches held until exit (fontconfig, libltdl under PLplot), each named in the file.
+  export LSAN_OPTIONS=${LSAN_OPTIONS:-suppressions=$root/tests/lsan.supp:print_suppressions=0}
 fi
 # The suite's own peers (python3-vtk9 for the PLUS export check) come with it.
 export EVAR_TEST_DEPS=1
