@@ -116,6 +116,13 @@ TEST(Session, RoundTripsBitExactly) {
   EXPECT_FALSE(r.truth.has_value());
 }
 
+// The files a session's ground truth names (their contents are not read here).
+static void write_truth_stand_ins(const fs::path& session) {
+  fs::create_directories(session / "patient" / "truth");
+  std::ofstream(session / "patient" / "truth" / "scene.json") << "{}";
+  std::ofstream(session / "patient" / "device.mrk.json") << "{}";
+}
+
 // The true registration of a session whose given one is off (the paper's difficulty):
 // written as truth/registration.json, read back exactly, absent when not set, and a
 // missing file is named.
@@ -123,9 +130,7 @@ TEST(Session, ATrueRegistrationRoundTripsAndAMissingOneIsNamed) {
   TempDir dir;
   std::vector<cv::Mat> images;
   auto s = small_session(images);
-  fs::create_directories(dir.path / "patient" / "truth");
-  std::ofstream(dir.path / "patient" / "truth" / "scene.json") << "{}";
-  std::ofstream(dir.path / "patient" / "device.mrk.json") << "{}";
+  write_truth_stand_ins(dir.path);
   s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv", {}, std::nullopt};
   sim::write_session(dir.path, s, images);
   EXPECT_FALSE(sim::read_session(dir.path).truth->ct_to_carm.has_value());
@@ -147,9 +152,7 @@ TEST(Session, GroundTruthRoundTripsAndItsErrorsAreNamed) {
   TempDir dir;
   std::vector<cv::Mat> images;
   auto s = small_session(images);
-  fs::create_directories(dir.path / "patient" / "truth");
-  std::ofstream(dir.path / "patient" / "truth" / "scene.json") << "{}";
-  std::ofstream(dir.path / "patient" / "device.mrk.json") << "{}";
+  write_truth_stand_ins(dir.path);
   s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
                               {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 1e-9}}}};
   sim::write_session(dir.path, s, images);
@@ -229,9 +232,7 @@ TEST(Session, TruncatedFilesAreClearErrorsAtEveryLength) {
   TempDir dir;
   std::vector<cv::Mat> images;
   auto s = small_session(images);
-  fs::create_directories(dir.path / "patient" / "truth");
-  std::ofstream(dir.path / "patient" / "truth" / "scene.json") << "{}";
-  std::ofstream(dir.path / "patient" / "device.mrk.json") << "{}";
+  write_truth_stand_ins(dir.path);
   s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
                               {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 40.625}}}};
   sim::write_session(dir.path, s, images);
