@@ -154,7 +154,7 @@ TEST(Session, GroundTruthRoundTripsAndItsErrorsAreNamed) {
   auto s = small_session(images);
   write_truth_stand_ins(dir.path);
   s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
-                              {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 1e-9}}}};
+                              {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 1e-9}}}, std::nullopt};
   sim::write_session(dir.path, s, images);
   const auto r = sim::read_session(dir.path);
   ASSERT_TRUE(r.truth.has_value());
@@ -234,7 +234,7 @@ TEST(Session, TruncatedFilesAreClearErrorsAtEveryLength) {
   auto s = small_session(images);
   write_truth_stand_ins(dir.path);
   s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
-                              {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 40.625}}}};
+                              {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 40.625}}}, std::nullopt};
   sim::write_session(dir.path, s, images);
   for (const char* name : {"session.json", "carm.csv", "frames/index.csv", "truth/ostia_2d.csv"}) {
     const bool table = std::string(name) != "session.json";
@@ -369,13 +369,13 @@ TEST(Session, WritersRefuseWhatTheReaderRefuses) {
   refused([](sim::Session& s) { s.scene = "/etc/scene.json"; }, "scene: '/etc/scene.json' must be a relative file name");
   refused([](sim::Session& s) { s.device_thickness_mm = 16; }, "device_thickness_mm: must be 0 to 15");
   refused([](sim::Session& s) { s.ct_to_carm(0, 0) = -1; }, "registration: ");
-  refused([&](sim::Session& s) { s.truth = sim::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}}; },
+  refused([&](sim::Session& s) { s.truth = sim::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}, std::nullopt}; },
           "ground truth 't.json' is missing");
   refused(
       [&](sim::Session& s) {
         std::ofstream(dir.path / "t.json") << "{}";
         std::ofstream(dir.path / "d.json") << "{}";
-        s.truth = sim::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}};
+        s.truth = sim::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}, std::nullopt};
       },
       "ostium of frame 1: u_px: nan is not finite");
   // And what the writers take, the reader takes.
