@@ -92,33 +92,15 @@ geometry::TriangleMesh resweep_turning(const geometry::TriangleMesh& mesh, const
 }
 
 DeviceDistortion distort_by_conforming(const ExampleScene& scene, const ConformingOptions& o) {
-  if (scene.device.size() < 2) throw std::invalid_argument("distort_by_conforming: the device needs >= 2 points");
   if (!(o.wire_offset_fraction >= 0.0 && o.wire_offset_fraction <= 1.0 && o.fold_fraction >= 0.0 && o.fold_fraction <= 1.0 &&
         o.aorta_decay_mm > 0.0 && o.junction_blend_mm > 0.0 && o.clearance_mm >= 0.0))
     throw std::invalid_argument("distort_by_conforming: fractions must lie in [0, 1], lengths be positive");
-  std::size_t ai = scene.vessels.size();
-  std::vector<std::size_t> iliacs;
-  for (std::size_t vi = 0; vi < scene.vessels.size(); ++vi) {
-    const auto& v = scene.vessels[vi];
-    if (v.centerline.size() < 3 || v.radii_mm.size() != v.centerline.size())
-      throw std::invalid_argument("distort_by_conforming: vessel " + v.name + " needs >= 3 centerline points and radii");
-    if (v.kind == geometry::VesselKind::Aorta) ai = vi;
-    else iliacs.push_back(vi);
-  }
-  if (ai == scene.vessels.size() || iliacs.empty()) throw std::invalid_argument("distort_by_conforming: need an aorta and an iliac");
+  const detail::VesselRoles roles = detail::vessel_roles(scene, "distort_by_conforming");
+  const std::size_t ai = roles.aorta, ci = roles.carrier;
+  const std::vector<std::size_t>& overlap = roles.overlap;
+  const double hub_arc = roles.hub_arc_mm;
   const ExampleVessel& aorta = scene.vessels[ai];
-  const Eigen::Vector3d access = scene.device.back();
-  const std::size_t ci = *std::min_element(iliacs.begin(), iliacs.end(), [&](std::size_t a, std::size_t b) {
-    return (scene.vessels[a].centerline.back() - access).norm() < (scene.vessels[b].centerline.back() - access).norm();
-  });
   const auto aorta_arc = geometry::arc_lengths(aorta.centerline);
-  std::vector<std::size_t> overlap(scene.vessels.size(), 0);
-  double hub_arc = aorta_arc.back();
-  for (const std::size_t vi : iliacs) {
-    double start_arc = 0.0;
-    overlap[vi] = detail::overlap_length(scene.vessels[vi], aorta, aorta_arc, &start_arc);
-    hub_arc = std::min(hub_arc, start_arc);
-  }
 
   // The aorta is held at the renal level (the mean height of the renal landmarks on it, or
   // a quarter of its length without them).

@@ -134,34 +134,17 @@ geometry::TriangleMesh resweep(const geometry::TriangleMesh& mesh, const Polylin
 }
 
 DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOptions& o) {
-  if (scene.device.size() < 2) throw std::invalid_argument("distort_by_device: the device needs >= 2 points");
-  const ExampleVessel* aorta = nullptr;
-  std::vector<const ExampleVessel*> iliacs;
-  for (const auto& v : scene.vessels) {
-    if (v.centerline.size() < 3 || v.radii_mm.size() != v.centerline.size())
-      throw std::invalid_argument("distort_by_device: vessel " + v.name + " needs >= 3 centerline points and radii");
-    if (v.kind == geometry::VesselKind::Aorta) aorta = &v;
-    else iliacs.push_back(&v);
-  }
-  if (aorta == nullptr || iliacs.empty()) throw std::invalid_argument("distort_by_device: need an aorta and an iliac");
-  const Eigen::Vector3d access = scene.device.back();
-  const ExampleVessel* carrier = *std::min_element(iliacs.begin(), iliacs.end(), [&](auto* a, auto* b) {
-    return (a->centerline.back() - access).norm() < (b->centerline.back() - access).norm();
-  });
+  const detail::VesselRoles roles = detail::vessel_roles(scene, "distort_by_device");
+  const ExampleVessel* aorta = &scene.vessels[roles.aorta];
+  const ExampleVessel* carrier = &scene.vessels[roles.carrier];
   const auto aorta_arc = geometry::arc_lengths(aorta->centerline);
+  const double hub_arc = roles.hub_arc_mm;
 
   // The bifurcation hub: the aorta below the highest iliac start and each iliac's overlap
   // inside the aortic lumen. It is made 100x stiffer in bending, so it moves nearly
   // rigidly and the bends spread over the vessels instead of kinking the junction, whose
   // sections are wider than such a bend's radius.
   constexpr double kHubStiffening = 100.0;
-  std::vector<std::size_t> overlaps;
-  double hub_arc = aorta_arc.back();
-  for (const auto* iliac : iliacs) {
-    double start_arc = 0.0;
-    overlaps.push_back(detail::overlap_length(*iliac, *aorta, aorta_arc, &start_arc));
-    hub_arc = std::min(hub_arc, start_arc);
-  }
   if (!(hub_arc > 10.0)) throw std::invalid_argument("distort_by_device: the iliacs start too high in the aorta");
 
   Beams beams;
@@ -171,7 +154,7 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
     const ExampleVessel& v = scene.vessels[vi];
     const bool is_aorta = &v == aorta;
     arcs[vi] = geometry::arc_lengths(v.centerline);
-    const std::size_t overlap = is_aorta ? 0 : overlaps[static_cast<std::size_t>(std::find(iliacs.begin(), iliacs.end(), &v) - iliacs.begin())];
+    const std::size_t overlap = roles.overlap[vi];
     std::vector<double> lambda;
     std::vector<char> push;
     for (std::size_t i = 0; i < v.centerline.size(); ++i) {
@@ -196,12 +179,12 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
   // Pins and ties 100x the stiffest bending: firm, while the system stays well within
   // double precision (tissue springs are 1).
   beams.pin_weight = 1e2 * *std::max_element(beams.bending.begin(), beams.bending.end());
-  const std::size_t a0 = first[static_cast<std::size_t>(aorta - scene.vessels.data())];
+  const std::size_t a0 = first[roles.aorta];
   const geometry::PolylineProjector aorta_projector(aorta->centerline);
   for (std::size_t vi = 0; vi < scene.vessels.size(); ++vi) {
     const ExampleVessel& v = scene.vessels[vi];
     if (&v == aorta) continue;
-    const std::size_t overlap = overlaps[static_cast<std::size_t>(std::find(iliacs.begin(), iliacs.end(), &v) - iliacs.begin())];
+    const std::size_t overlap = roles.overlap[vi];
     for (std::size_t i = 0; i < overlap; ++i) {  // the overlap moves with the aorta around it
       int seg = 0;
       const auto proj = aorta_projector.project(v.centerline[i], -1, &seg);
@@ -219,8 +202,8 @@ DeviceDistortion distort_by_device(const ExampleScene& scene, const DistortionOp
     for (std::size_t i = 0; i < c.size(); ++i) c[i] += u.row(static_cast<Eigen::Index>(first[vi] + i)).transpose();
     return c;
   };
-  const std::size_t ai = static_cast<std::size_t>(aorta - scene.vessels.data());
-  const std::size_t ci = static_cast<std::size_t>(carrier - scene.vessels.data());
+  const std::size_t ai = roles.aorta;
+  const std::size_t ci = roles.carrier;
   DeviceDistortion out;
   out.carrier = carrier->name;
   // The contact works on sections; the check is on the swept meshes. Where they disagree

@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <limits>
+#include <stdexcept>
 
 #include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/polyline.hpp"
@@ -9,6 +10,34 @@
 #include "evar/sim/tube_mesh.hpp"
 
 namespace evar::sim::detail {
+
+VesselRoles vessel_roles(const ExampleScene& scene, const std::string& who) {
+  if (scene.device.size() < 2) throw std::invalid_argument(who + ": the device needs >= 2 points");
+  VesselRoles r;
+  bool have_aorta = false;
+  for (std::size_t vi = 0; vi < scene.vessels.size(); ++vi) {
+    const auto& v = scene.vessels[vi];
+    if (v.centerline.size() < 3 || v.radii_mm.size() != v.centerline.size())
+      throw std::invalid_argument(who + ": vessel " + v.name + " needs >= 3 centerline points and radii");
+    if (v.kind == geometry::VesselKind::Aorta) r.aorta = vi, have_aorta = true;
+    else r.iliacs.push_back(vi);
+  }
+  if (!have_aorta || r.iliacs.empty()) throw std::invalid_argument(who + ": need an aorta and an iliac");
+  const Eigen::Vector3d access = scene.device.back();
+  r.carrier = *std::min_element(r.iliacs.begin(), r.iliacs.end(), [&](std::size_t a, std::size_t b) {
+    return (scene.vessels[a].centerline.back() - access).norm() < (scene.vessels[b].centerline.back() - access).norm();
+  });
+  const ExampleVessel& aorta = scene.vessels[r.aorta];
+  const auto aorta_arc = geometry::arc_lengths(aorta.centerline);
+  r.overlap.assign(scene.vessels.size(), 0);
+  r.hub_arc_mm = aorta_arc.back();
+  for (const std::size_t vi : r.iliacs) {
+    double start_arc = 0.0;
+    r.overlap[vi] = overlap_length(scene.vessels[vi], aorta, aorta_arc, &start_arc);
+    r.hub_arc_mm = std::min(r.hub_arc_mm, start_arc);
+  }
+  return r;
+}
 
 std::size_t overlap_length(const ExampleVessel& iliac, const ExampleVessel& aorta, const std::vector<double>& aorta_arc,
                            double* start_arc_on_aorta) {

@@ -5,6 +5,7 @@
 #include <Eigen/Core>
 #include <cstddef>
 #include <optional>
+#include <string>
 #include <vector>
 
 #include "evar/geometry/polyline.hpp"
@@ -12,6 +13,20 @@
 #include "evar/sim/example_scene.hpp"
 
 namespace evar::sim::detail {
+
+/// Which vessel does what, as both models read a scene: the aorta, the iliacs, the carrier
+/// (the iliac whose distal end is nearest the device's access end), each iliac's overlap
+/// with the aorta (overlap_length; 0 for the aorta) and the hub's arc on the aorta (the
+/// highest iliac start). Throws std::invalid_argument, prefixed by `who`, for a device of
+/// < 2 points, a vessel of < 3 centerline points or without a radius each, or a scene
+/// without an aorta and an iliac.
+struct VesselRoles {
+  std::size_t aorta = 0, carrier = 0;
+  std::vector<std::size_t> iliacs;
+  std::vector<std::size_t> overlap;  ///< per scene vessel
+  double hub_arc_mm = 0.0;
+};
+VesselRoles vessel_roles(const ExampleScene& scene, const std::string& who);
 
 /// Number of leading iliac points inside the aorta's lumen (at least 1): the overlap that
 /// moves with the bifurcation. `start_arc_on_aorta`: the aorta's arc length at the iliac's
