@@ -8,6 +8,7 @@
 #
 #   scripts/deform-eval.sh [FIRST LAST] [OUT]     defaults: 1 20, out/deform-eval
 #   EVAR_DIFFICULTY=mild|paper EVAR_PHYSICS=beam|conforming   the patients (default mild, beam)
+#   EVAR_DEFORM_OPTIONS="--nearest-pairing ..."                 extra `evarnode deform` options
 set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 first=${1:-1}
@@ -38,7 +39,7 @@ for seed in $(seq "$first" "$last"); do
     fi
   fi
   if "$bin" deform --scene "$dir/patient/scene.json" --device "$dir/patient/device.mrk.json" --out "$dir/deformed" \
-    --no-preview >> "$dir.log" 2>&1; then
+    --no-preview ${EVAR_DEFORM_OPTIONS:-} >> "$dir.log" 2>&1; then
     echo "seed $seed: deformed" >&2
   else
     failed+=("$seed")

@@ -62,6 +62,9 @@ int run_cli(const std::vector<std::string>& args) {
   d->add_flag("!--no-coarse-rotations", deform.coarse_rotations,
               "plain local/global on the iliacs too, without turning their rotations by the coarse space "
               "(for comparison; docs/DEFORMATION.md)");
+  d->add_flag("!--nearest-pairing", deform.ordered_pairing,
+              "cast each iliac section's ray to its nearest device point (the paper's rays) instead of pairing\n"
+              "sections and device points in the order both run in (for comparison; docs/DEFORMATION.md)");
 
   ArapCommand arap;
   auto* a = app.add_subcommand("arap",

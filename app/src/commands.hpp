@@ -21,6 +21,7 @@ struct DeformCommand {
   int containment_rounds = 3;
   double tether_mm = 50.0;
   bool coarse_rotations = true;
+  bool ordered_pairing = true;
   double proxy_edge_mm = 1.4;
 };
 int run_deform(const DeformCommand& cmd);

@@ -69,6 +69,7 @@ int run_deform(const DeformCommand& cmd) {
   options.containment_rounds = cmd.containment_rounds;
   options.tether_length_mm = cmd.tether_mm;
   options.arap.coarse_rotations = cmd.coarse_rotations;
+  options.ordered_pairing = cmd.ordered_pairing;
   options.proxy_edge_mm = cmd.proxy_edge_mm;
   deform::SceneDeformation result;
   try {
@@ -111,6 +112,7 @@ int run_deform(const DeformCommand& cmd) {
                            {"tolerance_mm", cmd.tolerance_mm},
                            {"tether_mm", cmd.tether_mm},
                            {"coarse_rotations", cmd.coarse_rotations},
+                           {"pairing", cmd.ordered_pairing ? "ordered" : "nearest"},
                            {"proxy_edge_mm", cmd.proxy_edge_mm},
                            {"vessels", nlohmann::json::array()},
                            {"landmarks", nlohmann::json::array()}};

@@ -1,5 +1,7 @@
 #include "evar/deform/control_points.hpp"
 
+#include "evar/deform/ordered_pairing.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -60,9 +62,28 @@ std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, co
   std::vector<Candidate> candidates;
   const geometry::PolylineProjector onto_centerline(centerline);
   int segment = -1;
-  if (ours.size() >= 1) {
+  const auto elsewhere = [&](const Eigen::Vector3d& d) { return in_other_lumen && in_other_lumen(d); };
+  const auto pairs = options.pair_in_order ? ordered_pairing(centerline, ours, options.sample_step_mm)
+                                           : std::vector<SectionPartner>{};
+  if (!pairs.empty()) {
+    // Every section toward its partner, and every device sample from the section whose
+    // partner it is.
+    const auto centerline_arc = geometry::arc_lengths(centerline);
+    const auto device_arc = geometry::arc_lengths(ours);
+    for (const auto& p : pairs) {
+      const Eigen::Vector3d d = geometry::point_at(ours, device_arc, p.device_arc_mm);
+      if (elsewhere(d)) continue;
+      try_ray(caster, geometry::point_at(centerline, centerline_arc, p.section_arc_mm), d, p.section_arc_mm,
+              options.device_thickness_mm, candidates);
+    }
+    for (std::size_t i = 0; i < ours.size(); ++i) {
+      if (elsewhere(ours[i])) continue;
+      const double s = section_arc_of(pairs, device_arc[i]);
+      try_ray(caster, geometry::point_at(centerline, centerline_arc, s), ours[i], s, options.device_thickness_mm,
+              candidates);
+    }
+  } else if (ours.size() >= 1) {
     // Device samples -> their foot on the centerline.
-    const auto elsewhere = [&](const Eigen::Vector3d& d) { return in_other_lumen && in_other_lumen(d); };
     for (const auto& d : ours) {
       if (elsewhere(d)) continue;
       const auto foot = onto_centerline.project(d, segment, &segment);

@@ -193,9 +193,13 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
   const auto& mesh = m.vessel->mesh.mesh;
   const int n = static_cast<int>(mesh.V.rows());
   auto t0 = Clock::now();
+  ControlPointOptions control = options.control;
+  // The device runs through an iliac from its distal end to the aorta: its sections are
+  // paired with the device in order (ordered_pairing.hpp). In the aorta it ends anywhere.
+  control.pair_in_order = options.ordered_pairing && m.vessel->kind == geometry::VesselKind::Iliac;
   auto handles = device.empty() ? std::vector<Handle>{}
                                 : select_control_points(mesh, *m.caster, m.vessel->centerline, m.radius, device,
-                                                        options.control, in_other_lumen);
+                                                        control, in_other_lumen);
   report.control_points = static_cast<int>(handles.size());
   report.timings.control_points_ms += ms_since(t0);
   if (handles.empty() && fixed.empty()) return mesh.V;
@@ -250,7 +254,7 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
     // the radii are looked up by arc along it, plane by plane.
     const geometry::Polyline moved_centerline = deformed_centerline(m, deformed.V);
     const RadiusProfile moved_radius{geometry::arc_lengths(moved_centerline), m.skeleton.radius_mm};
-    const auto more = select_control_points(deformed, caster, moved_centerline, moved_radius, device, options.control,
+    const auto more = select_control_points(deformed, caster, moved_centerline, moved_radius, device, control,
                                             in_other_lumen);
     std::set<int> fresh;  // vertices constrained for the first time this round
     for (const auto& [v, p] : handle_vertex_targets(deformed, more))

@@ -4,7 +4,9 @@
 // the vessel there and the hit point h becomes a handle moved by
 //   s = d − h + Δd (d − h) / |d − h|                                          (eq. 6)
 // (d the device point, Δd the device thickness), so the wall ends up Δd beyond the device.
-// No anchors: where the device is inside, the wall gets no constraint.
+// No anchors: where the device is inside, the wall gets no constraint. With pair_in_order
+// each section's ray goes to its partner along the device (ordered_pairing.hpp) rather than
+// to its nearest device point.
 #include <Eigen/Core>
 #include <functional>
 #include <map>
@@ -26,6 +28,9 @@ struct ControlPointOptions {
   /// A device point belongs to this vessel only if it is within this many local radii of
   /// the centerline and projects inside the centerline's extent.
   double reach_radii = 3.0;
+  /// Pair sections and device points in the order both run in (ordered_pairing.hpp)
+  /// instead of each with its nearest: for a vessel the device runs through.
+  bool pair_in_order = false;
 };
 
 struct Handle {
