@@ -69,7 +69,7 @@ int run_deform(const DeformCommand& cmd) {
   options.containment_rounds = cmd.containment_rounds;
   options.tether_length_mm = cmd.tether_mm;
   options.arap.coarse_rotations = cmd.coarse_rotations;
-  options.ordered_pairing = cmd.ordered_pairing;
+  options.control.pair_in_order = cmd.ordered_pairing;
   options.proxy_edge_mm = cmd.proxy_edge_mm;
   deform::SceneDeformation result;
   try {

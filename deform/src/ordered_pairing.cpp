@@ -48,7 +48,7 @@ std::vector<SectionPartner> ordered_pairing(const geometry::Polyline& centerline
   const int count = static_cast<int>(std::ceil(std::abs(last - first) / step_mm - 1e-9)) + 1;
   if (count < 5) return {};
   const double h = (last - first) / (count - 1);  // signed
-  const double direction = last >= first ? 1.0 : -1.0;
+  const bool proximal_first = h >= 0.0;           // the device's first sample is the proximal end
 
   std::vector<SectionPartner> pairs(static_cast<std::size_t>(count));
   std::vector<double> shortest(static_cast<std::size_t>(count));
@@ -61,12 +61,11 @@ std::vector<SectionPartner> ordered_pairing(const geometry::Polyline& centerline
         onto_device.project(geometry::point_at(centerline, centerline_arc, s), device_segment, &device_segment).arc_length_mm;
   }
   make_non_decreasing(shortest);
-  // Sliding keeps the arc from the proximal section (the centerline's start side): the
-  // first section when the device's first sample is the proximal one, the last otherwise.
+  // Sliding keeps the arc from the proximal section (the centerline's start side).
   for (int k = 0; k < count; ++k) {
-    const double from_proximal = std::abs(h) * (direction > 0.0 ? k : count - 1 - k);
-    const double sliding = direction > 0.0 ? std::min(device_length, from_proximal)
-                                           : std::max(0.0, device_length - from_proximal);
+    const double from_proximal = std::abs(h) * (proximal_first ? k : count - 1 - k);
+    const double sliding = proximal_first ? std::min(device_length, from_proximal)
+                                          : std::max(0.0, device_length - from_proximal);
     pairs[static_cast<std::size_t>(k)].device_arc_mm = 0.5 * (shortest[static_cast<std::size_t>(k)] + sliding);
   }
   return pairs;

@@ -196,7 +196,7 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
   ControlPointOptions control = options.control;
   // The device runs through an iliac from its distal end to the aorta: its sections are
   // paired with the device in order (ordered_pairing.hpp). In the aorta it ends anywhere.
-  control.pair_in_order = options.ordered_pairing && m.vessel->kind == geometry::VesselKind::Iliac;
+  control.pair_in_order = options.control.pair_in_order && m.vessel->kind == geometry::VesselKind::Iliac;
   auto handles = device.empty() ? std::vector<Handle>{}
                                 : select_control_points(mesh, *m.caster, m.vessel->centerline, m.radius, device,
                                                         control, in_other_lumen);

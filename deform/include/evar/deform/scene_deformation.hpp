@@ -27,7 +27,10 @@
 namespace evar::deform {
 
 struct DeformOptions {
-  ControlPointOptions control;   ///< device_thickness_mm is taken from the scene
+  /// device_thickness_mm is taken from the scene; pair_in_order applies to the iliacs
+  /// only (the device runs through them; in the aorta it ends anywhere), on by default,
+  /// false for the paper's rays (for comparison).
+  ControlPointOptions control{.pair_in_order = true};
   SkeletonOptions skeleton;
   ArapOptions arap;
   bool use_skeleton = true;      ///< false: plain surface ARAP (for comparison)
@@ -36,10 +39,6 @@ struct DeformOptions {
   /// vessel may have moved over device points that were inside) and added; 1 = the
   /// paper's single pass.
   int containment_rounds = 3;
-  /// Iliacs: pair each cross-section with a device point in the order both run in
-  /// (ordered_pairing.hpp) rather than with its nearest one (the paper's rays); false
-  /// for comparison.
-  bool ordered_pairing = true;
   /// Length scale ℓ (mm) of a weak tether of every surface vertex to its registered
   /// position, energy Σ_i (A_i / ℓ²) |v'_i − v_i|² (A_i the vertex area): the deformation
   /// fades over about ℓ from the handles instead of the vessel moving rigidly as a whole
