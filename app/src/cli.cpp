@@ -382,7 +382,9 @@ int run_cli(const std::vector<std::string>& args) {
       "deformation) and in every settled frame after the first adapted model the landmarks projected\n"
       "from the preoperative and from the adapted model are compared with the true ostia: Euclidean\n"
       "and vertical 2D distances in mm at the isocenter. Writes OUT/eval.json, OUT/eval.md,\n"
-      "OUT/per_case.png, OUT/distribution.png and OUT/snapshots/. Exit 1 when no session gave a model.");
+      "OUT/per_case.png, OUT/distribution.png, OUT/snapshots/ and OUT/devices/ (each session's last\n"
+      "reconstructed device beside the true one, Slicer markups in the node's CT frame, usable as\n"
+      "`deform --device`). Exit 1 when no session gave a model.");
   ev->add_option("sessions", eval.sessions, "session directories")->required()->check(CLI::ExistingDirectory);
   ev->add_option("--out", eval.out, "output directory (created)")->required();
   ev->add_flag("!--no-progress", eval.progress, "no progress bars");

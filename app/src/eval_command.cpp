@@ -6,6 +6,7 @@
 #include <sstream>
 
 #include "commands.hpp"
+#include "evar/geometry/markups.hpp"
 #include "evaluation_plots.hpp"
 #include "json_file.hpp"
 #include "logging.hpp"
@@ -57,26 +58,55 @@ void summarize(const std::vector<CaseEvaluation>& cases, nlohmann::json& summary
   md << "\n" << cases.size() << " sessions, " << cases.size() - without_model
      << " with an adapted model; one value per landmark and session (its mean over the evaluated frames).\n";
   // The reconstruction's own share: each model's device against the true one, in 3D.
-  std::vector<double> device_means;
+  std::vector<double> device_means, covered_mm, covered_percent;
   double device_worst = 0.0;
   for (const auto& c : cases)
     for (const DeviceError& e : c.devices) {
       device_means.push_back(e.mean_mm);
       device_worst = std::max(device_worst, e.max_mm);
+      covered_mm.push_back(e.covered_mm);
+      covered_percent.push_back(e.true_length_mm > 0.0 ? 100.0 * e.covered_mm / e.true_length_mm : 0.0);
     }
   if (!device_means.empty()) {
-    const Statistic sd = statistic(device_means);
-    summary["device_reconstruction"] = {{"mean_mm", sd.mean}, {"sd_mm", sd.sd}, {"median_mm", sd.median},
-                                        {"models", sd.n}, {"worst_point_mm", device_worst}};
-    char line[256];
+    const Statistic sd = statistic(device_means), sc = statistic(covered_mm), sp = statistic(covered_percent);
+    summary["device_reconstruction"] = {{"mean_mm", sd.mean},     {"sd_mm", sd.sd},
+                                        {"median_mm", sd.median}, {"models", sd.n},
+                                        {"worst_point_mm", device_worst},
+                                        {"covered_mm", {{"mean", sc.mean}, {"median", sc.median}}},
+                                        {"covered_percent", {{"mean", sp.mean}, {"median", sp.median}}}};
+    char line[400];
     std::snprintf(line, sizeof line,
                   "\nReconstructed device against the true device (3D, CT LPS, mean distance of its points per "
-                  "model): %s mm over %zu models; worst point %.2f mm.\n",
-                  fmt(sd).c_str(), device_means.size(), device_worst);
+                  "model): %s mm over %zu models; worst point %.2f mm. It spans %.0f mm of the true device "
+                  "(median; %.0f %% of its length).\n",
+                  fmt(sd).c_str(), device_means.size(), device_worst, sc.median, sp.median);
     md << line;
   }
   summary["sessions"] = cases.size();
   summary["sessions_without_model"] = without_model;
+}
+
+// Per session with a model, devices/NN-<session>.mrk.json: the last model's reconstructed
+// device and the true device, both in the node's CT frame, for 3D Slicer or `deform --device`.
+void write_devices(const std::filesystem::path& directory, const std::vector<CaseEvaluation>& cases) {
+  std::filesystem::create_directories(directory);
+  for (std::size_t i = 0; i < cases.size(); ++i) {
+    const CaseEvaluation& c = cases[i];
+    if (!c.model) continue;
+    geometry::Markup reconstructed{"Curve", "reconstructed device", {}}, truth{"Curve", "true device", {}};
+    const auto add = [](geometry::Markup& m, char prefix, const geometry::Polyline& points) {
+      for (std::size_t k = 0; k < points.size(); ++k) {
+        std::string label(1, prefix);
+        label += std::to_string(k);
+        m.points.push_back({std::move(label), points[k]});
+      }
+    };
+    add(reconstructed, 'R', c.model->reconstruction.points);
+    add(truth, 'T', c.true_device);
+    char name[32];
+    std::snprintf(name, sizeof name, "%02zu-", i + 1);
+    geometry::write_markups(directory / (name + c.session.filename().string() + ".mrk.json"), {reconstructed, truth});
+  }
 }
 
 }  // namespace
@@ -104,7 +134,8 @@ int run_eval(const EvalCommand& cmd) {
                {"deform_ms", c.model->deform_ms}};
     nlohmann::json devices = nlohmann::json::array();
     for (const DeviceError& e : c.devices)
-      devices.push_back({{"frames", {e.frame_earlier, e.frame_later}}, {"mean_mm", e.mean_mm}, {"max_mm", e.max_mm}});
+      devices.push_back({{"frames", {e.frame_earlier, e.frame_later}}, {"mean_mm", e.mean_mm}, {"max_mm", e.max_mm},
+                         {"covered_mm", e.covered_mm}, {"true_length_mm", e.true_length_mm}});
     jcases.push_back({{"session", dir.string()}, {"frames", c.frames}, {"candidates", c.candidates}, {"pairs", c.pairs},
                       {"adaptations", c.adaptations}, {"failures", c.failures}, {"frames_evaluated", c.frames_evaluated},
                       {"landmarks", lm}, {"model", model}, {"device_errors", devices},
@@ -136,8 +167,9 @@ int run_eval(const EvalCommand& cmd) {
   write_json(cmd.out / "eval.json", {{"summary", summary}, {"cases", jcases}});
   write_text(cmd.out / "eval.md", "# Ostium distances, initial versus adapted\n\n" + md.str());
   write_evaluation_plots(cmd.out, cases);
+  write_devices(cmd.out / "devices", cases);
   std::fputs(md.str().c_str(), stdout);
-  log().info("wrote {} (eval.json, eval.md, per_case.png, distribution.png, snapshots/)", cmd.out.string());
+  log().info("wrote {} (eval.json, eval.md, per_case.png, distribution.png, snapshots/, devices/)", cmd.out.string());
   return without_model == cases.size() ? 1 : 0;
 }
 

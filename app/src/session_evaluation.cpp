@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <limits>
 #include <map>
 #include <numeric>
 #include <stdexcept>
@@ -68,12 +69,19 @@ DeviceError device_error(const geometry::Polyline& reconstructed, const geometry
     throw std::invalid_argument("device_error: needs reconstructed points and a true curve of 2 or more points");
   DeviceError e;
   const geometry::PolylineProjector onto_truth(truth);
+  double first_arc = std::numeric_limits<double>::infinity(), last_arc = -first_arc;
   for (const Eigen::Vector3d& p : reconstructed) {
-    const double d = onto_truth.project(p).distance_mm;
-    e.mean_mm += d;
-    e.max_mm = std::max(e.max_mm, d);
+    const geometry::PolylineProjection foot = onto_truth.project(p);
+    e.mean_mm += foot.distance_mm;
+    e.max_mm = std::max(e.max_mm, foot.distance_mm);
+    if (foot.distance_mm <= 3.0) {
+      first_arc = std::min(first_arc, foot.arc_length_mm);
+      last_arc = std::max(last_arc, foot.arc_length_mm);
+    }
   }
   e.mean_mm /= static_cast<double>(reconstructed.size());
+  e.covered_mm = last_arc >= first_arc ? last_arc - first_arc : 0.0;
+  e.true_length_mm = geometry::arc_lengths(truth).back();
   return e;
 }
 
@@ -175,6 +183,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   for (LandmarkError& l : result.landmarks)
     l.on_device_vessel = !result.device_iliac.empty() && l.vessel == result.device_iliac;
   result.model = model;
+  result.true_device = std::move(true_device);
   result.recording = std::move(recording);
   result.scene = std::move(loaded);
   result.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -72,6 +72,9 @@ class OstiumErrors {
 struct DeviceError {
   std::uint64_t frame_earlier = 0, frame_later = 0;  ///< the view pair
   double mean_mm = 0.0, max_mm = 0.0;
+  /// How much of the true device the reconstruction spans: the true curve's arc length between
+  /// the feet of the reconstructed points lying within 3 mm of it, and the true curve's length.
+  double covered_mm = 0.0, true_length_mm = 0.0;
 };
 
 /// DeviceError of `reconstructed` against the polyline `truth` (both CT LPS mm).
@@ -89,6 +92,7 @@ struct CaseEvaluation {
   std::string difficulty = "unknown";    ///< the simulator's difficulty (patient.json), if any
   double registration_residual_deg = 0.0;  ///< the given registration's rotation off the true one
   std::shared_ptr<const AdaptedModel> model;  ///< the last adapted model (null when none)
+  geometry::Polyline true_device;  ///< the session's true device in the node's CT frame (LPS mm)
   std::shared_ptr<const sim::Session> recording;  ///< as read (for pictures)
   std::shared_ptr<const geometry::Scene> scene;   ///< as loaded (for pictures)
   std::size_t snapshot_frame = 0;       ///< index of the last evaluated frame (for pictures)

@@ -54,17 +54,28 @@ std::vector<Eigen::Vector3d> device_points_in_vessel(const geometry::Polyline& c
 std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, const geometry::RayCaster& caster,
                                           const geometry::Polyline& centerline, const RadiusProfile& radius,
                                           const geometry::Polyline& device, const ControlPointOptions& options,
-                                          const LumenTest& in_other_lumen) {
+                                          const LumenTest& in_other_lumen,
+                                          const std::optional<Eigen::Vector3d>& device_entry) {
   if (!(options.sample_step_mm > 0.0) || !(options.device_thickness_mm >= 0.0))
     throw std::invalid_argument("control points: sample step must be > 0 and device thickness >= 0");
   const double spacing = options.spacing_mm > 0.0 ? options.spacing_mm : 1.5 * geometry::median_edge_length(mesh);
-  const auto ours = device_points_in_vessel(centerline, radius, device, options);
+  // An iliac entered at its junction is paired along the device's run from there on; a
+  // device that does not pass the junction (or no entry given) by the device points
+  // within reach.
+  geometry::Polyline ours;
+  std::vector<SectionPartner> pairs;
+  if (options.pair_in_order && device_entry) {
+    ours = device_run_from(centerline, device, *device_entry, options.sample_step_mm);
+    if (!ours.empty()) pairs = ordered_pairing_from_entry(centerline, ours, options.sample_step_mm);
+  }
+  if (pairs.empty()) {
+    ours = device_points_in_vessel(centerline, radius, device, options);
+    if (options.pair_in_order) pairs = ordered_pairing(centerline, ours, options.sample_step_mm);
+  }
   std::vector<Candidate> candidates;
   const geometry::PolylineProjector onto_centerline(centerline);
   int segment = -1;
   const auto elsewhere = [&](const Eigen::Vector3d& d) { return in_other_lumen && in_other_lumen(d); };
-  const auto pairs = options.pair_in_order ? ordered_pairing(centerline, ours, options.sample_step_mm)
-                                           : std::vector<SectionPartner>{};
   if (!pairs.empty()) {
     // Every section toward its partner, and every device sample from the section whose
     // partner it is.

@@ -197,9 +197,17 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
   // The device runs through an iliac from its distal end to the aorta: its sections are
   // paired with the device in order (ordered_pairing.hpp). In the aorta it ends anywhere.
   control.pair_in_order = options.control.pair_in_order && m.vessel->kind == geometry::VesselKind::Iliac;
+  // It enters at the junction, which moves with the aorta's surface where the iliac's top
+  // is bound to it: the bound vertices' mean shift carries the centerline's first point.
+  std::optional<Eigen::Vector3d> entry;
+  if (control.pair_in_order && !fixed.empty()) {
+    Eigen::Vector3d shift = Eigen::Vector3d::Zero();
+    for (const auto& [v, p] : fixed) shift += p - mesh.V.row(v).transpose();
+    entry = m.vessel->centerline.front() + shift / static_cast<double>(fixed.size());
+  }
   auto handles = device.empty() ? std::vector<Handle>{}
                                 : select_control_points(mesh, *m.caster, m.vessel->centerline, m.radius, device,
-                                                        control, in_other_lumen);
+                                                        control, in_other_lumen, entry);
   report.control_points = static_cast<int>(handles.size());
   report.timings.control_points_ms += ms_since(t0);
   if (handles.empty() && fixed.empty()) return mesh.V;
@@ -255,7 +263,7 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
     const geometry::Polyline moved_centerline = deformed_centerline(m, deformed.V);
     const RadiusProfile moved_radius{geometry::arc_lengths(moved_centerline), m.skeleton.radius_mm};
     const auto more = select_control_points(deformed, caster, moved_centerline, moved_radius, device, control,
-                                            in_other_lumen);
+                                            in_other_lumen, entry);
     std::set<int> fresh;  // vertices constrained for the first time this round
     for (const auto& [v, p] : handle_vertex_targets(deformed, more))
       if (targets.emplace(v, p).second) fresh.insert(v);

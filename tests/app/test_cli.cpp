@@ -634,6 +634,18 @@ TEST_F(Cli, EvalMeasuresTheOstiaBeforeAndAfterAndTheReconstructedDevice) {
   EXPECT_GT(d["mean_mm"].get<double>(), 0.0);
   EXPECT_LT(d["mean_mm"].get<double>(), 0.4);
   EXPECT_LT(d["worst_point_mm"].get<double>(), 1.6);
+  // How much of the wire it spans: the part in both views, less than the whole wire (which
+  // runs on to the access outside the field of view) and more than a sliver.
+  for (const auto& e : c["device_errors"]) {
+    EXPECT_GT(e["covered_mm"].get<double>(), 50.0);
+    EXPECT_LT(e["covered_mm"].get<double>(), e["true_length_mm"].get<double>());
+  }
+  // Both devices, for Slicer or `deform --device`: the reconstructed one first.
+  const auto devices = nlohmann::json::parse(std::ifstream(out / "e" / "devices" / "01-s1.mrk.json"));
+  ASSERT_EQ(devices["markups"].size(), 2u);
+  EXPECT_EQ(devices["markups"][0]["name"], "reconstructed device");
+  EXPECT_EQ(devices["markups"][0]["controlPoints"].size(), c["model"]["device_points"].get<std::size_t>());
+  EXPECT_EQ(devices["markups"][1]["name"], "true device");
   std::ifstream md(out / "e" / "eval.md");
   const std::string text((std::istreambuf_iterator<char>(md)), std::istreambuf_iterator<char>());
   EXPECT_NE(text.find("Reconstructed device against the true device"), std::string::npos) << text;

@@ -69,11 +69,87 @@ TEST(OrderedPairing, ATortuousVesselOnAStraightWireIsPairedInOrderBetweenShorten
   EXPECT_NEAR(pairs.front().device_arc_mm, 0.0, 1e-6);
   EXPECT_LE(pairs.back().device_arc_mm, 120.0 + 1e-9);
   // Each partner is the mean of the section's own height (the shortest way onto the wire,
-  // which runs along z) and its arc from the top, capped at the wire's length (sliding).
+  // which runs along z) and its arc from the top (sliding); the vessel's last sections,
+  // whose partner would lie past the wire's end, have none.
   for (const auto& p : pairs) {
     const double height = geometry::point_at(cl, arc, p.section_arc_mm).z();
-    EXPECT_NEAR(p.device_arc_mm, 0.5 * (height + std::min(120.0, p.section_arc_mm)), 0.6) << p.section_arc_mm;
+    EXPECT_NEAR(p.device_arc_mm, 0.5 * (height + p.section_arc_mm), 0.6) << p.section_arc_mm;
   }
+  EXPECT_LT(pairs.back().section_arc_mm, arc.back() - 10.0);
+  EXPECT_GT(pairs.back().device_arc_mm, 119.0);
+}
+
+TEST(OrderedPairing, ADeviceLeavingTheFieldOfViewPairsAsTheWholeWireWould) {
+  // The wire seen only down to z = 70 (the image's edge) continues straight to the access
+  // at z = 120: every section whose partner lies on the part seen is paired as with the
+  // whole wire, and the sections beyond are left without a partner, not crowded onto the
+  // last point seen.
+  const auto cl = winding_centerline(120.0, 15.0, 60.0);
+  const auto whole = deform::ordered_pairing(cl, straight_device(0.0, 120.0), 0.5);
+  const auto seen = deform::ordered_pairing(cl, straight_device(0.0, 70.0), 0.5);
+  ASSERT_GT(seen.size(), 100u);
+  ASSERT_GT(whole.size(), seen.size());
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    EXPECT_NEAR(seen[k].section_arc_mm, whole[k].section_arc_mm, 1e-9);
+    EXPECT_NEAR(seen[k].device_arc_mm, whole[k].device_arc_mm, 1e-6);
+  }
+  EXPECT_LE(seen.back().device_arc_mm, 70.0 + 1e-9);
+  EXPECT_GT(whole[seen.size()].device_arc_mm, 70.0);
+  // Given from its far end, the same sections (device arcs counted from that end).
+  const auto up = deform::ordered_pairing(cl, straight_device(70.0, 0.0), 0.5);
+  ASSERT_EQ(up.size(), seen.size());
+  for (std::size_t k = 0; k < seen.size(); ++k) {
+    EXPECT_NEAR(up[up.size() - 1 - k].section_arc_mm, seen[k].section_arc_mm, 1e-9);
+    EXPECT_NEAR(up[up.size() - 1 - k].device_arc_mm, 70.0 - seen[k].device_arc_mm, 1e-6);
+  }
+}
+
+TEST(OrderedPairing, TheRunFromTheEntryFollowsTheDeviceHoweverFarItIsFromThePreoperativeCenterline) {
+  // A vessel along +z from 0 to 60 mm entered at z = 0; the device comes from the aorta
+  // (z < 0) and runs down 20 mm beside the preoperative centerline (a straightened iliac,
+  // a moved pelvis) to z = 80, past the vessel's end.
+  const auto cl = test::straight_centerline(60.0);
+  geometry::Polyline device;
+  for (int k = 0; k <= 240; ++k) device.emplace_back(20.0, 0.0, -40.0 + 0.5 * k);
+  deform::ControlPointOptions options;  // 3 radii of 5 mm: nothing of it within reach
+  EXPECT_TRUE(deform::device_points_in_vessel(cl, {{0.0, 60.0}, {5.0, 5.0}}, device, options).empty());
+  const auto run = deform::device_run_from(cl, device, Eigen::Vector3d(0.0, 0.0, 0.0), 0.5);
+  ASSERT_FALSE(run.empty());
+  EXPECT_NEAR(run.front().z(), 0.0, 0.3);   // from the sample nearest the entry
+  EXPECT_NEAR(run.back().z(), 60.0, 0.3);   // to the last whose foot is on the centerline
+  for (std::size_t k = 1; k < run.size(); ++k) EXPECT_GT(run[k].z(), run[k - 1].z());
+  // Given from the other end, the same run, still from the entry on.
+  geometry::Polyline reversed(device.rbegin(), device.rend());
+  const auto again = deform::device_run_from(cl, reversed, Eigen::Vector3d(0.0, 0.0, 0.0), 0.5);
+  ASSERT_EQ(again.size(), run.size());
+  for (std::size_t k = 0; k < run.size(); ++k) EXPECT_LT((again[k] - run[k]).norm(), 1e-9) << k;
+  // Paired from the first section: the section at z with the run's point at z.
+  const auto pairs = deform::ordered_pairing_from_entry(cl, run, 0.5);
+  ASSERT_EQ(pairs.size(), 121u);
+  EXPECT_DOUBLE_EQ(pairs.front().section_arc_mm, 0.0);
+  for (const auto& p : pairs) EXPECT_NEAR(p.device_arc_mm, p.section_arc_mm - run.front().z(), 0.3);
+  EXPECT_THROW(deform::device_run_from(cl, device, Eigen::Vector3d::Zero(), 0.0), std::invalid_argument);
+  // A device seen only from z = 10 on (it enters the field of view below the junction)
+  // does not pass the entry: no run, the pairing by the feet of what is within reach applies.
+  const geometry::Polyline below(device.begin() + 100, device.end());
+  EXPECT_TRUE(deform::device_run_from(cl, below, Eigen::Vector3d(0.0, 0.0, 0.0), 0.5).empty());
+}
+
+TEST(OrderedPairing, TheRunStartsWhereTheDeviceCrossesTheFirstSectionsPlane) {
+  // A wire passing the junction (0, 0, 0) off-centre and at 45°: (5 + t, 0, t). Its point
+  // nearest the junction, (2.5, 0, -2.5), lies above the first section; it crosses that
+  // section's plane (z = 0) at (5, 0, 0), and that is the first section's partner.
+  const auto cl = test::straight_centerline(60.0);
+  geometry::Polyline device;
+  for (int k = 0; k <= 200; ++k) device.emplace_back(5.0 + (-40.0 + 0.5 * k), 0.0, -40.0 + 0.5 * k);
+  const auto run = deform::device_run_from(cl, device, Eigen::Vector3d::Zero(), 0.5);
+  ASSERT_GE(run.size(), 2u);
+  EXPECT_LT((run.front() - Eigen::Vector3d(5.0, 0.0, 0.0)).norm(), 1e-9);
+  EXPECT_GT(run[1].z(), 0.0);
+  const geometry::Polyline reversed(device.rbegin(), device.rend());
+  const auto again = deform::device_run_from(cl, reversed, Eigen::Vector3d::Zero(), 0.5);
+  ASSERT_EQ(again.size(), run.size());
+  EXPECT_LT((again.front() - run.front()).norm(), 1e-9);
 }
 
 TEST(OrderedPairing, ADeviceCrossingTheVesselIsLeftToTheNearestPairing) {

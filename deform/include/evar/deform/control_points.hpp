@@ -10,6 +10,7 @@
 #include <Eigen/Core>
 #include <functional>
 #include <map>
+#include <optional>
 #include <vector>
 
 #include "evar/deform/skeleton.hpp"
@@ -54,10 +55,14 @@ using LumenTest = std::function<bool(const Eigen::Vector3d&)>;
 /// the deepest penetrations first. A device point for which `in_other_lumen` holds gives no
 /// handle: lumens connect (the aorta's runs on into the iliacs), and a device passing from
 /// one into the other is outside the first's wall there without pushing on it.
+/// `device_entry`, with pair_in_order: where the device enters the vessel at its proximal
+/// end (an iliac's junction with the aorta, where the aorta's deformation put it); the
+/// device's run from there (device_run_from) is paired from the first section on.
 std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, const geometry::RayCaster& caster,
                                           const geometry::Polyline& centerline, const RadiusProfile& radius,
                                           const geometry::Polyline& device, const ControlPointOptions& options,
-                                          const LumenTest& in_other_lumen = {});
+                                          const LumenTest& in_other_lumen = {},
+                                          const std::optional<Eigen::Vector3d>& device_entry = std::nullopt);
 
 /// Turns handles into vertex targets: each handle moves the three vertices of its triangle
 /// by s; a vertex touched by several handles gets their barycentric-weighted mean shift.

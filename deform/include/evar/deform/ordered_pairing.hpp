@@ -5,14 +5,17 @@
 // wire straightens, the nearest device point of a loop's sections is wherever the wire
 // passes a crossing of the loop, so the loop is pushed onto the wire out of order and its
 // length bulges out beside it (docs/DEFORMATION.md, "Ordered pairing"). Here sections and
-// device points are paired in the order both run in, every section between the first and
-// the last device point's foot gets a partner, and where the device is shorter than the
-// vessel's path between them, the partner's arc is the mean of the two limits of what a
-// straightened vessel does with its excess length:
+// device points are paired in the order both run in, from the section at the foot of the
+// device's proximal end (where it enters the vessel) distally, and where the device is
+// shorter than the vessel's path, the partner's arc is the mean of the two limits of what
+// a straightened vessel does with its excess length:
 //   * it shortens where it was tortuous: each section goes the shortest way to the wire
 //     (the arc of its nearest device point, made non-decreasing along the vessel);
-//   * it keeps its length from the proximal end and slides along the wire (the device arc
-//     equals the section's arc from the proximal section, clamped to the device's length).
+//   * it keeps its length from the entry and slides along the wire (the device arc equals
+//     the section's arc from the entry section).
+// The device's distal end is open: the wire runs on to the access, mostly out of the field
+// of view, so it is continued straight past its last point, and sections whose partner lies
+// on that unseen continuation get none (rather than being crowded onto the last point seen).
 #include <vector>
 
 #include "evar/geometry/polyline.hpp"
@@ -25,12 +28,31 @@ struct SectionPartner {
 };
 
 /// `device`: the device samples that belong to the vessel, in the device's order (either
-/// end first); sections evenly spaced, at most `step_mm` apart, from the foot of its first sample to the foot of its
-/// last, in that order; device arcs non-decreasing along them, from 0 to at most the
-/// device's length. Empty when the feet lie less than four steps apart (a device that
-/// does not run along the vessel): the nearest pairing applies there.
+/// end first; the proximal end is the one whose foot lies nearer the centerline's start).
+/// Sections evenly spaced, at most `step_mm` apart, from the proximal end's foot toward the
+/// centerline's end, as far as their partners lie on the device; ordered so that device
+/// arcs are non-decreasing, from 0 to at most the device's length. Empty when the two
+/// ends' feet lie less than four steps apart (a device that does not run along the
+/// vessel) or fewer than five sections are paired: the nearest pairing applies there.
 std::vector<SectionPartner> ordered_pairing(const geometry::Polyline& centerline, const geometry::Polyline& device,
                                             double step_mm);
+
+/// The device's run through a vessel it enters at the proximal end (an iliac, entered from
+/// the aorta at their junction): device samples every `step_mm` from the one nearest
+/// `entry` (the junction where it is now, e.g. as the aorta's deformation moved it) toward
+/// the device's end whose foot lies further along the centerline, while their feet stay on
+/// the centerline. Far from the preoperative centerline (an iliac straightened, the pelvis
+/// moved) the device still runs through the vessel: no distance decides what belongs to
+/// it. Empty when the device's point nearest `entry` is one of its ends (it does not pass
+/// the entry: it ends before the junction, or starts below it out of the field of view),
+/// and for fewer than two samples.
+geometry::Polyline device_run_from(const geometry::Polyline& centerline, const geometry::Polyline& device,
+                                   const Eigen::Vector3d& entry, double step_mm);
+
+/// ordered_pairing for such a run: its first point is the partner of the vessel's first
+/// section (arc 0, the junction), sections every at most `step_mm` on from there.
+std::vector<SectionPartner> ordered_pairing_from_entry(const geometry::Polyline& centerline, const geometry::Polyline& run,
+                                                       double step_mm);
 
 /// The inverse of a pairing: the section arc whose partner is `device_arc_mm`, interpolated
 /// between neighbouring pairs, the middle of a run of sections sharing that partner, and
