@@ -93,6 +93,15 @@ std::vector<Handle> select_control_points(const geometry::TriangleMesh& mesh, co
       try_ray(caster, geometry::point_at(centerline, centerline_arc, s), ours[i], s, options.device_thickness_mm,
               candidates);
     }
+    // A ray toward a partner far along the vessel can leave through an end cap, and one to
+    // a device point level with an end runs in the cap's plane, hitting its rim or not by
+    // rounding; the caps close the model where the segmentation stopped, they are no wall
+    // to push. So no handle within a sample step of either end.
+    const double vessel_end = centerline_arc.back();
+    std::erase_if(candidates, [&](const Candidate& c) {
+      const double s = onto_centerline.project(c.handle.hit).arc_length_mm;
+      return s < options.sample_step_mm || s > vessel_end - options.sample_step_mm;
+    });
   } else if (ours.size() >= 1) {
     // Device samples -> their foot on the centerline.
     for (const auto& d : ours) {

@@ -1,11 +1,16 @@
 #include "evar/deform/ordered_pairing.hpp"
 
+#include "evar/deform/skeleton.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
 
 namespace evar::deform {
 namespace {
+
+// The skeleton's plane spacing (paper 2.2): a vessel's end is not resolved more finely.
+constexpr double kSkeletonSpacingMm = SkeletonOptions{}.plane_spacing_mm;
 
 // The non-decreasing sequence closest to `y` in least squares (pool adjacent violators).
 void make_non_decreasing(std::vector<double>& y) {
@@ -36,9 +41,15 @@ std::vector<SectionPartner> pair_forward(const geometry::Polyline& centerline, c
   const double device_length = geometry::arc_lengths(forward).back();
   const double vessel_end = centerline_arc.back();
   if (!(device_length > 0.0) || !(vessel_end - entry_arc > 0.0)) return {};
-  // The device continues past its distal end toward the access, out of the field of view:
-  // straight on, as a stiff wire runs, for as far as the vessel could still reach.
-  {
+  // Where the device's distal end reaches the vessel's (its foot within the last skeleton
+  // spacing of the centerline, or past it), the access holds the vessel's end: sections
+  // beyond the device's length are held at its end. Otherwise the device continues toward
+  // the access out of the field of view: straight on, as a stiff wire runs, for as far as
+  // the vessel could still reach, and sections whose partner lies on that unseen part get
+  // none.
+  const geometry::PolylineProjection end_foot = geometry::project_onto(centerline, forward.back());
+  const bool reaches_end = end_foot.beyond_end || end_foot.arc_length_mm > vessel_end - kSkeletonSpacingMm;
+  if (!reaches_end) {
     const Eigen::Vector3d tip = forward.back();
     Eigen::Vector3d along = Eigen::Vector3d::Zero();
     for (auto it = forward.rbegin() + 1; it != forward.rend() && along.norm() < step_mm; ++it) along = tip - *it;
@@ -56,11 +67,15 @@ std::vector<SectionPartner> pair_forward(const geometry::Polyline& centerline, c
             .project(geometry::point_at(centerline, centerline_arc, entry_arc + k * h), device_segment, &device_segment)
             .arc_length_mm;
   make_non_decreasing(shortest);
-  // Sliding keeps each section's arc from the entry. Sections whose partner lies past the
-  // device's distal end have none that was seen, and get none.
+  // Sliding keeps each section's arc from the entry.
   std::vector<SectionPartner> pairs;
   for (int k = 0; k < count; ++k) {
-    const double partner = 0.5 * (shortest[static_cast<std::size_t>(k)] + k * h);
+    const double sliding = k * h, shortest_k = shortest[static_cast<std::size_t>(k)];
+    if (reaches_end) {
+      pairs.push_back({entry_arc + k * h, 0.5 * (std::min(shortest_k, device_length) + std::min(sliding, device_length))});
+      continue;
+    }
+    const double partner = 0.5 * (shortest_k + sliding);
     if (partner > device_length) break;
     pairs.push_back({entry_arc + k * h, partner});
   }
