@@ -16,6 +16,9 @@
 // The device's distal end is open: the wire runs on to the access, mostly out of the field
 // of view, so it is continued straight past its last point, and sections whose partner lies
 // on that unseen continuation get none (rather than being crowded onto the last point seen).
+// A device that reaches the vessel's end (its last point's foot within a skeleton spacing
+// of the centerline's end: the access is in the model) holds that end instead: the sections
+// past its length are paired with its last point.
 #include <vector>
 
 #include "evar/geometry/polyline.hpp"
@@ -30,7 +33,8 @@ struct SectionPartner {
 /// `device`: the device samples that belong to the vessel, in the device's order (either
 /// end first; the proximal end is the one whose foot lies nearer the centerline's start).
 /// Sections evenly spaced, at most `step_mm` apart, from the proximal end's foot toward the
-/// centerline's end, as far as their partners lie on the device; ordered so that device
+/// centerline's end, as far as their partners lie on the device (to the end where the
+/// device reaches it); ordered so that device
 /// arcs are non-decreasing, from 0 to at most the device's length. Empty when the two
 /// ends' feet lie less than four steps apart (a device that does not run along the
 /// vessel) or fewer than five sections are paired: the nearest pairing applies there.
