@@ -9,8 +9,8 @@
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/json_fields.hpp"
 #include "evar/geometry/mesh_io.hpp"
+#include "evar/node/logging.hpp"
 #include "json_file.hpp"
-#include "logging.hpp"
 
 namespace evar::app {
 namespace {
@@ -91,7 +91,7 @@ int run_arap(const ArapCommand& cmd) {
   geometry::validate_mesh(loaded.mesh, cmd.mesh.string());
   const auto& mesh = loaded.mesh;
   const auto constraints = read_constraints(cmd.constraints, mesh.V, loaded.space);
-  log().info("{}: {} vertices, {} faces; {} constrained vertices", cmd.mesh.string(), mesh.V.rows(), mesh.F.rows(),
+  node::log().info("{}: {} vertices, {} faces; {} constrained vertices", cmd.mesh.string(), mesh.V.rows(), mesh.F.rows(),
              constraints.vertices.size());
 
   deform::ArapOptions opt;
@@ -119,7 +119,7 @@ int run_arap(const ArapCommand& cmd) {
   geometry::TriangleMesh out{r.X, mesh.F};
   geometry::write_mesh(cmd.out, out, geometry::format_for_extension(cmd.out), loaded.space);
   const double per_iteration = r.iterations > 0 ? r.iterate_ms / r.iterations : 0.0;
-  log().info("factor {:.2f} ms ({}), {} iterations in {:.2f} ms ({:.3f} ms each), energy {:.6g}{}; wrote {}",
+  node::log().info("factor {:.2f} ms ({}), {} iterations in {:.2f} ms ({:.3f} ms each), energy {:.6g}{}; wrote {}",
              solver.factor_ms(), deform::to_string(solver.backend()), r.iterations, r.iterate_ms, per_iteration,
              r.energy.back(), r.converged || cmd.iterations ? "" : " (iteration cap reached)", cmd.out.string());
   if (!cmd.report.empty()) {

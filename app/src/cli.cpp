@@ -6,8 +6,8 @@
 #include "commands.hpp"
 #include "evar/geometry/image_header.hpp"
 #include "evar/geometry/input_error.hpp"
+#include "evar/node/logging.hpp"
 #include "evar/sim/session_replay.hpp"
-#include "logging.hpp"
 
 namespace evar::app {
 
@@ -396,7 +396,7 @@ int run_cli(const std::vector<std::string>& args) {
     // --help and --version exit 0; every usage error exits 2 (CLI11 has its own codes).
     return app.exit(err) == 0 ? 0 : 2;
   }
-  set_log_level(log_level);
+  node::set_log_level(log_level);
   try {
     if (d->parsed()) return run_deform(deform);
     if (a->parsed()) return run_arap(arap);
@@ -413,10 +413,10 @@ int run_cli(const std::vector<std::string>& args) {
     if (ev->parsed()) return run_eval(eval);
     if (rn->parsed()) return run_node(run);
   } catch (const geometry::InputError& err) {
-    log().error("{}", err.what());
+    node::log().error("{}", err.what());
     return 1;
   } catch (const std::exception& err) {
-    log().error("{}", err.what());
+    node::log().error("{}", err.what());
     return 1;
   }
   return 2;

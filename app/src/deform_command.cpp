@@ -8,8 +8,8 @@
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/scene.hpp"
+#include "evar/node/logging.hpp"
 #include "json_file.hpp"
-#include "logging.hpp"
 #include "preview.hpp"
 
 namespace evar::app {
@@ -53,12 +53,12 @@ nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& out
 }  // namespace
 
 int run_deform(const DeformCommand& cmd) {
-  log().info("loading scene {}", cmd.scene.string());
+  node::log().info("loading scene {}", cmd.scene.string());
   const geometry::Scene scene = geometry::load_scene(cmd.scene);
   const geometry::Markup curve = geometry::read_curve(cmd.device, 2);
   geometry::Polyline device;
   for (const auto& p : curve.points) device.push_back(p.position_lps);
-  log().info("device {}: {} points; {} vessel(s), {} landmark(s), device thickness {} mm", cmd.device.string(),
+  node::log().info("device {}: {} points; {} vessel(s), {} landmark(s), device thickness {} mm", cmd.device.string(),
              device.size(), scene.vessels.size(), scene.landmarks.size(), scene.device_thickness_mm);
 
   deform::DeformOptions options;
@@ -122,17 +122,17 @@ int run_deform(const DeformCommand& cmd) {
     geometry::write_mesh(out_path, result.vessels[i].mesh, v.mesh.format, v.mesh.space);
     const auto& r = result.reports[i];
     report["vessels"].push_back(vessel_json(r, out_path.string()));
-    log().info("{:<12} {:<19} {:>3} control points, {:>4} constrained, {:>3} iterations in {} round(s), "
+    node::log().info("{:<12} {:<19} {:>3} control points, {:>4} constrained, {:>3} iterations in {} round(s), "
                "max displacement {:.2f} mm, {:.1f} ms{}",
                r.name, r.role, r.control_points, r.constrained_vertices, r.iterations, r.rounds,
                r.max_displacement_mm, r.timings.total_ms,
                r.erased_faces > 0 ? fmt::format(", {} faces erased", r.erased_faces) : "");
     if (r.proxy_vertices > 0)
-      log().info("{:<12} solved on a proxy of {} vertices (its {} follow it)", r.name, r.proxy_vertices, r.vertices);
+      node::log().info("{:<12} solved on a proxy of {} vertices (its {} follow it)", r.name, r.proxy_vertices, r.vertices);
     if (!r.proxy_refused.empty())
-      log().warn("{}: solved on its own {} vertices, slower and less even than on a proxy: {}", r.name, r.vertices,
+      node::log().warn("{}: solved on its own {} vertices, slower and less even than on a proxy: {}", r.name, r.vertices,
                  r.proxy_refused);
-    if (!r.converged) log().warn("{}: ARAP stopped at the iteration cap before reaching {} mm", r.name, cmd.tolerance_mm);
+    if (!r.converged) node::log().warn("{}: ARAP stopped at the iteration cap before reaching {} mm", r.name, cmd.tolerance_mm);
   }
   geometry::Markup landmarks{"Fiducial", "landmarks", result.landmarks};
   geometry::write_markups(cmd.out / "landmarks.mrk.json", {landmarks});
@@ -148,7 +148,7 @@ int run_deform(const DeformCommand& cmd) {
   report["total_ms"] = result.total_ms;
   write_json(cmd.out / "report.json", report);
   if (cmd.preview) write_preview(cmd.out / "preview.png", scene, result, device);
-  log().info("done in {:.1f} ms; wrote {} mesh(es), landmarks.mrk.json, report.json{} to {}", result.total_ms,
+  node::log().info("done in {:.1f} ms; wrote {} mesh(es), landmarks.mrk.json, report.json{} to {}", result.total_ms,
              scene.vessels.size(), cmd.preview ? ", preview.png" : "", cmd.out.string());
   return 0;
 }

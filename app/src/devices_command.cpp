@@ -8,7 +8,7 @@
 #include "evar/acquisition/serial_ports.hpp"
 #include "evar/acquisition/usb_carm_source.hpp"
 #include "evar/acquisition/v4l2_frame_source.hpp"
-#include "logging.hpp"
+#include "evar/node/logging.hpp"
 
 namespace evar::app {
 namespace {
@@ -107,7 +107,7 @@ int run_devices(const DevicesCommand& cmd) {
     if (!d.error.empty()) std::cout << "  (" << d.error << ")";
     std::cout << "\n";
   }
-  if (!errors.empty()) log().warn("{}", errors);
+  if (!errors.empty()) node::log().warn("{}", errors);
   return 0;
 }
 

@@ -6,10 +6,10 @@
 #include <sstream>
 
 #include "commands.hpp"
-#include "evar/geometry/markups.hpp"
 #include "evaluation_plots.hpp"
+#include "evar/geometry/markups.hpp"
+#include "evar/node/logging.hpp"
 #include "json_file.hpp"
-#include "logging.hpp"
 #include "progress_bar.hpp"
 #include "session_evaluation.hpp"
 
@@ -141,10 +141,10 @@ int run_eval(const EvalCommand& cmd) {
                       {"landmarks", lm}, {"model", model}, {"device_errors", devices},
                       {"device_iliac", c.device_iliac}, {"physics", c.physics}, {"difficulty", c.difficulty},
                       {"registration_residual_deg", c.registration_residual_deg}, {"seconds", c.seconds}});
-    if (!c.model) log().warn("{}: no adapted model ({} candidates, {} pairs{}{})", dir.string(), c.candidates, c.pairs,
+    if (!c.model) node::log().warn("{}: no adapted model ({} candidates, {} pairs{}{})", dir.string(), c.candidates, c.pairs,
                              c.failures.empty() ? "" : "; ", c.failures.empty() ? "" : c.failures.back());
     else
-      log().info("{}: {} frames evaluated, model from frames {}+{} ({:.0f}° apart)", dir.string(), c.frames_evaluated,
+      node::log().info("{}: {} frames evaluated, model from frames {}+{} ({:.0f}° apart)", dir.string(), c.frames_evaluated,
                  c.model->frame_earlier, c.model->frame_later, c.model->reconstruction.separation_deg);
     cases.push_back(std::move(c));
   }
@@ -169,7 +169,7 @@ int run_eval(const EvalCommand& cmd) {
   write_evaluation_plots(cmd.out, cases);
   write_devices(cmd.out / "devices", cases);
   std::fputs(md.str().c_str(), stdout);
-  log().info("wrote {} (eval.json, eval.md, per_case.png, distribution.png, snapshots/, devices/)", cmd.out.string());
+  node::log().info("wrote {} (eval.json, eval.md, per_case.png, distribution.png, snapshots/, devices/)", cmd.out.string());
   return without_model == cases.size() ? 1 : 0;
 }
 

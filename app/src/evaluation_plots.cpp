@@ -8,11 +8,11 @@
 #include <opencv2/imgproc.hpp>
 
 #include "evaluation_charts.hpp"
+#include "evar/node/frame_view.hpp"
+#include "evar/node/model_adaptation.hpp"
 #include "evar/overlay/frame_compositor.hpp"
 #include "evar/sim/session.hpp"
 #include "evar/sim/session_replay.hpp"
-#include "frame_view.hpp"
-#include "model_adaptation.hpp"
 
 namespace evar::app {
 
@@ -20,14 +20,14 @@ namespace {
 
 void snapshot(const std::filesystem::path& path, const CaseEvaluation& c) {
   const sim::Session& session = *c.recording;
-  const auto model = std::make_shared<const overlay::RoadmapModel>(roadmap_model(*c.scene, c.model.get()));
+  const auto model = std::make_shared<const overlay::RoadmapModel>(node::roadmap_model(*c.scene, c.model.get()));
   const sim::FrameRecord& record = session.frames[c.snapshot_frame];
   const sim::CArmSample* sample = sim::carm_at(session, record.timestamp_ns);
-  const FrameView view = frame_view(session.detector, session.ct_to_carm, sim::to_carm_state(*sample, 0));
+  const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm, sim::to_carm_state(*sample, 0));
   const cv::Mat image = sim::read_session_frame(session, c.snapshot_frame);
   overlay::FrameCompositor compositor({4, {}});
   const std::string line =
-      "frame " + std::to_string(record.frame) + "  " + angulation_text(sample->primary_deg, sample->secondary_deg);
+      "frame " + std::to_string(record.frame) + "  " + node::angulation_text(sample->primary_deg, sample->secondary_deg);
   overlay::Image out =
       compositor.compose({image.cols, image.rows, static_cast<int>(image.step), 16, image.data}, &view.P_ct, model,
                          overlay::RoadmapMode::Both,

@@ -1,7 +1,7 @@
 // `evarnode example`: writes the bundled synthetic scene.
 #include "commands.hpp"
+#include "evar/node/logging.hpp"
 #include "evar/sim/example_scene.hpp"
-#include "logging.hpp"
 
 #include <stdexcept>
 
@@ -24,9 +24,9 @@ int run_example(const SyntheticSceneCommand& cmd) {
   const auto format = mesh_format_option(cmd.format);
   sim::write_example_scene(scene, cmd.out, format);
   for (const auto& c : scene.device_clearance)
-    log().info("device vs {:<11}: up to {:.1f} mm outside the undeformed lumen over {:.0f} mm", c.vessel,
+    node::log().info("device vs {:<11}: up to {:.1f} mm outside the undeformed lumen over {:.0f} mm", c.vessel,
                c.max_outside_mm, c.length_outside_mm);
-  log().info("wrote the example scene to {} (scene.json, device.mrk.json)", cmd.out.string());
+  node::log().info("wrote the example scene to {} (scene.json, device.mrk.json)", cmd.out.string());
   return 0;
 }
 

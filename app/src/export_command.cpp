@@ -3,8 +3,8 @@
 
 #include "commands.hpp"
 #include "evar/geometry/input_error.hpp"
+#include "evar/node/logging.hpp"
 #include "evar/sim/session.hpp"
-#include "logging.hpp"
 #include "progress_bar.hpp"
 
 namespace evar::app {
@@ -14,18 +14,18 @@ int run_export(const ExportCommand& cmd) {
   if (session.frames.empty()) throw geometry::InputError(cmd.session.string() + ": the session has no frames");
   const std::string name = cmd.out.filename().string();
   if (name.size() < 8 || name.compare(name.size() - 8, 8, ".seq.mha") != 0)
-    log().warn("{}: Slicer's Sequences module recognises sequence metafiles by the name *.seq.mha", cmd.out.string());
+    node::log().warn("{}: Slicer's Sequences module recognises sequence metafiles by the name *.seq.mha", cmd.out.string());
   ProgressBar bar("frames", cmd.progress);
   const sim::ExportSummary summary =
       sim::export_plus_sequence(session, cmd.out, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
   bar.finish();
   if (summary.timestamps_nudged > 0)
-    log().warn("{} frames came less than 1 ms after the one before; their Timestamp was moved to 1 ms after it "
+    node::log().warn("{} frames came less than 1 ms after the one before; their Timestamp was moved to 1 ms after it "
                "(Slicer keys frames by the millisecond)",
                summary.timestamps_nudged);
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(cmd.out, ec);
-  log().info("wrote {}: {} frames of {} x {} ({:.0f} MB); in 3D Slicer with the SlicerIGSIO extension: File > Add Data",
+  node::log().info("wrote {}: {} frames of {} x {} ({:.0f} MB); in 3D Slicer with the SlicerIGSIO extension: File > Add Data",
              cmd.out.string(), session.frames.size(), session.detector.cols, session.detector.rows,
              ec ? 0.0 : static_cast<double>(bytes) / 1e6);
   return 0;

@@ -5,8 +5,8 @@
 #include <algorithm>
 #include <vector>
 
-#include "evar/geometry/input_error.hpp"
 #include "evar/geometry/image_file.hpp"
+#include "evar/geometry/input_error.hpp"
 #include "evar/geometry/input_file.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "view_input.hpp"

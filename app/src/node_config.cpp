@@ -34,7 +34,7 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
     else if (key == "registration") c.registration = dir / text(value, path, key);
     else if (key == "detector") {
       if (!value.is_object()) bad_field(path, key, "expected an object");
-      sim::DetectorSpec d;
+      geometry::DetectorSpec d;
       for (const char* f : {"cols", "rows", "row_spacing_mm", "col_spacing_mm"})
         if (!value.contains(f)) bad_field(path, key + "." + f, "missing");
       d.cols = static_cast<int>(number_field(path, value["cols"], "detector.cols", 1, 16384, "px"));

@@ -20,7 +20,7 @@
 
 #include <Eigen/Core>
 
-#include "evar/sim/session.hpp"
+#include "evar/geometry/detector.hpp"
 #include "source_factory.hpp"
 
 namespace evar::app {
@@ -28,7 +28,7 @@ namespace evar::app {
 struct NodeConfig {
   std::filesystem::path file;
   std::optional<std::filesystem::path> scene, registration;
-  std::optional<sim::DetectorSpec> detector;
+  std::optional<geometry::DetectorSpec> detector;
   std::optional<FrameSourceSpec> frames;
   std::optional<std::string> carm;
   std::optional<double> fps;

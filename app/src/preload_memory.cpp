@@ -5,8 +5,8 @@
 #include <stdexcept>
 #include <string>
 
+#include "evar/node/logging.hpp"
 #include "evar/sim/session_replay.hpp"
-#include "logging.hpp"
 
 namespace evar::app {
 
@@ -20,7 +20,7 @@ void check_preload_memory(const sim::Session& session) {
   if (have > 0 && need > have / 2)
     throw std::runtime_error("--preload: " + sizes + ", more than half this machine's " + std::to_string(have >> 20) +
                              " MiB; replay without --preload");
-  log().info("preloading {} before the replay starts", sizes);
+  node::log().info("preloading {} before the replay starts", sizes);
 }
 
 }  // namespace evar::app

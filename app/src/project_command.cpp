@@ -11,8 +11,8 @@
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/markups.hpp"
+#include "evar/node/logging.hpp"
 #include "json_file.hpp"
-#include "logging.hpp"
 #include "view_input.hpp"
 
 namespace evar::app {
@@ -66,7 +66,7 @@ int run_project(const ProjectCommand& cmd) {
   }
   if (!cmd.out.empty()) {
     write_json(cmd.out, {{"geometry", cmd.geometry.string()}, {"points", out}});
-    log().info("wrote {}", cmd.out.string());
+    node::log().info("wrote {}", cmd.out.string());
   }
   return 0;
 }

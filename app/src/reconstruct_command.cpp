@@ -8,10 +8,10 @@
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/two_view_reconstruction.hpp"
+#include "evar/node/logging.hpp"
 #include "fluoro_input.hpp"
-#include "segmentation_setup.hpp"
 #include "json_file.hpp"
-#include "logging.hpp"
+#include "segmentation_setup.hpp"
 
 namespace evar::app {
 
@@ -95,7 +95,7 @@ int run_reconstruct(const ReconstructCommand& cmd) {
   report["coordinate_system"] = cmd.registration.empty() ? "C-arm LPS (isocenter at the origin)" : "CT LPS";
   report["output"] = cmd.out.string();
   write_report();
-  log().info("device in 3D: {} points over {:.0f} mm, views {:.1f} degrees apart, reprojection residual mean {:.2f} px "
+  node::log().info("device in 3D: {} points over {:.0f} mm, views {:.1f} degrees apart, reprojection residual mean {:.2f} px "
              "(max {:.2f}), {:.0f} % reliable, {:.0f} % of the matched curve kept; {:.1f} ms segmentation + {:.1f} ms reconstruction; wrote {}",
              points.size(), geometry::arc_lengths(points).back(), r.separation_deg, r.mean_residual_px, r.max_residual_px,
              100.0 * r.reliable_fraction, 100.0 * r.kept_fraction, segment_ms, reconstruct_ms, cmd.out.string());

@@ -10,9 +10,9 @@
 
 #include "commands.hpp"
 #include "evar/geometry/carm_projection.hpp"
+#include "evar/node/logging.hpp"
 #include "evar/sim/session_recorder.hpp"
 #include "interrupt.hpp"
-#include "logging.hpp"
 #include "progress_bar.hpp"
 #include "source_factory.hpp"
 
@@ -25,20 +25,20 @@ namespace {
 void log_new_notices(const sim::RecorderStatistics& now, const sim::RecorderStatistics& before) {
   const std::uint64_t fresh = now.carm_notices - before.carm_notices;
   const auto kept = static_cast<std::uint64_t>(now.recent_carm_notices.size());
-  if (fresh > kept) log().warn("C-arm link: {} notices came too fast to log; the last {} follow", fresh - kept, kept);
+  if (fresh > kept) node::log().warn("C-arm link: {} notices came too fast to log; the last {} follow", fresh - kept, kept);
   for (std::size_t i = static_cast<std::size_t>(kept - std::min(fresh, kept)); i < now.recent_carm_notices.size(); ++i)
-    log().warn("{}", now.recent_carm_notices[i]);
+    node::log().warn("{}", now.recent_carm_notices[i]);
 }
 
 int run_recover(const std::filesystem::path& directory) {
-  log().info("recovering the recording in {} from its journal", directory.string());
+  node::log().info("recovering the recording in {} from its journal", directory.string());
   const sim::RecoveredRecording r = sim::recover_recording(directory);
-  log().info("{}: {} frames and {} C-arm states recovered", directory.string(), r.session.frames.size(), r.carm_samples);
+  node::log().info("{}: {} frames and {} C-arm states recovered", directory.string(), r.session.frames.size(), r.carm_samples);
   if (r.frames_lost > 0)
-    log().warn("{} of the {} journaled frames were left out: their PNG is missing or was cut short by the end of the recorder",
+    node::log().warn("{} of the {} journaled frames were left out: their PNG is missing or was cut short by the end of the recorder",
                r.frames_lost, r.frames_journaled);
-  if (r.cut_row_skipped) log().info("a journal row cut in half by the end of the recorder was skipped");
-  log().info("report: {}", (directory / "record_report.json").string());
+  if (r.cut_row_skipped) node::log().info("a journal row cut in half by the end of the recorder was skipped");
+  node::log().info("report: {}", (directory / "record_report.json").string());
   return 0;
 }
 
@@ -55,8 +55,8 @@ int run_record(const RecordCommand& cmd) {
   o.pixel_spacing_mm = cmd.pixel_spacing_mm;
   o.device_thickness_mm = cmd.device_thickness_mm;
   sim::SessionRecorder recorder(o, *frames, *carm);
-  log().info("recording {} and {} into {}", frames->description(), carm->description(), cmd.out.string());
-  log().info("stop with Ctrl-C or SIGTERM{}{}", cmd.seconds ? fmt::format(", or after {:g} s", *cmd.seconds) : "",
+  node::log().info("recording {} and {} into {}", frames->description(), carm->description(), cmd.out.string());
+  node::log().info("stop with Ctrl-C or SIGTERM{}{}", cmd.seconds ? fmt::format(", or after {:g} s", *cmd.seconds) : "",
              cmd.frames_to_write ? fmt::format(", or after {} frames", *cmd.frames_to_write) : "");
 
   const InterruptGuard interrupt;
@@ -69,9 +69,9 @@ int run_record(const RecordCommand& cmd) {
     s = recorder.statistics();
     // State changes are news: a stalled grabber or a silent C-arm is said at once.
     if (s.video != shown.video || s.video_reason != shown.video_reason)
-      (acquisition::is_live(s.video) ? log().info("video: {}", s.video_reason) : log().warn("video: {}", s.video_reason));
+      (acquisition::is_live(s.video) ? node::log().info("video: {}", s.video_reason) : node::log().warn("video: {}", s.video_reason));
     if (s.carm != shown.carm || s.carm_reason != shown.carm_reason)
-      (acquisition::is_live(s.carm) ? log().info("C-arm: {}", s.carm_reason) : log().warn("C-arm: {}", s.carm_reason));
+      (acquisition::is_live(s.carm) ? node::log().info("C-arm: {}", s.carm_reason) : node::log().warn("C-arm: {}", s.carm_reason));
     log_new_notices(s, shown);
     shown = s;
     if (const auto since = status.due()) {
@@ -87,16 +87,16 @@ int run_record(const RecordCommand& cmd) {
       break;
   }
   status.finish();
-  if (interrupt.interrupted()) log().info("{}: finishing the recording", ::strsignal(interrupt.signal_received()));
+  if (interrupt.interrupted()) node::log().info("{}: finishing the recording", ::strsignal(interrupt.signal_received()));
   const sim::Session session = recorder.finish();
   s = recorder.statistics();
   log_new_notices(s, shown);
-  log().info("{}: {} frames and {} C-arm states in {:.1f} s; {} frames dropped by the source, {} not recorded",
+  node::log().info("{}: {} frames and {} C-arm states in {:.1f} s; {} frames dropped by the source, {} not recorded",
              cmd.out.string(), session.frames.size(), session.carm.size(), s.seconds, frames->statistics().dropped,
              s.frames_not_recorded + s.frames_refused + s.frames_write_failed);
-  if (s.carm_refused > 0) log().warn("{} C-arm states had values the format refuses and were not recorded", s.carm_refused);
-  if (!s.last_error.empty()) log().warn("last problem: {}", s.last_error);
-  log().info("report: {}", (cmd.out / "record_report.json").string());
+  if (s.carm_refused > 0) node::log().warn("{} C-arm states had values the format refuses and were not recorded", s.carm_refused);
+  if (!s.last_error.empty()) node::log().warn("last problem: {}", s.last_error);
+  node::log().info("report: {}", (cmd.out / "record_report.json").string());
   return 0;
 }
 

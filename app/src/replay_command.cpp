@@ -6,12 +6,12 @@
 #include <set>
 
 #include "commands.hpp"
+#include "evar/node/logging.hpp"
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/serial_carm_server.hpp"
 #include "evar/sim/session_replay.hpp"
 #include "interrupt.hpp"
 #include "json_file.hpp"
-#include "logging.hpp"
 #include "preload_memory.hpp"
 #include "progress_bar.hpp"
 
@@ -20,7 +20,7 @@ namespace evar::app {
 int run_replay(const ReplayCommand& cmd) {
   const sim::Session session = sim::read_session(cmd.session);
   if (session.frames.empty()) {
-    log().error("{}: the session has no frames", cmd.session.string());
+    node::log().error("{}: the session has no frames", cmd.session.string());
     return 1;
   }
   // What the callbacks fill in: declared before the replay, so it outlives the replay's
@@ -37,11 +37,11 @@ int run_replay(const ReplayCommand& cmd) {
   std::optional<sim::SerialCArmServer> carm_link;
   if (!cmd.serve_gige.empty()) {
     camera.emplace(cmd.serve_gige, cmd.gige_interface);
-    log().info("serving the frames as GigE Vision camera {} on interface {}", camera->device_id(), cmd.gige_interface);
+    node::log().info("serving the frames as GigE Vision camera {} on interface {}", camera->device_id(), cmd.gige_interface);
   }
   if (!cmd.serve_carm.empty()) {
     carm_link.emplace(cmd.serve_carm);
-    log().info("serving the C-arm states on {} (-> {}), C-arm link protocol v1", cmd.serve_carm, carm_link->slave_path());
+    node::log().info("serving the C-arm states on {} (-> {}), C-arm link protocol v1", cmd.serve_carm, carm_link->slave_path());
   }
   std::string transport_error;  // the first failure to serve; the replay goes on
   if (cmd.preload) check_preload_memory(session);
@@ -76,7 +76,7 @@ int run_replay(const ReplayCommand& cmd) {
         ++by_view[view];
       },
       [&](acquisition::StreamState s, const std::string& reason) {
-        log().debug("frame source: {} ({})", acquisition::to_string(s), reason);
+        node::log().debug("frame source: {} ({})", acquisition::to_string(s), reason);
       });
 
   ProgressBar bar("frames", cmd.progress);
@@ -98,16 +98,16 @@ int run_replay(const ReplayCommand& cmd) {
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
 
   const auto stats = replay.frames().statistics();
-  log().info("{}: {} frames ({} dropped) and {} C-arm states in {:.1f} s ({:.1f} frames/s), {} loop(s)", cmd.session.string(),
+  node::log().info("{}: {} frames ({} dropped) and {} C-arm states in {:.1f} s ({:.1f} frames/s), {} loop(s)", cmd.session.string(),
              p.frames, stats.dropped, p.carm_states, seconds, p.frames / std::max(seconds, 1e-9), p.loop + 1);
-  for (const auto& [view, n] : by_view) log().info("  view {} (primary/secondary deg): {} frames", view, n);
-  if (frames_while_moving > 0) log().warn("  {} frames arrived while the C-arm was moving", frames_while_moving);
-  if (!replay.error().empty()) log().error("replay stopped early: {}", replay.error());
-  if (camera) log().info("  GigE camera {}: {} frames sent", camera->device_id(), camera->frames_sent());
+  for (const auto& [view, n] : by_view) node::log().info("  view {} (primary/secondary deg): {} frames", view, n);
+  if (frames_while_moving > 0) node::log().warn("  {} frames arrived while the C-arm was moving", frames_while_moving);
+  if (!replay.error().empty()) node::log().error("replay stopped early: {}", replay.error());
+  if (camera) node::log().info("  GigE camera {}: {} frames sent", camera->device_id(), camera->frames_sent());
   if (carm_link)
-    log().info("  C-arm link {}: {} states sent, {} dropped (nobody reading)", cmd.serve_carm, carm_link->sent(),
+    node::log().info("  C-arm link {}: {} states sent, {} dropped (nobody reading)", cmd.serve_carm, carm_link->sent(),
                carm_link->dropped());
-  if (!transport_error.empty()) log().error("serving the C-arm link failed: {}", transport_error);
+  if (!transport_error.empty()) node::log().error("serving the C-arm link failed: {}", transport_error);
   if (!cmd.report.empty()) {
     nlohmann::json views = nlohmann::json::object();
     for (const auto& [view, n] : by_view) views[view] = n;

@@ -13,14 +13,14 @@
 #include "commands.hpp"
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/input_error.hpp"
+#include "evar/node/live_node.hpp"
+#include "evar/node/logging.hpp"
+#include "evar/node/output_sinks.hpp"
 #include "evar/sim/session_replay.hpp"
 #include "interrupt.hpp"
 #include "json_file.hpp"
-#include "live_node.hpp"
-#include "logging.hpp"
-#include "preload_memory.hpp"
 #include "node_config.hpp"
-#include "output_sinks.hpp"
+#include "preload_memory.hpp"
 #include "progress_bar.hpp"
 #include "session_evaluation.hpp"
 
@@ -28,7 +28,7 @@ namespace evar::app {
 
 namespace {
 
-nlohmann::json to_json(const Percentiles& p) { return {{"p50", p.p50}, {"p99", p.p99}, {"max", p.max}, {"n", p.n}}; }
+nlohmann::json to_json(const node::Percentiles& p) { return {{"p50", p.p50}, {"p99", p.p99}, {"max", p.max}, {"n", p.n}}; }
 
 nlohmann::json to_json(const std::vector<std::filesystem::path>& files) {
   nlohmann::json a = nlohmann::json::array();
@@ -55,7 +55,7 @@ int run_node(const RunCommand& cmd) {
   if (cmd.replay.empty() && !config) throw geometry::InputError("run: give --config node.json or --replay SESSION");
 
   std::optional<sim::Session> session;
-  NodeOptions options;
+  node::NodeOptions options;
   std::filesystem::path scene_path;
   double fps = 30.0;
   if (!cmd.replay.empty()) {
@@ -106,18 +106,18 @@ int run_node(const RunCommand& cmd) {
   // A restarted service writes into the same directory: nothing of the earlier run is lost
   // (the video and pictures are kept by their sinks).
   for (const char* report : {"run_report.json", "eval.md"})
-    if (const auto kept = set_aside_earlier(cmd.out / report)) log().info("the earlier run's {} is kept as {}", report, kept->string());
-  std::vector<std::unique_ptr<OutputSink>> sinks;
-  VideoSink* video = nullptr;
-  SnapshotSink* snapshots = nullptr;
-  IgtlSink* igtl = nullptr;
+    if (const auto kept = node::set_aside_earlier(cmd.out / report)) node::log().info("the earlier run's {} is kept as {}", report, kept->string());
+  std::vector<std::unique_ptr<node::OutputSink>> sinks;
+  node::VideoSink* video = nullptr;
+  node::SnapshotSink* snapshots = nullptr;
+  node::IgtlSink* igtl = nullptr;
   if (!cmd.no_video) {
-    auto s = std::make_unique<VideoSink>(cmd.out / cmd.video, fps, cmd.video_budget_mb << 20);
+    auto s = std::make_unique<node::VideoSink>(cmd.out / cmd.video, fps, cmd.video_budget_mb << 20);
     video = s.get();
     sinks.push_back(std::move(s));
   }
   {
-    auto s = std::make_unique<SnapshotSink>(cmd.out / "snapshots", cmd.snapshot_budget_mb << 20);
+    auto s = std::make_unique<node::SnapshotSink>(cmd.out / "snapshots", cmd.snapshot_budget_mb << 20);
     snapshots = s.get();
     sinks.push_back(std::move(s));
   }
@@ -125,8 +125,8 @@ int run_node(const RunCommand& cmd) {
     overlay::IgtlServerOptions o;
     o.bind_address = cmd.igtl_bind;
     o.port = cmd.igtl_port;
-    auto s = std::make_unique<IgtlSink>(o, scene, options.detector.col_spacing_mm, 15.0);
-    log().info("OpenIGTLink server on {}:{} (3D Slicer: OpenIGTLinkIF, client to this port)", cmd.igtl_bind, s->port());
+    auto s = std::make_unique<node::IgtlSink>(o, scene, options.detector.col_spacing_mm, 15.0);
+    node::log().info("OpenIGTLink server on {}:{} (3D Slicer: OpenIGTLinkIF, client to this port)", cmd.igtl_bind, s->port());
     igtl = s.get();
     sinks.push_back(std::move(s));
   }
@@ -137,9 +137,9 @@ int run_node(const RunCommand& cmd) {
     sinks.push_back(std::move(s));
   }
   std::atomic<bool> quit{false};
-  LiveNode* node_ptr = nullptr;
+  node::LiveNode* node_ptr = nullptr;
   if (cmd.display) {
-    WindowSink::Actions actions;
+    node::WindowSink::Actions actions;
     actions.cycle_mode = [&] {
       const auto m = node_ptr->mode();
       node_ptr->set_mode(m == overlay::RoadmapMode::Both       ? overlay::RoadmapMode::Adapted
@@ -148,7 +148,7 @@ int run_node(const RunCommand& cmd) {
     };
     actions.snapshot = [&] { snapshots->request(); };
     actions.quit = [&] { quit = true; };
-    sinks.push_back(std::make_unique<WindowSink>(cmd.fullscreen, actions));
+    sinks.push_back(std::make_unique<node::WindowSink>(cmd.fullscreen, actions));
   }
 
   // The sources before the node: destroyed after it, so a node left running by an
@@ -156,7 +156,7 @@ int run_node(const RunCommand& cmd) {
   std::unique_ptr<sim::SessionReplay> replay;
   std::unique_ptr<acquisition::FrameSource> live_frames;
   std::unique_ptr<acquisition::CArmGeometrySource> live_carm;
-  LiveNode node(scene, options, std::move(sinks));
+  node::LiveNode node(scene, options, std::move(sinks));
   node_ptr = &node;
   acquisition::FrameSource* frames = nullptr;
   acquisition::CArmGeometrySource* carm = nullptr;
@@ -178,7 +178,7 @@ int run_node(const RunCommand& cmd) {
     frames = live_frames.get();
     carm = live_carm.get();
   }
-  log().info("running on {} and {}; roadmap {}; outputs in {}", frames->description(), carm->description(), cmd.mode,
+  node::log().info("running on {} and {}; roadmap {}; outputs in {}", frames->description(), carm->description(), cmd.mode,
              cmd.out.string());
   const InterruptGuard ctrl_c;
   const auto t0 = std::chrono::steady_clock::now();
@@ -195,7 +195,7 @@ int run_node(const RunCommand& cmd) {
       } else {
         std::this_thread::sleep_for(std::chrono::milliseconds(100));
         if (status.due()) {
-          const NodeStatistics s = node.statistics();
+          const node::NodeStatistics s = node.statistics();
           status.print(fmt::format("frames {} shown {} (dropped {})  latency p50 {:.1f} ms  models {}", s.frames_in,
                                    s.frames_composited, s.dropped_input + s.dropped_output, s.latency_ms.p50,
                                    s.adaptations));
@@ -207,8 +207,8 @@ int run_node(const RunCommand& cmd) {
   }
   node.stop();
   const double seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
-  const NodeStatistics s = node.statistics();
-  if (replay && !replay->error().empty()) log().error("replay ended early: {}", replay->error());
+  const node::NodeStatistics s = node.statistics();
+  if (replay && !replay->error().empty()) node::log().error("replay ended early: {}", replay->error());
 
   nlohmann::json report = {
       {"source", frames->description()},
@@ -268,22 +268,22 @@ int run_node(const RunCommand& cmd) {
     std::fputs(md.str().c_str(), stdout);
   }
   write_json(cmd.out / "run_report.json", report);
-  log().info("{} frames in {:.1f} s: {} shown ({} with the roadmap), {} dropped; latency p50 {:.1f} ms, p99 {:.1f} ms; "
+  node::log().info("{} frames in {:.1f} s: {} shown ({} with the roadmap), {} dropped; latency p50 {:.1f} ms, p99 {:.1f} ms; "
              "{} model(s), {} failed",
              s.frames_in, seconds, s.frames_composited, s.frames_with_roadmap, s.dropped_input + s.dropped_output,
              s.latency_ms.p50, s.latency_ms.p99, s.adaptations, s.adaptation_failures);
   if (video) {
-    log().info("video: {} ({} frames written in all)", (cmd.out / cmd.video).string(), video->frames());
+    node::log().info("video: {} ({} frames written in all)", (cmd.out / cmd.video).string(), video->frames());
     if (!video->segments().empty() || video->segments_deleted())
-      log().info("video: {} earlier segment(s) beside it, {} older one(s) deleted for the {} MiB budget",
+      node::log().info("video: {} earlier segment(s) beside it, {} older one(s) deleted for the {} MiB budget",
                  video->segments().size(), video->segments_deleted(), cmd.video_budget_mb);
   }
-  log().info("snapshots: {} in {} ({:.1f} MiB){}", snapshots->kept().size(), (cmd.out / "snapshots").string(),
+  node::log().info("snapshots: {} in {} ({:.1f} MiB){}", snapshots->kept().size(), (cmd.out / "snapshots").string(),
              static_cast<double>(snapshots->bytes()) / (1 << 20),
              snapshots->deleted() ? "; " + std::to_string(snapshots->deleted()) + " older model pictures deleted for the " +
                                         std::to_string(cmd.snapshot_budget_mb) + " MiB budget"
                                   : std::string());
-  log().info("report: {}{}", (cmd.out / "run_report.json").string(),
+  node::log().info("report: {}{}", (cmd.out / "run_report.json").string(),
              evaluated ? "; evaluation: " + (cmd.out / "eval.md").string() : "");
   return 0;
 }

@@ -5,10 +5,10 @@
 #include "commands.hpp"
 #include "evar/geometry/device_segmentation.hpp"
 #include "evar/geometry/input_error.hpp"
+#include "evar/node/logging.hpp"
 #include "fluoro_input.hpp"
-#include "segmentation_setup.hpp"
 #include "json_file.hpp"
-#include "logging.hpp"
+#include "segmentation_setup.hpp"
 
 namespace evar::app {
 
@@ -28,10 +28,10 @@ int run_segment(const SegmentCommand& cmd) {
   if (!cmd.overlay.empty() && !cv::imwrite(cmd.overlay.string(), device_overlay(in.image, found.points, found.found)))
     throw std::runtime_error(cmd.overlay.string() + ": cannot write the overlay picture");
   if (!found.found) {
-    log().warn("{}: no device found: {}", cmd.image.string(), found.reason);
+    node::log().warn("{}: no device found: {}", cmd.image.string(), found.reason);
     return 3;
   }
-  log().info("{}: device of {:.0f} px, confidence {:.2f}, {}reaching the field border, {:.1f} ms; wrote {}",
+  node::log().info("{}: device of {:.0f} px, confidence {:.2f}, {}reaching the field border, {:.1f} ms; wrote {}",
              cmd.image.string(), found.length_px, found.confidence, found.reaches_border ? "" : "not ", ms,
              cmd.out.string());
   return 0;

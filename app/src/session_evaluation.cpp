@@ -123,8 +123,8 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
 
   result.session = directory;
   result.frames = session.frames.size();
-  ViewPairSelector selector(options.adaptation.reconstruction.min_separation_deg, options.pairs);
-  std::shared_ptr<const AdaptedModel> model;
+  node::ViewPairSelector selector(options.adaptation.reconstruction.min_separation_deg, options.pairs);
+  std::shared_ptr<const node::AdaptedModel> model;
   OstiumErrors errors(scene.landmarks, session.truth->ostia);
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const sim::FrameRecord& record = session.frames[i];
@@ -133,26 +133,26 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
       if (progress) progress(i + 1, session.frames.size());
       continue;
     }
-    const FrameView view = frame_view(session.detector, session.ct_to_carm,
+    const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm,
                                       sim::to_carm_state(*sample, 0));
     const cv::Mat image = sim::read_session_frame(session, i);
-    FrameAnalysis analysis = analyse_frame(image, view, options.candidate);
+    node::FrameAnalysis analysis = node::analyse_frame(image, view, options.candidate);
     if (analysis.candidate) {
       ++result.candidates;
-      ViewCandidate c{static_cast<std::uint64_t>(record.frame), record.timestamp_ns, view,
+      node::ViewCandidate c{static_cast<std::uint64_t>(record.frame), record.timestamp_ns, view,
                       std::move(analysis.curve.points)};
       if (auto pair = selector.add(std::move(c))) {
         ++result.pairs;
         try {
-          model = std::make_shared<const AdaptedModel>(
-              adapt_model(deformer, *pair, options.adaptation, model ? &model->deformation : nullptr));
+          model = std::make_shared<const node::AdaptedModel>(
+              node::adapt_model(deformer, *pair, options.adaptation, model ? &model->deformation : nullptr));
           ++result.adaptations;
           selector.succeeded(pair->earlier.id());
           DeviceError e = device_error(model->reconstruction.points, true_device);
           e.frame_earlier = pair->earlier.frame;
           e.frame_later = pair->later.frame;
           result.devices.push_back(e);
-        } catch (const AdaptationError& e) {
+        } catch (const node::AdaptationError& e) {
           result.failures.push_back("frames " + std::to_string(pair->earlier.frame) + "+" +
                                     std::to_string(pair->later.frame) + ": " + e.what());
           selector.failed(pair->earlier.id());
@@ -160,7 +160,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
       }
     }
     if (model) {
-      if (errors.add(record.frame, view.P_ct, mm_at_isocenter_per_px(view.view), model->deformation.landmarks)) {
+      if (errors.add(record.frame, view.P_ct, node::mm_at_isocenter_per_px(view.view), model->deformation.landmarks)) {
         ++result.frames_evaluated;
         result.snapshot_frame = i;
       }
@@ -201,7 +201,7 @@ const std::vector<sim::OstiumTruth>& ostia_of(const sim::Session& session) {
 EvaluationSink::EvaluationSink(const sim::Session& session, const geometry::Scene& scene)
     : session_(session), errors_(scene.landmarks, ostia_of(session)) {}
 
-void EvaluationSink::write(const ComposedFrame& e) {
+void EvaluationSink::write(const node::ComposedFrame& e) {
   if (e.held || !e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) return;
   const sim::FrameRecord& record = session_.frames[(e.sequence - 1) % session_.frames.size()];
   std::lock_guard lock(mutex_);

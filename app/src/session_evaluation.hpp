@@ -17,18 +17,18 @@
 
 #include <nlohmann/json.hpp>
 
-#include "device_candidate.hpp"
-#include "live_node.hpp"
+#include "evar/node/device_candidate.hpp"
+#include "evar/node/live_node.hpp"
+#include "evar/node/model_adaptation.hpp"
+#include "evar/node/view_pair_selector.hpp"
 #include "evar/sim/session.hpp"
-#include "model_adaptation.hpp"
-#include "view_pair_selector.hpp"
 
 namespace evar::app {
 
 struct EvaluationOptions {
-  CandidateOptions candidate;
-  ViewPairOptions pairs;
-  AdaptationOptions adaptation;
+  node::CandidateOptions candidate;
+  node::ViewPairOptions pairs;
+  node::AdaptationOptions adaptation;
   deform::DeformOptions deform;
 };
 
@@ -91,7 +91,7 @@ struct CaseEvaluation {
   std::string physics = "unknown";       ///< the simulator's truth physics (patient.json), if any
   std::string difficulty = "unknown";    ///< the simulator's difficulty (patient.json), if any
   double registration_residual_deg = 0.0;  ///< the given registration's rotation off the true one
-  std::shared_ptr<const AdaptedModel> model;  ///< the last adapted model (null when none)
+  std::shared_ptr<const node::AdaptedModel> model;  ///< the last adapted model (null when none)
   geometry::Polyline true_device;  ///< the session's true device in the node's CT frame (LPS mm)
   std::shared_ptr<const sim::Session> recording;  ///< as read (for pictures)
   std::shared_ptr<const geometry::Scene> scene;   ///< as loaded (for pictures)
@@ -108,11 +108,11 @@ CaseEvaluation evaluate_session(const std::filesystem::path& session, const Eval
 /// the frames composited with an adapted model, on a replay of `session` (sequence n is the
 /// session's frame (n − 1) modulo its length). It keeps sums, not frames or models, so a
 /// replay looped for hours runs in constant memory. The session must have ground truth.
-class EvaluationSink final : public OutputSink {
+class EvaluationSink final : public node::OutputSink {
  public:
   EvaluationSink(const sim::Session& session, const geometry::Scene& scene);
   std::string name() const override { return "evaluation"; }
-  void write(const ComposedFrame& frame) override;
+  void write(const node::ComposedFrame& frame) override;
   /// The means per landmark so far (only those measured).
   std::vector<LandmarkError> result() const;
   /// Frames measured so far.

@@ -1,7 +1,7 @@
 // `evarnode sim session`: a whole simulated intervention as a recorded session.
 #include "commands.hpp"
+#include "evar/node/logging.hpp"
 #include "evar/sim/session_generator.hpp"
-#include "logging.hpp"
 #include "progress_bar.hpp"
 
 namespace evar::app {
@@ -19,16 +19,16 @@ int run_sim_session(const SimSessionCommand& cmd) {
   const auto generated = sim::generate_session(plan, cmd.out, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
   bar.finish();
   const auto& s = generated.session;
-  log().info("session seed {}: {} frames ({}x{} px), {} C-arm samples, device in the {}, {} true ostium positions; {:.1f} s",
+  node::log().info("session seed {}: {} frames ({}x{} px), {} C-arm samples, device in the {}, {} true ostium positions; {:.1f} s",
              cmd.seed, s.frames.size(), s.detector.cols, s.detector.rows, s.carm.size(), generated.carrier,
              s.truth ? s.truth->ostia.size() : 0, generated.render_seconds);
   if (!generated.residual.is_identity()) {
     const auto& r = generated.residual;
-    log().info("registration residual about the renal level: rotation {:.1f}, {:.1f}, {:.1f} deg (x, y, z), shift {:.1f}, {:.1f}, {:.1f} mm",
+    node::log().info("registration residual about the renal level: rotation {:.1f}, {:.1f}, {:.1f} deg (x, y, z), shift {:.1f}, {:.1f}, {:.1f} mm",
                r.rotation_deg.x(), r.rotation_deg.y(), r.rotation_deg.z(), r.translation_mm.x(), r.translation_mm.y(),
                r.translation_mm.z());
   }
-  log().info("wrote {} (play it with: evarnode replay {})", cmd.out.string(), cmd.out.string());
+  node::log().info("wrote {} (play it with: evarnode replay {})", cmd.out.string(), cmd.out.string());
   return 0;
 }
 

@@ -7,7 +7,7 @@
 #include "evar/acquisition/serial_carm_source.hpp"
 #include "evar/acquisition/usb_carm_source.hpp"
 #include "evar/acquisition/v4l2_frame_source.hpp"
-#include "logging.hpp"
+#include "evar/node/logging.hpp"
 
 namespace evar::app {
 
@@ -70,7 +70,7 @@ std::unique_ptr<acquisition::FrameSource> make_frame_source(const FrameSourceSpe
   o.frame_rate_hz = cmd.fps;
   o.packet_socket = cmd.packet_socket;
   if (cmd.packet_socket)
-    log().info(acquisition::has_effective_capability(acquisition::kCapNetRaw)
+    node::log().info(acquisition::has_effective_capability(acquisition::kCapNetRaw)
                    ? "GigE packet socket requested; CAP_NET_RAW is held, so Aravis uses it (not on loopback)"
                    : "GigE packet socket requested, but CAP_NET_RAW is not granted: plain UDP sockets are used");
   return std::make_unique<acquisition::GigECameraSource>(o);

@@ -8,6 +8,7 @@
 #include <stdexcept>
 #include <string>
 
+#include "anderson_mixing.hpp"
 #include "evar/deform/closest_rotation.hpp"
 
 namespace evar::deform {
@@ -311,14 +312,9 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   result.init_ms = ms_since(t_init);
 
   const auto t_iter = Clock::now();
-  // Anderson history: differences of successive g = G(x) and f = G(x) − x (flattened).
-  const int m = options.anderson_window;
+  // Anderson mixing of successive g = G(x) and f = G(x) − x (flattened).
   const Eigen::Index N = static_cast<Eigen::Index>(n) * 3;
-  Eigen::MatrixXd dG(N, m), dF(N, m);
-  Eigen::MatrixXd gram(m, m);  // ΔFᵀΔF, one row and column renewed per new difference
-  Eigen::VectorXd prev_g(N), prev_f(N);
-  int history = 0, next_col = 0;
-  bool have_prev = false;
+  AndersonMixing anderson(options.anderson ? N : 0, options.anderson_window);
 
   std::vector<Eigen::Matrix3d> R_candidate;
   Positions b_candidate;
@@ -337,32 +333,9 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
     }
     candidate = g;
     bool accelerated = false;
-    if (options.anderson) {
-      const Eigen::Map<const Eigen::VectorXd> gv(g.data(), N), fv(f.data(), N);
-      if (have_prev) {
-        dG.col(next_col) = gv - prev_g;
-        dF.col(next_col) = fv - prev_f;
-        history = std::min(history + 1, m);
-        for (int j = 0; j < history; ++j) gram(next_col, j) = gram(j, next_col) = dF.col(next_col).dot(dF.col(j));
-        next_col = (next_col + 1) % m;
-      }
-      prev_g = gv;
-      prev_f = fv;
-      have_prev = true;
-      if (history > 0) {
-        // θ = argmin |f − ΔF θ|, via regularized normal equations on column-scaled ΔF.
-        const auto dFh = dF.leftCols(history);
-        Eigen::VectorXd scale = gram.diagonal().head(history).cwiseSqrt();
-        for (int j = 0; j < history; ++j) scale(j) = scale(j) > 0.0 ? 1.0 / scale(j) : 0.0;
-        Eigen::MatrixXd M = scale.asDiagonal() * gram.topLeftCorner(history, history) * scale.asDiagonal();
-        M.diagonal().array() += 1e-10;
-        const Eigen::VectorXd theta = scale.asDiagonal() * M.ldlt().solve(scale.asDiagonal() * (dFh.transpose() * fv));
-        if (theta.allFinite()) {
-          Eigen::Map<Eigen::VectorXd>(candidate.data(), N).noalias() -= dG.leftCols(history) * theta;
-          for (const int k : constrained_) candidate.row(k) = X_C_full.row(k);
-          accelerated = true;
-        }
-      }
+    if (options.anderson && anderson.mix(g.data(), f.data(), candidate.data())) {
+      for (const int k : constrained_) candidate.row(k) = X_C_full.row(k);
+      accelerated = true;
     }
     double E_candidate = system_->local_step(candidate, R, R_candidate, &b_candidate);
     if (accelerated && !(E_candidate < E)) {
@@ -370,9 +343,7 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
       ++result.anderson_rejections;
       candidate = g;
       E_candidate = system_->local_step(candidate, R, R_candidate, &b_candidate);
-      history = 0;
-      next_col = 0;
-      have_prev = false;
+      anderson.restart();
     }
     if (coarse && !(E_candidate <= E)) {
       // The turned rotations did not pay here: the plain step, which cannot raise E.

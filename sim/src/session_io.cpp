@@ -90,7 +90,7 @@ std::string frame_order_problem(const FrameRecord& previous, const FrameRecord& 
   return {};
 }
 
-std::string detector_problem(const DetectorSpec& d) {
+std::string detector_problem(const geometry::DetectorSpec& d) {
   if (d.cols < 1 || d.cols > kMaxDetectorSidePx) return "detector.cols: expected an integer from 1 to 16384";
   if (d.rows < 1 || d.rows > kMaxDetectorSidePx) return "detector.rows: expected an integer from 1 to 16384";
   if (std::int64_t{d.cols} * d.rows > geometry::kMaxImagePixels)
@@ -341,7 +341,7 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
             "," + exact(c.sod_mm) + "," + exact(c.table_mm.x()) + "," + exact(c.table_mm.y()) + "," + exact(c.table_mm.z()) +
             "," + (c.fluoro_on ? "1" : "0") + "," + (c.moving ? "1" : "0") + "\n";
   write_text(directory / "carm.csv", carm);
-  const DetectorSpec& d = session.detector;
+  const geometry::DetectorSpec& d = session.detector;
   nlohmann::ordered_json j{{"format", kFormat},
                            {"version", kVersion},
                            {"scene", session.scene.generic_string()},
@@ -374,32 +374,12 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
   write_session_files(directory, session);
 }
 
-geometry::CArmView view_of(const DetectorSpec& detector, double primary_deg, double secondary_deg, double sid_mm,
-                           double sod_mm) {
-  geometry::CArmView v;
-  v.primary_angle_deg = primary_deg;
-  v.secondary_angle_deg = secondary_deg;
-  v.source_to_detector_mm = sid_mm;
-  v.source_to_isocenter_mm = sod_mm;
-  v.detector_cols = detector.cols;
-  v.detector_rows = detector.rows;
-  v.row_spacing_mm = detector.row_spacing_mm;
-  v.col_spacing_mm = detector.col_spacing_mm;
-  return v;
-}
-
 geometry::CArmView view_of(const Session& session, const CArmSample& c) {
-  return view_of(session.detector, c.primary_deg, c.secondary_deg, c.sid_mm, c.sod_mm);
-}
-
-Eigen::Matrix4d patient_to_carm(const Eigen::Matrix4d& ct_to_carm, const Eigen::Vector3d& table_mm) {
-  Eigen::Matrix4d T = ct_to_carm;
-  T.topRightCorner<3, 1>() += table_mm;
-  return T;
+  return geometry::view_of(session.detector, c.primary_deg, c.secondary_deg, c.sid_mm, c.sod_mm);
 }
 
 Eigen::Matrix4d patient_to_carm(const Session& session, const CArmSample& c) {
-  return patient_to_carm(session.ct_to_carm, c.table_mm);
+  return geometry::patient_to_carm(session.ct_to_carm, c.table_mm);
 }
 
 const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns) {

@@ -24,10 +24,10 @@
 #include "evar/acquisition/gige_camera_source.hpp"
 #include "evar/acquisition/pseudo_terminal.hpp"
 #include "evar/acquisition/serial_carm_source.hpp"
+#include "evar/node/live_node.hpp"
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/session_generator.hpp"
 #include "evar/sim/session_replay.hpp"
-#include "live_node.hpp"
 #include "support/node_screen.hpp"
 
 namespace {
@@ -138,12 +138,12 @@ TEST(NodeOverTransports, GarbageOnTheCArmLinkCostsNeitherModelNorLinkAndIsShownA
   test::LogCapture log;
   auto screen_sink = std::make_unique<ScreenLog>();
   ScreenLog& screen = *screen_sink;
-  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  std::vector<std::unique_ptr<node::OutputSink>> sinks;
   sinks.push_back(std::move(screen_sink));
-  app::NodeOptions o;
+  node::NodeOptions o;
   o.detector = session.detector;
   o.registration = session.ct_to_carm;
-  app::LiveNode node(scene, o, std::move(sinks));
+  node::LiveNode node(scene, o, std::move(sinks));
   node.start(frames, carm);
 
   // 1. The node adapts its model from the session's views over the clean link.

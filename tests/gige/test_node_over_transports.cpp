@@ -19,12 +19,12 @@
 
 #include "evar/acquisition/gige_camera_source.hpp"
 #include "evar/acquisition/serial_carm_source.hpp"
+#include "evar/node/live_node.hpp"
+#include "evar/node/logging.hpp"
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/serial_carm_server.hpp"
 #include "evar/sim/session_generator.hpp"
 #include "evar/sim/session_replay.hpp"
-#include "live_node.hpp"
-#include "logging.hpp"
 #include "support/node_screen.hpp"
 
 namespace {
@@ -83,15 +83,15 @@ TEST(NodeOverTransports, KeepsItsModelThroughCameraAndLinkFaultsAndSaysEachOnce)
 
   std::ostringstream log_text;
   auto log_sink = std::make_shared<spdlog::sinks::ostream_sink_mt>(log_text);
-  app::log().sinks().push_back(log_sink);
+  node::log().sinks().push_back(log_sink);
   auto screen_sink = std::make_unique<ScreenLog>();
   ScreenLog& screen = *screen_sink;
-  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  std::vector<std::unique_ptr<node::OutputSink>> sinks;
   sinks.push_back(std::move(screen_sink));
-  app::NodeOptions o;
+  node::NodeOptions o;
   o.detector = session.detector;
   o.registration = session.ct_to_carm;
-  app::LiveNode node(scene, o, std::move(sinks));
+  node::LiveNode node(scene, o, std::move(sinks));
   node.start(frames, carm);
 
   // 1. The node adapts its model from the session's views.
@@ -189,8 +189,8 @@ TEST(NodeOverTransports, KeepsItsModelThroughCameraAndLinkFaultsAndSaysEachOnce)
   node.stop();
   replay.frames().stop();
   replay.carm().stop();
-  app::log().sinks().pop_back();
-  const app::NodeStatistics s = node.statistics();
+  node::log().sinks().pop_back();
+  const node::NodeStatistics s = node.statistics();
   const std::string text = log_text.str();
 
   // The adapted model was never given up: every frame from the first adapted one on shows

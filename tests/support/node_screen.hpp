@@ -14,14 +14,14 @@
 #include <string>
 #include <vector>
 
-#include "live_node.hpp"
-#include "logging.hpp"
+#include "evar/node/live_node.hpp"
+#include "evar/node/logging.hpp"
 #include "support/stream_log.hpp"
 
 namespace evar::test {
 
 // What the screen showed, frame by frame, readable while the node runs.
-class ScreenLog final : public app::OutputSink {
+class ScreenLog final : public node::OutputSink {
  public:
   struct Shown {
     std::uint64_t version = 0;
@@ -30,7 +30,7 @@ class ScreenLog final : public app::OutputSink {
     overlay::StatusBlock status;
   };
   std::string name() const override { return "screen log"; }
-  void write(const app::ComposedFrame& f) override {
+  void write(const node::ComposedFrame& f) override {
     log.record([&] {
       frames.push_back({f.model ? f.model->version : 0, f.held, f.roadmap != overlay::RoadmapShown::None, f.status});
     });
@@ -82,16 +82,16 @@ class ScreenLog final : public app::OutputSink {
 /// The node's log lines, as text, from construction to destruction.
 class LogCapture {
  public:
-  LogCapture() : sink_(std::make_shared<spdlog::sinks::ostream_sink_mt>(text_)) { app::log().sinks().push_back(sink_); }
+  LogCapture() : sink_(std::make_shared<spdlog::sinks::ostream_sink_mt>(text_)) { node::log().sinks().push_back(sink_); }
   ~LogCapture() {
-    auto& sinks = app::log().sinks();
+    auto& sinks = node::log().sinks();
     sinks.erase(std::remove(sinks.begin(), sinks.end(), sink_), sinks.end());
   }
   LogCapture(const LogCapture&) = delete;
   LogCapture& operator=(const LogCapture&) = delete;
   /// What was logged so far. Read it once the node has stopped: its threads log into it.
   std::string text() {
-    app::log().flush();
+    node::log().flush();
     return text_.str();
   }
 

@@ -16,9 +16,9 @@
 
 #include "evar/acquisition/carm_link_protocol.hpp"
 #include "evar/acquisition/usb_carm_source.hpp"
+#include "evar/node/live_node.hpp"
 #include "evar/sim/session_generator.hpp"
 #include "evar/sim/session_replay.hpp"
-#include "live_node.hpp"
 #include "support/node_screen.hpp"
 #include "usb/emulated_carm_adapter.hpp"
 
@@ -133,12 +133,12 @@ TEST(NodeOverUsbCArmLink, AnUnpluggedAdapterIsShownAndSaidOnceTheModelKeptAndThe
   test::LogCapture log;
   auto screen_sink = std::make_unique<ScreenLog>();
   ScreenLog& screen = *screen_sink;
-  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  std::vector<std::unique_ptr<node::OutputSink>> sinks;
   sinks.push_back(std::move(screen_sink));
-  app::NodeOptions o;
+  node::NodeOptions o;
   o.detector = session.detector;
   o.registration = session.ct_to_carm;
-  app::LiveNode node(scene, o, std::move(sinks));
+  node::LiveNode node(scene, o, std::move(sinks));
   FreeRunningVideo video(replay.frames(), plan.fluoro_fps);
   node.start(video, carm);
 

@@ -22,6 +22,7 @@
 #include <opencv2/core.hpp>
 
 #include "evar/geometry/carm_projection.hpp"
+#include "evar/geometry/detector.hpp"
 
 namespace evar::sim {
 
@@ -46,11 +47,6 @@ struct CArmSample {
 };
 
 /// The flat-panel detector every frame comes from (frames must have its size).
-struct DetectorSpec {
-  int cols = 0, rows = 0;  ///< pixels: 1 to 16384 each, at most 8192 x 8192 in all (geometry/image_header.hpp)
-  double row_spacing_mm = 0.0, col_spacing_mm = 0.0;  ///< at the detector
-};
-
 /// Where a true ostium projects in one frame (ground truth of simulated sessions).
 struct OstiumTruth {
   std::int64_t frame = 0;
@@ -76,7 +72,7 @@ struct Session {
   std::filesystem::path frames_index = "frames/index.csv";  ///< frame files are relative to its folder
   Eigen::Matrix4d ct_to_carm = Eigen::Matrix4d::Identity();  ///< registration at table position 0
   double device_thickness_mm = 0.9;
-  DetectorSpec detector;
+  geometry::DetectorSpec detector;
   std::vector<FrameRecord> frames;
   std::vector<CArmSample> carm;
   std::optional<SessionTruth> truth;
@@ -112,16 +108,10 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
 void write_session_frame(const std::filesystem::path& directory, const FrameRecord& record, const cv::Mat& image);
 void write_session_files(const std::filesystem::path& directory, const Session& session);
 
-/// The C-arm view of an angulation and distances on a detector (the live node's frames use
-/// it too, so recorded and live geometry cannot drift apart).
-geometry::CArmView view_of(const DetectorSpec& detector, double primary_deg, double secondary_deg, double sid_mm,
-                           double sod_mm);
-/// The C-arm view of a sample on the session's detector.
+/// The C-arm view of a sample on the session's detector (geometry::view_of).
 geometry::CArmView view_of(const Session& session, const CArmSample& sample);
 
-/// CT → C-arm world at a table position: the registration holds at table position 0;
-/// moving the table by t moves the patient by t in C-arm coordinates.
-Eigen::Matrix4d patient_to_carm(const Eigen::Matrix4d& ct_to_carm, const Eigen::Vector3d& table_mm);
+/// CT → C-arm world at the sample's table position (geometry::patient_to_carm).
 Eigen::Matrix4d patient_to_carm(const Session& session, const CArmSample& sample);
 
 /// The C-arm sample in force at time t: the last one at or before t (the first if t is

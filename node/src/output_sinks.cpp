@@ -1,4 +1,4 @@
-#include "output_sinks.hpp"
+#include "evar/node/output_sinks.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -7,9 +7,9 @@
 #include <iterator>
 #include <stdexcept>
 
-#include "logging.hpp"
+#include "evar/node/logging.hpp"
 
-namespace evar::app {
+namespace evar::node {
 
 std::optional<std::filesystem::path> set_aside_earlier(const std::filesystem::path& file) {
   std::error_code ec;
@@ -282,4 +282,4 @@ void WindowSink::write(const ComposedFrame& frame) {
   }
 }
 
-}  // namespace evar::app
+}  // namespace evar::node

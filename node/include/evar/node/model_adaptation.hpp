@@ -7,10 +7,10 @@
 
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/two_view_reconstruction.hpp"
+#include "evar/node/view_pair_selector.hpp"
 #include "evar/overlay/frame_compositor.hpp"
-#include "view_pair_selector.hpp"
 
-namespace evar::app {
+namespace evar::node {
 
 struct AdaptationOptions {
   geometry::ReconstructionOptions reconstruction;
@@ -79,4 +79,4 @@ std::size_t reading_in_the_vessels(const std::vector<geometry::Reconstruction>& 
 AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& pair, const AdaptationOptions& options,
                          const deform::SceneDeformation* previous = nullptr);
 
-}  // namespace evar::app
+}  // namespace evar::node

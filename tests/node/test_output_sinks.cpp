@@ -16,17 +16,17 @@
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
-#include "output_sinks.hpp"
+#include "evar/node/output_sinks.hpp"
 
 namespace fs = std::filesystem;
 using namespace evar;
 
 namespace {
 
-app::ComposedFrame frame(std::uint8_t grey, std::uint64_t version, bool drawn) {
-  app::ComposedFrame f;
+node::ComposedFrame frame(std::uint8_t grey, std::uint64_t version, bool drawn) {
+  node::ComposedFrame f;
   f.image = std::make_shared<const overlay::Image>(overlay::Image::filled(8, 6, {grey, grey, grey}));
-  auto m = std::make_shared<app::PublishedModel>();
+  auto m = std::make_shared<node::PublishedModel>();
   m->version = version;
   f.model = m;
   f.P_ct = geometry::ProjectionMatrix::Identity();
@@ -37,19 +37,19 @@ app::ComposedFrame frame(std::uint8_t grey, std::uint64_t version, bool drawn) {
 int grey_of(const fs::path& png) { return cv::imread(png.string(), cv::IMREAD_GRAYSCALE).at<std::uint8_t>(0, 0); }
 
 // A 256 x 256 frame of noise (Motion-JPEG compresses it little: tens of kB).
-app::ComposedFrame noise_frame(cv::RNG& rng) {
+node::ComposedFrame noise_frame(cv::RNG& rng) {
   cv::Mat noise(256, 256, CV_8UC3);
   rng.fill(noise, cv::RNG::UNIFORM, 0, 256);
   overlay::Image image = overlay::Image::filled(256, 256, {0, 0, 0});
   std::memcpy(image.bgr.data(), noise.data, image.bgr.size());
-  app::ComposedFrame f;
+  node::ComposedFrame f;
   f.image = std::make_shared<const overlay::Image>(std::move(image));
   return f;
 }
 
 // The bytes of one picture (all of frame()'s are the same size), taken in `probe`.
 std::uintmax_t one_picture_bytes(const fs::path& probe) {
-  app::SnapshotSink sink(probe);
+  node::SnapshotSink sink(probe);
   sink.request();
   sink.write(frame(1, 0, true));
   return sink.bytes();
@@ -61,7 +61,7 @@ TEST(SnapshotSink, AfterIsTheFirstFrameDrawnWithTheNewModel) {
   const fs::path dir = fs::temp_directory_path() / ("evar_snapshots_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   {
-    app::SnapshotSink sink(dir);
+    node::SnapshotSink sink(dir);
     sink.write(frame(10, 0, true));
     sink.write(frame(20, 0, true));   // the last frame before model 1
     sink.write(frame(30, 1, false));  // model 1 published, its roadmap still being drawn
@@ -88,7 +88,7 @@ TEST(SnapshotSink, APictureTheDiskRefusesToDeleteIsSaidOnceAndTheBudgetGoesOn) {
   fs::remove_all(dir);
   const std::uintmax_t one = one_picture_bytes(dir / "probe");
   ASSERT_GT(one, 0u);
-  app::SnapshotSink sink(dir / "run", 4 * one + one / 2);
+  node::SnapshotSink sink(dir / "run", 4 * one + one / 2);
   sink.write(frame(20, 0, true));
   sink.write(frame(21, 1, true));  // model 1: before and after
   ASSERT_TRUE(fs::is_regular_file(dir / "run" / "model-1-before.png"));
@@ -122,7 +122,7 @@ TEST(SnapshotSink, APictureTheDiskRefusesToDeleteIsSaidOnceAndTheBudgetGoesOn) {
 TEST(SnapshotSink, APictureThatCannotBeSavedIsSaidOnceAndNotTriedAgainOnEveryFrame) {
   const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_gone_" + std::to_string(::getpid()));
   fs::remove_all(dir);
-  app::SnapshotSink sink(dir);
+  node::SnapshotSink sink(dir);
   sink.write(frame(10, 0, true));
   fs::remove_all(dir);
   std::vector<std::string> said;
@@ -155,7 +155,7 @@ TEST(SnapshotSink, KeepsModelPicturesWithinItsBudgetAndNeverDeletesARequestedSna
   const std::uintmax_t one = one_picture_bytes(dir / "probe");
   ASSERT_GT(one, 0u);
   {
-    app::SnapshotSink sink(dir / "run", 5 * one + one / 2);
+    node::SnapshotSink sink(dir / "run", 5 * one + one / 2);
     sink.write(frame(10, 0, true));
     sink.request();
     sink.write(frame(11, 0, true));  // the clinician's picture
@@ -193,7 +193,7 @@ TEST(VideoSink, ARenameOrDeleteTheDiskRefusesIsSaidByNameAndNoFrameIsLost) {
   const std::uintmax_t budget = 4u << 20;  // segments of 1 MiB
   std::vector<std::string> said;
   std::size_t written = 0;
-  app::VideoSink sink(dir / "overlay.avi", 30.0, budget);
+  node::VideoSink sink(dir / "overlay.avi", 30.0, budget);
   fs::create_directories(dir / "overlay-0001.avi" / "in-the-way");  // the first segment's new name
   cv::RNG rng(11);
   for (int i = 0; i < 900; ++i) {
@@ -242,7 +242,7 @@ TEST(VideoSink, ARestartKeepsTheSegmentTheEarlierRunWasWriting) {
     std::ofstream(dir / "overlay-0002.avi") << "an earlier run's finished segment";
     std::ofstream(dir / "overlay.avi") << "the segment it was writing when it stopped";
     {
-      app::VideoSink sink(dir / "overlay.avi", 30.0, budget);
+      node::VideoSink sink(dir / "overlay.avi", 30.0, budget);
       sink.write(frame(10, 0, true));
       sink.finish();
       EXPECT_EQ(sink.frames(), 1u);
@@ -261,7 +261,7 @@ TEST(SetAsideEarlier, AnEarlierReportIsRenamedByItsTimeNeverOverwritten) {
   const fs::path dir = fs::temp_directory_path() / ("evar_set_aside_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   fs::create_directories(dir);
-  EXPECT_FALSE(app::set_aside_earlier(dir / "run_report.json")) << "nothing there";
+  EXPECT_FALSE(node::set_aside_earlier(dir / "run_report.json")) << "nothing there";
   const auto at = [&](const std::string& text) {
     std::ofstream(dir / "run_report.json") << text;
     // 2026-11-22 10:11:12 UTC, the same second for both: the second gets "-1".
@@ -269,7 +269,7 @@ TEST(SetAsideEarlier, AnEarlierReportIsRenamedByItsTimeNeverOverwritten) {
                         std::chrono::file_clock::from_sys(std::chrono::sys_days{std::chrono::year{2026} / 11 / 22} +
                                                           std::chrono::hours(10) + std::chrono::minutes(11) +
                                                           std::chrono::seconds(12)));
-    return app::set_aside_earlier(dir / "run_report.json");
+    return node::set_aside_earlier(dir / "run_report.json");
   };
   const auto first = at("first"), second = at("second");
   ASSERT_TRUE(first && second);
@@ -286,11 +286,11 @@ TEST(SnapshotSink, ARestartNeitherOverwritesNorForgetsTheEarlierRunsPictures) {
   const fs::path dir = fs::temp_directory_path() / ("evar_snapshot_restart_" + std::to_string(::getpid()));
   fs::remove_all(dir);
   {
-    app::SnapshotSink first(dir);
+    node::SnapshotSink first(dir);
     first.write(frame(10, 0, true));
     first.write(frame(20, 1, true));  // model 1: before (10) and after (20)
   }
-  app::SnapshotSink second(dir);
+  node::SnapshotSink second(dir);
   EXPECT_EQ(second.kept().size(), 2u) << "the earlier run's pictures count";
   second.write(frame(30, 0, true));
   second.write(frame(40, 1, true));  // this run's model 1
@@ -315,7 +315,7 @@ TEST(VideoSink, KeepsTheVideoWithinItsBudgetInSegmentsTheNewestKept) {
   }
   std::size_t written = 0;
   {
-    app::VideoSink sink(dir / "overlay.avi", 30.0, budget);
+    node::VideoSink sink(dir / "overlay.avi", 30.0, budget);
     cv::RNG rng(7);
     for (int i = 0; i < 900; ++i) {
       sink.write(noise_frame(rng));

@@ -13,9 +13,9 @@
 #include <optional>
 #include <vector>
 
-#include "frame_view.hpp"
+#include "evar/node/frame_view.hpp"
 
-namespace evar::app {
+namespace evar::node {
 
 /// Which frame a candidate is: its number with its time, since a source that reconnects
 /// (a camera restarted, a grabber plugged back) numbers its frames from the start again.
@@ -79,4 +79,4 @@ class ViewPairSelector {
   int partner_failures_ = 0;
 };
 
-}  // namespace evar::app
+}  // namespace evar::node

@@ -1,8 +1,8 @@
-#include "device_candidate.hpp"
+#include "evar/node/device_candidate.hpp"
 
 #include <cstdio>
 
-namespace evar::app {
+namespace evar::node {
 
 FrameAnalysis analyse_frame(const cv::Mat& image, const FrameView& view, const CandidateOptions& options) {
   geometry::SegmentationOptions s;
@@ -27,4 +27,4 @@ FrameAnalysis analyse_frame(const cv::Mat& image, const FrameView& view, const C
   return a;
 }
 
-}  // namespace evar::app
+}  // namespace evar::node

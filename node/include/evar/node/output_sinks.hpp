@@ -11,12 +11,12 @@
 #include <string>
 #include <vector>
 
+#include "evar/node/live_node.hpp"
 #include "evar/overlay/display_window.hpp"
 #include "evar/overlay/igtl_server.hpp"
 #include "evar/overlay/video_file_writer.hpp"
-#include "live_node.hpp"
 
-namespace evar::app {
+namespace evar::node {
 
 /// A report an earlier run left at `file` (a restarted service writes into the same
 /// directory) is renamed <stem>-<its UTC modification time><ext> (-1, -2, ... if taken),
@@ -141,4 +141,4 @@ class WindowSink final : public OutputSink {
   std::unique_ptr<overlay::DisplayWindow> window_;  // made on the output thread
 };
 
-}  // namespace evar::app
+}  // namespace evar::node

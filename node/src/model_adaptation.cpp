@@ -1,4 +1,4 @@
-#include "model_adaptation.hpp"
+#include "evar/node/model_adaptation.hpp"
 
 #include <algorithm>
 #include <chrono>
@@ -8,7 +8,7 @@
 
 #include "evar/geometry/input_error.hpp"
 
-namespace evar::app {
+namespace evar::node {
 
 namespace {
 double ms_since(std::chrono::steady_clock::time_point t0) {
@@ -149,4 +149,4 @@ void check_finite(const AdaptedModel& m) {
       throw AdaptationError("reconstruction refused: device point " + std::to_string(k) + " is not finite");
 }
 
-}  // namespace evar::app
+}  // namespace evar::node

@@ -7,8 +7,8 @@
 
 #include "mailbox.hpp"
 
-using evar::app::BoundedQueue;
-using evar::app::LatestSlot;
+using evar::node::BoundedQueue;
+using evar::node::LatestSlot;
 using namespace std::chrono_literals;
 
 TEST(BoundedQueue, DropsItsOldestWhenFullAndHandsOutWhatIsLeftAfterClosing) {

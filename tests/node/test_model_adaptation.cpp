@@ -10,13 +10,13 @@
 #include <vector>
 
 #include "evar/geometry/carm_projection.hpp"
+#include "evar/node/model_adaptation.hpp"
 #include "evar/sim/example_scene.hpp"
-#include "model_adaptation.hpp"
 #include "support/error_message.hpp"
 
-using evar::app::AdaptationError;
-using evar::app::AdaptedModel;
-using evar::app::check_finite;
+using evar::node::AdaptationError;
+using evar::node::AdaptedModel;
+using evar::node::check_finite;
 using testing::HasSubstr;
 
 namespace {
@@ -93,21 +93,21 @@ TEST(ModelAdaptation, OfTwoReadingsTheOneInTheVesselsIsTheDevice) {
   std::reverse(c2.begin(), c2.end());  // traced from the other end in view 2
   const auto readings = geo::reconstruct_two_view_readings(projected(P1, crossover), P1, c2, P2);
   ASSERT_EQ(readings.size(), 2u) << "the example's crossover is not symmetric enough to read two ways";
-  const auto chosen = evar::app::reading_in_the_vessels(readings, deformer, 5.0);
+  const auto chosen = evar::node::reading_in_the_vessels(readings, deformer, 5.0);
   double worst = 0.0;
   for (const auto& p : readings[chosen].points) worst = std::max(worst, geo::project_onto(crossover, p).distance_mm);
   EXPECT_LT(worst, 1.0);
   // The same reading whichever order they come in.
   const std::vector<geo::Reconstruction> swapped{readings[1], readings[0]};
-  EXPECT_EQ(evar::app::reading_in_the_vessels(swapped, deformer, 5.0), 1 - chosen);
-  EXPECT_LT(evar::app::mean_outside_lumen_mm(readings[chosen].points, deformer), 0.5);
-  EXPECT_GT(evar::app::mean_outside_lumen_mm(readings[1 - chosen].points, deformer), 10.0);
+  EXPECT_EQ(evar::node::reading_in_the_vessels(swapped, deformer, 5.0), 1 - chosen);
+  EXPECT_LT(evar::node::mean_outside_lumen_mm(readings[chosen].points, deformer), 0.5);
+  EXPECT_GT(evar::node::mean_outside_lumen_mm(readings[1 - chosen].points, deformer), 10.0);
   // Two readings both in the vessels (2 mm apart) cannot be told apart: refused, saying why.
   auto near = readings[chosen];
   for (auto& p : near.points) p += Eigen::Vector3d(2.0, 0.0, 0.0);
   const std::vector<geo::Reconstruction> both_inside{readings[chosen], near};
   EXPECT_THAT(evar::test::error_message<AdaptationError>(
-                  [&] { evar::app::reading_in_the_vessels(both_inside, deformer, 5.0); }, "accepted"),
+                  [&] { evar::node::reading_in_the_vessels(both_inside, deformer, 5.0); }, "accepted"),
               HasSubstr("both lie in the vessels or near them"));
 }
 
@@ -118,24 +118,24 @@ TEST(ModelAdaptation, ADeviceRunningFarOutsideTheVesselsIsRefused) {
   const auto example = evar::sim::make_example_scene({});
   const auto scene = evar::sim::to_scene(example);
   const evar::deform::SceneDeformer deformer(scene);
-  const evar::app::AdaptationOptions options;
-  EXPECT_NO_THROW(evar::app::check_in_the_vessels(example.device, deformer, options));
+  const evar::node::AdaptationOptions options;
+  EXPECT_NO_THROW(evar::node::check_in_the_vessels(example.device, deformer, options));
   auto moved = example.device;  // the whole device 30 mm to the side: a strong deformation, still plausible
   for (auto& p : moved) p.y() += 30.0;
-  EXPECT_NO_THROW(evar::app::check_in_the_vessels(moved, deformer, options));
+  EXPECT_NO_THROW(evar::node::check_in_the_vessels(moved, deformer, options));
   // The wire goes on 250 mm above the top of an infrarenal segmentation, up the aorta's
   // axis (a third of its points over 50 mm past the centerline's end: refused before).
   auto onwards = example.device;
   const auto& aortic = example.vessel("aorta").centerline;
   const Eigen::Vector3d up = (aortic.front() - aortic[5]).normalized();
   for (int k = 1; k <= 250; ++k) onwards.insert(onwards.begin(), onwards.front() + up);
-  EXPECT_NO_THROW(evar::app::check_in_the_vessels(onwards, deformer, options));
+  EXPECT_NO_THROW(evar::node::check_in_the_vessels(onwards, deformer, options));
   auto hijacked = example.device;  // its last third leaves along a lead, 3 mm forwards per point
   const std::size_t from = hijacked.size() * 2 / 3;
   for (std::size_t k = from; k < hijacked.size(); ++k)
     hijacked[k] = hijacked[from] + Eigen::Vector3d(0.0, -3.0 * static_cast<double>(k - from), 0.0);
   std::reverse(hijacked.begin(), hijacked.end());
   EXPECT_THAT(evar::test::error_message<AdaptationError>(
-                  [&] { evar::app::check_in_the_vessels(hijacked, deformer, options); }, "accepted"),
+                  [&] { evar::node::check_in_the_vessels(hijacked, deformer, options); }, "accepted"),
               HasSubstr("outside the preoperative vessels"));
 }

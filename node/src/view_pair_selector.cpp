@@ -1,10 +1,10 @@
-#include "view_pair_selector.hpp"
+#include "evar/node/view_pair_selector.hpp"
 
 #include <stdexcept>
 
 #include "evar/geometry/two_view_reconstruction.hpp"
 
-namespace evar::app {
+namespace evar::node {
 
 ViewPairSelector::ViewPairSelector(double min_separation_deg, ViewPairOptions options)
     : min_separation_deg_(min_separation_deg), options_(options) {
@@ -66,4 +66,4 @@ std::optional<ViewPair> ViewPairSelector::add(ViewCandidate candidate) {
   return std::nullopt;
 }
 
-}  // namespace evar::app
+}  // namespace evar::node

@@ -17,9 +17,9 @@
 #include <vector>
 
 #include "evar/acquisition/v4l2_frame_source.hpp"
+#include "evar/node/live_node.hpp"
 #include "evar/sim/session_generator.hpp"
 #include "evar/sim/session_replay.hpp"
-#include "live_node.hpp"
 #include "support/fake_v4l2_device.hpp"
 #include "support/node_screen.hpp"
 
@@ -89,12 +89,12 @@ TEST(NodeOverV4l2, ShortBuffersAndAnUnpluggedGrabberHoldTheLastImageSayWhyOnceAn
   test::LogCapture log;
   auto screen_sink = std::make_unique<ScreenLog>();
   ScreenLog& screen = *screen_sink;
-  std::vector<std::unique_ptr<app::OutputSink>> sinks;
+  std::vector<std::unique_ptr<node::OutputSink>> sinks;
   sinks.push_back(std::move(screen_sink));
-  app::NodeOptions o;
+  node::NodeOptions o;
   o.detector = session.detector;
   o.registration = session.ct_to_carm;
-  app::LiveNode node(scene, o, std::move(sinks));
+  node::LiveNode node(scene, o, std::move(sinks));
   node.start(frames, replay.carm());  // the replay's C-arm first: its clock starts with the frames
   replay.frames().start(
       [&](const acquisition::Frame& f) {
@@ -148,7 +148,7 @@ TEST(NodeOverV4l2, ShortBuffersAndAnUnpluggedGrabberHoldTheLastImageSayWhyOnceAn
   replay.carm().stop();
   const std::string text = log.text();
   const acquisition::V4l2Statistics grabbed = frames.v4l2_statistics();
-  const app::NodeStatistics s = node.statistics();
+  const node::NodeStatistics s = node.statistics();
   const std::vector<ScreenLog::Shown>& shown = screen.frames;
 
   // (b) The adapted model on every frame from the first, held ones included.

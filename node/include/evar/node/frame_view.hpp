@@ -7,9 +7,9 @@
 
 #include "evar/acquisition/carm_geometry_source.hpp"
 #include "evar/geometry/carm_projection.hpp"
-#include "evar/sim/session.hpp"
+#include "evar/geometry/detector.hpp"
 
-namespace evar::app {
+namespace evar::node {
 
 struct FrameView {
   geometry::CArmView view;
@@ -20,7 +20,7 @@ struct FrameView {
 /// The view of a C-arm state on `detector`, with the registration (which holds at table
 /// position 0) moved by the table: CT → C-arm = translate(table) · registration.
 /// std::invalid_argument for impossible geometry (SOD >= SID, ...).
-FrameView frame_view(const sim::DetectorSpec& detector, const Eigen::Matrix4d& registration,
+FrameView frame_view(const geometry::DetectorSpec& detector, const Eigen::Matrix4d& registration,
                      const acquisition::CArmState& state);
 
 /// "LAO 35  CAU 15": the angulation as interventionalists say it (whole degrees).
@@ -30,4 +30,4 @@ std::string angulation_text(double primary_deg, double secondary_deg);
 /// (the finer spacing).
 double mm_at_isocenter_per_px(const geometry::CArmView& view);
 
-}  // namespace evar::app
+}  // namespace evar::node

@@ -7,9 +7,9 @@
 #include <opencv2/core.hpp>
 
 #include "evar/geometry/device_segmentation.hpp"
-#include "frame_view.hpp"
+#include "evar/node/frame_view.hpp"
 
-namespace evar::app {
+namespace evar::node {
 
 struct CandidateOptions {
   double device_diameter_mm = 0.89;  ///< 0.035" guidewire
@@ -28,4 +28,4 @@ struct FrameAnalysis {
 /// Segments `image` (CV_8UC1 or CV_16UC1). Never throws on image content.
 FrameAnalysis analyse_frame(const cv::Mat& image, const FrameView& view, const CandidateOptions& options);
 
-}  // namespace evar::app
+}  // namespace evar::node

@@ -2,10 +2,10 @@
 // The one logger of the executable: human-readable lines on stderr.
 #include <spdlog/spdlog.h>
 
-namespace evar::app {
+namespace evar::node {
 
 spdlog::logger& log();
 /// "error", "warn", "info" (default), "debug".
 void set_log_level(const std::string& level);
 
-}  // namespace evar::app
+}  // namespace evar::node

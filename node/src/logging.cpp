@@ -1,8 +1,8 @@
-#include "logging.hpp"
+#include "evar/node/logging.hpp"
 
 #include <spdlog/sinks/stdout_color_sinks.h>
 
-namespace evar::app {
+namespace evar::node {
 
 spdlog::logger& log() {
   static const std::shared_ptr<spdlog::logger> logger = [] {
@@ -16,4 +16,4 @@ spdlog::logger& log() {
 
 void set_log_level(const std::string& level) { log().set_level(spdlog::level::from_str(level)); }
 
-}  // namespace evar::app
+}  // namespace evar::node

@@ -1,16 +1,16 @@
-#include "frame_view.hpp"
+#include "evar/node/frame_view.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
 
-namespace evar::app {
+namespace evar::node {
 
-FrameView frame_view(const sim::DetectorSpec& detector, const Eigen::Matrix4d& registration,
+FrameView frame_view(const geometry::DetectorSpec& detector, const Eigen::Matrix4d& registration,
                      const acquisition::CArmState& state) {
   FrameView f;
-  f.view = sim::view_of(detector, state.primary_deg, state.secondary_deg, state.sid_mm, state.sod_mm);
-  f.ct_to_carm = sim::patient_to_carm(registration, Eigen::Vector3d(state.table_mm[0], state.table_mm[1], state.table_mm[2]));
+  f.view = geometry::view_of(detector, state.primary_deg, state.secondary_deg, state.sid_mm, state.sod_mm);
+  f.ct_to_carm = geometry::patient_to_carm(registration, Eigen::Vector3d(state.table_mm[0], state.table_mm[1], state.table_mm[2]));
   f.P_ct = geometry::registered(geometry::projection_matrix(f.view), f.ct_to_carm);
   return f;
 }
@@ -27,4 +27,4 @@ double mm_at_isocenter_per_px(const geometry::CArmView& view) {
          view.source_to_detector_mm;
 }
 
-}  // namespace evar::app
+}  // namespace evar::node

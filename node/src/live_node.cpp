@@ -1,15 +1,22 @@
-#include "live_node.hpp"
+#include "evar/node/live_node.hpp"
 
 #include <algorithm>
-#include <cmath>
-#include <cstdio>
+#include <atomic>
 #include <limits>
+#include <mutex>
+#include <optional>
+#include <string_view>
+#include <thread>
 
 #include <opencv2/core.hpp>
 
-#include "logging.hpp"
+#include "alert_board.hpp"
+#include "evar/node/logging.hpp"
+#include "latency_window.hpp"
+#include "mailbox.hpp"
+#include "status_lines.hpp"
 
-namespace evar::app {
+namespace evar::node {
 
 namespace {
 
@@ -30,22 +37,76 @@ cv::Mat wrap(const acquisition::Frame& f) {
 
 }  // namespace
 
-Percentiles percentiles(std::vector<double> v) {
-  Percentiles p;
-  p.n = v.size();
-  if (v.empty()) return p;
-  std::sort(v.begin(), v.end());
-  const auto rank = [&](double q) {
-    const auto i = static_cast<std::size_t>(std::ceil(q * static_cast<double>(v.size())));
-    return v[std::clamp<std::size_t>(i, 1, v.size()) - 1];
-  };
-  p.p50 = rank(0.50);
-  p.p99 = rank(0.99);
-  p.max = v.back();
-  return p;
-}
+class LiveNode::Impl {
+ public:
+  Impl(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks);
+  ~Impl() { stop(); }
+  void start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm);
+  void stop();
+  void set_mode(overlay::RoadmapMode mode) { mode_.store(mode); }
+  overlay::RoadmapMode mode() const { return mode_.load(); }
+  NodeStatistics statistics() const;
+  std::shared_ptr<const PublishedModel> model() const;
 
-LiveNode::LiveNode(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks)
+ private:
+  struct Analysis {  // a frame offered to the analysis thread
+    acquisition::Frame frame;
+    FrameView view;
+  };
+  void on_frame(const acquisition::Frame& frame);
+  void compose_loop();
+  void analysis_loop();
+  void adaptation_loop();
+  void output_loop();
+  void publish(std::shared_ptr<const AdaptedModel> adapted);
+  /// Samples the source's counts (compose thread) and raises or clears the frame-loss alert.
+  void watch_frame_loss(acquisition::FrameLossMonitor& monitor);
+
+  NodeOptions options_;
+  std::vector<std::unique_ptr<OutputSink>> sinks_;
+  std::unique_ptr<deform::SceneDeformer> deformer_;
+  std::shared_ptr<const overlay::RoadmapModel> initial_roadmap_;
+  std::atomic<overlay::RoadmapMode> mode_;
+
+  mutable std::mutex source_mutex_;  // frames_ against stop() letting go of it
+  acquisition::FrameSource* frames_ = nullptr;  // null when not running
+  acquisition::CArmGeometrySource* carm_ = nullptr;
+  BoundedQueue<acquisition::Frame> input_;
+  BoundedQueue<ComposedFrame> output_;
+  LatestSlot<Analysis> analysis_;
+  LatestSlot<ViewPair> pairs_;
+  /// The last adaptation's outcome for the analysis thread's selector: used or not, and
+  /// the earlier frame of its pair.
+  struct PairOutcome {
+    bool used = false;
+    CandidateId earlier;
+  };
+  std::mutex outcome_mutex_;
+  std::optional<PairOutcome> pair_outcome_;
+  // While an adaptation runs, the analysis waits: on a small box the segmentation of every
+  // frame would take the core the deformation needs, and a pair formed meanwhile would only
+  // wait for it. Then the newest frame is analysed.
+  std::atomic<bool> adapting_{false};
+
+  mutable std::mutex timeline_mutex_;
+  acquisition::GeometryTimeline timeline_;
+
+  mutable std::mutex model_mutex_;
+  std::shared_ptr<const PublishedModel> model_;
+
+  mutable std::mutex stats_mutex_;
+  NodeStatistics stats_;
+  LatencyWindow latencies_{kLatencyWindow};             // frames
+  LatencyWindow adaptation_latencies_{kLatencyWindow};  // adaptations
+
+  AlertBoard alerts_;
+
+  std::thread compose_thread_, analysis_thread_, adaptation_thread_, output_thread_;
+  bool running_ = false;
+  bool started_ = false;  // once: a stopped node's queues stay closed
+};
+
+LiveNode::Impl::Impl(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks)
     : options_(std::move(options)),
       sinks_(std::move(sinks)),
       mode_(options_.mode),
@@ -71,9 +132,7 @@ LiveNode::LiveNode(const geometry::Scene& scene, NodeOptions options, std::vecto
                  scene.vessels[i].mesh.mesh.V.rows(), deformer_->proxy_refused(i));
 }
 
-LiveNode::~LiveNode() { stop(); }
-
-void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm) {
+void LiveNode::Impl::start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm) {
   if (running_) throw std::logic_error("node: already started");
   if (started_) throw std::logic_error("node: already run and stopped; a node runs once (make a new one)");
   started_ = true;
@@ -95,10 +154,10 @@ void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometry
         },
         [this](acquisition::StreamState s, const std::string& reason) {
           if (acquisition::is_live(s)) {
-            clear_alert("carm-source");
+            alerts_.clear("carm-source");
             log().info("C-arm link: {} ({})", acquisition::to_string(s), reason);
           } else {
-            set_alert("carm-source", std::string("C-arm link ") + acquisition::to_string(s) + ": " + reason, std::nullopt);
+            alerts_.set("carm-source", std::string("C-arm link ") + acquisition::to_string(s) + ": " + reason, std::nullopt);
           }
         },
         // News on a link that has not changed state: shown for a while beside whatever
@@ -110,15 +169,15 @@ void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometry
             stats_.last_carm_notice = notice.text;
           }
           const bool status = notice.kind == acquisition::LinkNotice::Kind::CArmStatus;
-          set_alert(status ? "carm-status" : "carm-bad-frames", notice.text, options_.carm_notice_hold);
+          alerts_.set(status ? "carm-status" : "carm-bad-frames", notice.text, options_.carm_notice_hold);
         });
     frames.start([this](const acquisition::Frame& f) { on_frame(f); },
                  [this](acquisition::StreamState s, const std::string& reason) {
                    if (acquisition::is_live(s)) {
-                     clear_alert("video-source");
+                     alerts_.clear("video-source");
                      log().info("video: {} ({})", acquisition::to_string(s), reason);
                    } else {
-                     set_alert("video-source", std::string("video ") + acquisition::to_string(s) + ": " + reason, std::nullopt);
+                     alerts_.set("video-source", std::string("video ") + acquisition::to_string(s) + ": " + reason, std::nullopt);
                    }
                  });
   } catch (...) {
@@ -127,7 +186,7 @@ void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometry
   }
 }
 
-void LiveNode::stop() {
+void LiveNode::Impl::stop() {
   if (!running_) return;
   running_ = false;
   frames_->stop();
@@ -151,7 +210,7 @@ void LiveNode::stop() {
   carm_ = nullptr;
 }
 
-void LiveNode::on_frame(const acquisition::Frame& frame) {
+void LiveNode::Impl::on_frame(const acquisition::Frame& frame) {
   {
     std::lock_guard lock(stats_mutex_);
     ++stats_.frames_in;
@@ -167,46 +226,7 @@ void LiveNode::on_frame(const acquisition::Frame& frame) {
   }
 }
 
-void LiveNode::set_alert(const std::string& key, const std::string& text, std::optional<std::chrono::milliseconds> hold) {
-  const auto until = hold ? Clock::now() + *hold : Clock::time_point::max();
-  bool changed = true;
-  {
-    std::lock_guard lock(alerts_mutex_);
-    auto it = std::find_if(alerts_.begin(), alerts_.end(), [&](const auto& a) { return a.first == key; });
-    if (it != alerts_.end()) {
-      // One that expired unseen (no frame composed since) is news again.
-      changed = it->second.text != text || it->second.until <= Clock::now();
-      it->second = {text, until};
-    } else {
-      alerts_.push_back({key, {text, until}});
-    }
-  }
-  if (changed) log().warn("{}", text);
-}
-
-void LiveNode::clear_alert(const std::string& key) {
-  std::string text;
-  {
-    std::lock_guard lock(alerts_mutex_);
-    auto it = std::find_if(alerts_.begin(), alerts_.end(), [&](const auto& a) { return a.first == key; });
-    if (it == alerts_.end()) return;
-    text = std::move(it->second.text);
-    alerts_.erase(it);
-  }
-  log().info("resolved: {}", text);
-}
-
-std::vector<std::string> LiveNode::current_alerts(std::string_view except) {
-  std::lock_guard lock(alerts_mutex_);
-  const auto now = Clock::now();
-  std::erase_if(alerts_, [&](const auto& a) { return a.second.until <= now; });
-  std::vector<std::string> out;
-  for (const auto& a : alerts_)
-    if (a.first != except) out.push_back(a.second.text);
-  return out;
-}
-
-void LiveNode::watch_frame_loss(acquisition::FrameLossMonitor& monitor) {
+void LiveNode::Impl::watch_frame_loss(acquisition::FrameLossMonitor& monitor) {
   acquisition::SequenceStats counts;
   {
     std::lock_guard lock(source_mutex_);
@@ -216,7 +236,7 @@ void LiveNode::watch_frame_loss(acquisition::FrameLossMonitor& monitor) {
   const auto change = monitor.sample(Clock::now(), counts);
   if (!change) return;
   if (!change->losing) {
-    clear_alert("video-loss");
+    alerts_.clear("video-loss");
     return;
   }
   {
@@ -224,7 +244,7 @@ void LiveNode::watch_frame_loss(acquisition::FrameLossMonitor& monitor) {
     ++stats_.frame_loss_alerts;
   }
   // The numbers are those that raised it; the text stays while it lasts (said once).
-  set_alert("video-loss",
+  alerts_.set("video-loss",
             fmt::format("video losing frames: {} of {} lost by the source in {:.1f} s ({:.0f} %); the image is "
                         "live but jerky (check the camera link)",
                         change->lost, change->expected, static_cast<double>(change->span.count()) / 1000.0,
@@ -232,7 +252,7 @@ void LiveNode::watch_frame_loss(acquisition::FrameLossMonitor& monitor) {
             std::nullopt);
 }
 
-void LiveNode::compose_loop() {
+void LiveNode::Impl::compose_loop() {
   overlay::FrameCompositor compositor(options_.compositor);
   acquisition::FrameLossMonitor loss_monitor(options_.frame_loss);
   Clock::time_point last_loss_sample{};
@@ -275,7 +295,7 @@ void LiveNode::compose_loop() {
         std::lock_guard lock(stats_mutex_);
         ++stats_.video_stalls;
       }
-      set_alert("video-stall",
+      alerts_.set("video-stall",
                 (showing_fails ? "no frame shown for " : "no video for ") + std::to_string(options_.video_stall.count()) + " ms",
                 std::nullopt);
     }
@@ -298,7 +318,7 @@ void LiveNode::compose_loop() {
     } else {
       size_ok = f->width == options_.detector.cols && f->height == options_.detector.rows;
       if (!size_ok)
-        set_alert("frame-size",
+        alerts_.set("frame-size",
                   "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the detector's " +
                       std::to_string(options_.detector.cols) + " x " + std::to_string(options_.detector.rows) +
                       ": no roadmap",
@@ -308,29 +328,19 @@ void LiveNode::compose_loop() {
         g = timeline_.at(f->device_time_on_host);
       }
       if (!g) {
-        set_alert("geometry", "no C-arm geometry yet: roadmap hidden", std::nullopt);
+        alerts_.set("geometry", "no C-arm geometry yet: roadmap hidden", std::nullopt);
       } else {
         // The alert names the condition; its changing age goes into the status line.
-        if (g->stale) set_alert("geometry", "C-arm geometry stale: roadmap at the last known position", std::nullopt);
-        else clear_alert("geometry");
+        if (g->stale) alerts_.set("geometry", "C-arm geometry stale: roadmap at the last known position", std::nullopt);
+        else alerts_.clear("geometry");
         if (!g->moving && size_ok) {
           try {
             view = frame_view(options_.detector, options_.registration, g->state);
           } catch (const std::invalid_argument& e) {
-            set_alert("geometry-unusable", std::string("C-arm geometry unusable: ") + e.what(), options_.alert_hold);
+            alerts_.set("geometry-unusable", std::string("C-arm geometry unusable: ") + e.what(), options_.alert_hold);
           }
         }
       }
-    }
-    std::vector<std::string> lines;
-    char line[160];
-    if (g) {
-      std::string state = fmt::format("{}  SID {:.0f} mm", angulation_text(g->state.primary_deg, g->state.secondary_deg),
-                                      g->state.sid_mm);
-      if (!g->state.fluoro_on) state += "  beam off";
-      if (g->moving) state += "  C-arm moving: roadmap hidden";
-      if (g->stale) state += fmt::format("  geometry {:.1f} s old", static_cast<double>(g->age_ns) * 1e-9);
-      lines.push_back(std::move(state));
     }
     const bool analyse = view && !g->stale && g->state.fluoro_on;
     const std::shared_ptr<const PublishedModel> model = this->model();
@@ -344,27 +354,14 @@ void LiveNode::compose_loop() {
         stats_.moving_frames += g && g->moving ? 1 : 0;
       }
     }
-    if (!model->adapted) {
-      lines.push_back("model: preoperative (undeformed), waiting for two views of the device");
-    } else {
-      std::snprintf(line, sizeof line, "model: %s from frames %llu+%llu, %.0f s ago",
-                    failed ? "STALE (last adaptation failed), adapted" : "adapted",
-                    static_cast<unsigned long long>(model->adapted->frame_earlier),
-                    static_cast<unsigned long long>(model->adapted->frame_later),
-                    ms_between(model->ready, Clock::now()) / 1000.0);
-      lines.push_back(line);
-    }
     const overlay::RoadmapMode mode = mode_.load();
-    std::snprintf(line, sizeof line, "roadmap: %s   latency %.0f ms", overlay::to_string(mode), last_latency_ms);
-    lines.push_back(line);
     ComposedFrame out;
     // A live frame is not a stall, even while the stall it ends is still to be cleared.
-    out.status = {std::move(lines), current_alerts(held_s ? std::string_view() : std::string_view("video-stall"))};
+    out.status = {status_lines(g, *model, failed, mode, last_latency_ms, Clock::now()),
+                  alerts_.current(held_s ? std::string_view() : std::string_view("video-stall"))};
     if (held_s) {
       // First and in the alert colour; its changing age is not an alert of its own (no log).
-      out.status.alerts.insert(out.status.alerts.begin(), fmt::format("LAST IMAGE HELD: {} for {:.0f} s",
-                                                                      showing_fails ? "no frame shown" : "no video",
-                                                                      std::floor(*held_s)));
+      out.status.alerts.insert(out.status.alerts.begin(), held_frame_line(showing_fails, *held_s));
       out.held = true;
     }
     out.P_ct = view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
@@ -386,7 +383,7 @@ void LiveNode::compose_loop() {
       }
     } catch (const std::exception& e) {
       // The text stays the same from frame to frame (a frame number would log every frame).
-      set_alert("compose", std::string("frame not shown: ") + e.what(), options_.alert_hold);
+      alerts_.set("compose", std::string("frame not shown: ") + e.what(), options_.alert_hold);
       if (!held_s) showing_fails = true;
       continue;
     }
@@ -394,7 +391,7 @@ void LiveNode::compose_loop() {
       // A live frame on screen: the video is back, whatever kept it away.
       showing_fails = false;
       if (stalled) {
-        clear_alert("video-stall");
+        alerts_.clear("video-stall");
         stalled = false;
       }
       any_frame = true;
@@ -412,8 +409,7 @@ void LiveNode::compose_loop() {
       std::lock_guard lock(stats_mutex_);
       ++stats_.frames_composited;
       stats_.frames_with_roadmap += out.roadmap != overlay::RoadmapShown::None ? 1 : 0;
-      latencies_.push_back(out.latency_ms);
-      if (latencies_.size() > kLatencyWindow) latencies_.pop_front();
+      latencies_.add(out.latency_ms);
     }
     if (options_.backpressure) output_.push_wait(std::move(out));
     else output_.push(std::move(out));
@@ -435,7 +431,7 @@ void LiveNode::compose_loop() {
   }
 }
 
-void LiveNode::analysis_loop() {
+void LiveNode::Impl::analysis_loop() {
   ViewPairSelector selector(options_.adaptation.reconstruction.min_separation_deg, options_.pairs);
   while (std::optional<Analysis> a = analysis_.take()) {
     if (adapting_.load()) {
@@ -482,7 +478,7 @@ void LiveNode::analysis_loop() {
   }
 }
 
-void LiveNode::adaptation_loop() {
+void LiveNode::Impl::adaptation_loop() {
   while (std::optional<ViewPair> pair = pairs_.take()) {
     adapting_.store(true);
     struct Done {
@@ -503,14 +499,13 @@ void LiveNode::adaptation_loop() {
         std::lock_guard lock(stats_mutex_);
         ++stats_.adaptations;
         stats_.last_failure.clear();
-        adaptation_latencies_.push_back(ready_ms);
-        if (adaptation_latencies_.size() > kLatencyWindow) adaptation_latencies_.pop_front();
+        adaptation_latencies_.add(ready_ms);
       }
       {
         std::lock_guard lock(outcome_mutex_);
         pair_outcome_ = PairOutcome{true, pair->earlier.id()};
       }
-      clear_alert("adaptation");
+      alerts_.clear("adaptation");
       log().info("adapted model from frames {}+{}: device {} points, residual {:.2f} px; reconstruction {:.1f} ms, "
                  "deformation {:.1f} ms; ready {:.0f} ms after the second view arrived",
                  m->frame_earlier, m->frame_later, m->reconstruction.points.size(), m->reconstruction.mean_residual_px,
@@ -532,14 +527,14 @@ void LiveNode::adaptation_loop() {
         std::lock_guard lock(outcome_mutex_);
         pair_outcome_ = PairOutcome{false, pair->earlier.id()};
       }
-      set_alert("adaptation", std::string("frames ") + std::to_string(pair->earlier.frame) + "+" +
+      alerts_.set("adaptation", std::string("frames ") + std::to_string(pair->earlier.frame) + "+" +
                                   std::to_string(pair->later.frame) + ": " + e.what() + "; last good model kept",
                 options_.alert_hold);
     }
   }
 }
 
-void LiveNode::publish(std::shared_ptr<const AdaptedModel> adapted) {
+void LiveNode::Impl::publish(std::shared_ptr<const AdaptedModel> adapted) {
   auto roadmap = std::make_shared<overlay::RoadmapModel>(*initial_roadmap_);
   show_adapted(*roadmap, *adapted);
   auto m = std::make_shared<PublishedModel>();
@@ -551,7 +546,7 @@ void LiveNode::publish(std::shared_ptr<const AdaptedModel> adapted) {
   model_ = std::move(m);
 }
 
-void LiveNode::output_loop() {
+void LiveNode::Impl::output_loop() {
   // The sinks hear of every model, the preoperative one (version 0) included.
   std::uint64_t shown_version = std::numeric_limits<std::uint64_t>::max();
   std::vector<std::string> last_error(sinks_.size());
@@ -583,7 +578,7 @@ void LiveNode::output_loop() {
   for (std::size_t i = 0; i < sinks_.size(); ++i) guarded(i, [&](OutputSink& s) { s.finish(); });
 }
 
-NodeStatistics LiveNode::statistics() const {
+NodeStatistics LiveNode::Impl::statistics() const {
   std::optional<std::uint64_t> lost;  // the source's own count, while the node has one
   {
     std::lock_guard lock(source_mutex_);
@@ -594,8 +589,8 @@ NodeStatistics LiveNode::statistics() const {
   {
     std::lock_guard lock(stats_mutex_);
     s = stats_;
-    latencies.assign(latencies_.begin(), latencies_.end());
-    adaptation.assign(adaptation_latencies_.begin(), adaptation_latencies_.end());
+    latencies = latencies_.values();
+    adaptation = adaptation_latencies_.values();
   }
   // Sorted outside the lock: the compose thread takes it for every frame.
   s.latency_ms = percentiles(std::move(latencies));
@@ -612,9 +607,19 @@ NodeStatistics LiveNode::statistics() const {
   return s;
 }
 
-std::shared_ptr<const PublishedModel> LiveNode::model() const {
+std::shared_ptr<const PublishedModel> LiveNode::Impl::model() const {
   std::lock_guard lock(model_mutex_);
   return model_;
 }
 
-}  // namespace evar::app
+LiveNode::LiveNode(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks)
+    : impl_(std::make_unique<Impl>(scene, std::move(options), std::move(sinks))) {}
+LiveNode::~LiveNode() = default;
+void LiveNode::start(acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm) { impl_->start(frames, carm); }
+void LiveNode::stop() { impl_->stop(); }
+void LiveNode::set_mode(overlay::RoadmapMode mode) { impl_->set_mode(mode); }
+overlay::RoadmapMode LiveNode::mode() const { return impl_->mode(); }
+NodeStatistics LiveNode::statistics() const { return impl_->statistics(); }
+std::shared_ptr<const PublishedModel> LiveNode::model() const { return impl_->model(); }
+
+}  // namespace evar::node

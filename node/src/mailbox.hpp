@@ -10,7 +10,7 @@
 #include <mutex>
 #include <optional>
 
-namespace evar::app {
+namespace evar::node {
 
 template <typename T>
 class BoundedQueue {
@@ -142,4 +142,4 @@ class LatestSlot {
   bool closed_ = false;
 };
 
-}  // namespace evar::app
+}  // namespace evar::node

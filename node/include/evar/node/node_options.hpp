@@ -1,0 +1,49 @@
+#pragma once
+// What the live node is told: the detector, the registration, how frames become
+// candidates, views become pairs and pairs become models, how the roadmap is drawn, and
+// the health limits and queue sizes. LiveNode's constructor checks them.
+#include <Eigen/Core>
+#include <chrono>
+#include <cstddef>
+
+#include "evar/acquisition/frame_loss_monitor.hpp"
+#include "evar/acquisition/geometry_timeline.hpp"
+#include "evar/deform/scene_deformation.hpp"
+#include "evar/geometry/detector.hpp"
+#include "evar/node/device_candidate.hpp"
+#include "evar/node/model_adaptation.hpp"
+#include "evar/node/view_pair_selector.hpp"
+#include "evar/overlay/frame_compositor.hpp"
+
+namespace evar::node {
+
+struct NodeOptions {
+  geometry::DetectorSpec detector;                 ///< the frames' detector (size checked per frame)
+  Eigen::Matrix4d registration = Eigen::Matrix4d::Identity();  ///< CT → C-arm at table 0
+  CandidateOptions candidate;
+  ViewPairOptions pairs;
+  AdaptationOptions adaptation;
+  deform::DeformOptions deform;
+  /// The roadmap layer is drawn in the background: no frame waits for a new view's or model's layer.
+  overlay::CompositorOptions compositor{.supersample = 2, .window_level = {}, .layer_in_background = true};
+  overlay::RoadmapMode mode = overlay::RoadmapMode::Both;
+  acquisition::GeometryTimelineOptions timeline;
+  std::chrono::milliseconds video_stall{1000};  ///< no frame for this long: "no video"
+  /// The source losing this share of its frames or more (a GigE link dropping packets,
+  /// a grabber dropping buffers) is an alert while it lasts: the image is live but jerky.
+  acquisition::FrameLossOptions frame_loss;
+  /// While there is no video the last frame is shown again this often, marked "LAST IMAGE
+  /// HELD" (ComposedFrame::held), so the screen says so and the window answers keys.
+  std::chrono::milliseconds held_frame_interval{250};
+  std::chrono::milliseconds alert_hold{5000};   ///< a failed adaptation stays on screen this long
+  /// A C-arm link notice (bad frames on a line that still delivers, a warning the C-arm
+  /// sent) stays on screen this long: longer than the links' 10 s between notices, so a
+  /// line that stays noisy keeps its alert up rather than flickering it.
+  std::chrono::milliseconds carm_notice_hold{15000};
+  std::size_t input_queue = 4, output_queue = 8;
+  /// Make the source wait when the input queue is full instead of dropping the oldest frame:
+  /// for replays, whose source can wait; live sources cannot.
+  bool backpressure = false;
+};
+
+}  // namespace evar::node

@@ -1,0 +1,41 @@
+#pragma once
+// What the live node counts: frames in, composited, held and dropped, analyses, pairs and
+// adaptations, health events, and latency percentiles.
+#include <cstddef>
+#include <cstdint>
+#include <optional>
+#include <string>
+#include <vector>
+
+namespace evar::node {
+
+struct Percentiles {
+  double p50 = 0, p99 = 0, max = 0;
+  std::size_t n = 0;
+};
+
+struct NodeStatistics {
+  std::uint64_t frames_in = 0, frames_composited = 0, frames_with_roadmap = 0;
+  std::uint64_t dropped_input = 0, dropped_output = 0, frames_lost_by_source = 0;
+  std::uint64_t frames_wrong_size = 0;
+  std::uint64_t frames_held = 0;     ///< the last frame shown again while there was no video (not in frames_composited)
+  /// Frames and pairs handed on but never analysed or adapted: replaced by a newer one, or
+  /// left when the node stopped (so pairs = adaptations + adaptation_failures + pairs_superseded).
+  std::uint64_t analysed = 0, analysis_skipped = 0, candidates = 0, pairs = 0, pairs_superseded = 0;
+  std::uint64_t analysis_waited = 0;  ///< frames whose analysis waited for an adaptation to finish
+  std::uint64_t analysis_replaced = 0;  ///< of those, frames skipped for a newer one (in analysis_skipped)
+  std::uint64_t adaptations = 0, adaptation_failures = 0;
+  std::uint64_t video_stalls = 0, stale_geometry_frames = 0, moving_frames = 0, sink_errors = 0;
+  std::uint64_t frame_loss_alerts = 0;  ///< times the source began losing frames (NodeOptions::frame_loss)
+  std::uint64_t carm_notices = 0;       ///< the C-arm link's news: bad frames, the C-arm's warnings
+  std::string last_carm_notice;
+  Percentiles latency_ms;            ///< frame arrival → composited, over the last kLatencyWindow frames
+  Percentiles adaptation_ms;         ///< second view's frame arrival → model ready, over the last kLatencyWindow adaptations
+  std::string last_failure;          ///< the last adaptation failure ("" if none)
+  std::optional<std::int64_t> carm_clock_offset_ns;
+};
+
+/// p50/p99/max of a sample (nearest rank); zeros for none.
+Percentiles percentiles(std::vector<double> values);
+
+}  // namespace evar::node
