@@ -6,7 +6,7 @@
 
 #include <filesystem>
 
-#include "evar/sim/session.hpp"
+#include "evar/session/session.hpp"
 #include "evar/sim/synthetic_patient.hpp"
 #include "evar/sim/xray_render.hpp"
 
@@ -58,8 +58,8 @@ void BM_SessionFrameWrite(benchmark::State& state) {
   auto& s = scene();
   const cv::Mat image = sim::detect(sim::expected_xray(s.view, s.content).quanta, {}, 1);
   const auto dir = std::filesystem::temp_directory_path() / "evar_bench_frames";
-  sim::FrameRecord r{1, 0, "fluoro", "bench.png"};
-  for (auto _ : state) sim::write_session_frame(dir, r, image);
+  session::FrameRecord r{1, 0, "fluoro", "bench.png"};
+  for (auto _ : state) session::write_session_frame(dir, r, image);
   std::filesystem::remove_all(dir);
 }
 BENCHMARK(BM_SessionFrameWrite)->Unit(benchmark::kMillisecond);

@@ -12,19 +12,21 @@ set -euo pipefail
 root=$(cd "$(dirname "$0")/.." && pwd)
 
 # What each layer may use, downstream first: acquisition -> geometry -> deform -> overlay ->
-# node, sim feeding in from the side, app on top.
+# node, session (recorded sessions) and sim (which makes them) feeding in from the side,
+# app on top.
 declare -A may_use=(
   [acquisition]="acquisition"
   [geometry]="geometry"
   [deform]="deform geometry"
   [overlay]="overlay geometry"
-  [sim]="sim geometry acquisition"
+  [session]="session geometry acquisition"
+  [sim]="sim session geometry acquisition"
   [node]="node acquisition geometry deform overlay"
-  [app]="app node sim acquisition geometry deform overlay"
+  [app]="app node session sim acquisition geometry deform overlay"
 )
 # The CMake library of each layer.
 declare -A target=([acquisition]=evar_acquisition [geometry]=evar_geometry [deform]=evar_deform
-  [overlay]=evar_overlay [sim]=evar_sim [node]=evar_node [app]=evar_cli)
+  [overlay]=evar_overlay [session]=evar_session [sim]=evar_sim [node]=evar_node [app]=evar_cli)
 declare -A layer_of
 for l in "${!target[@]}"; do layer_of[${target[$l]}]=$l; done
 
@@ -54,7 +56,7 @@ if [[ $bad != 0 ]]; then
   echo "layers.sh: a dependency against the layers' direction (docs/ARCHITECTURE.md); move the code or the include" >&2
   exit 1
 fi
-echo "layers.sh: every include and link follows acquisition -> geometry -> deform -> overlay -> node, sim beside, app on top"
+echo "layers.sh: every include and link follows acquisition -> geometry -> deform -> overlay -> node, session and sim beside, app on top"
 
 if [[ $# -ge 1 ]]; then
   build=$(cd "$1" && pwd)

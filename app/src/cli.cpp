@@ -7,7 +7,7 @@
 #include "evar/geometry/image_header.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/node/logging.hpp"
-#include "evar/sim/session_replay.hpp"
+#include "evar/session/session_replay.hpp"
 
 namespace evar::app {
 
@@ -224,7 +224,7 @@ int run_cli(const std::vector<std::string>& args) {
       "as possible, and report what arrived: frames, drops, C-arm states, views, moving periods.");
   rp->add_option("session", replay.session, "session directory")->required();
   auto* speed = rp->add_option("--speed", replay.speed, "playback speed (1 = real time)")
-                    ->check(CLI::Range(sim::kMinReplaySpeed, sim::kMaxReplaySpeed))
+                    ->check(CLI::Range(session::kMinReplaySpeed, session::kMaxReplaySpeed))
                     ->capture_default_str();
   rp->add_flag("--fast", replay.fast, "as fast as possible (no pacing)")->excludes(speed);
   rp->add_option("--loop", replay.loops, "times through the session; 0 = until interrupted")
@@ -364,7 +364,7 @@ int run_cli(const std::vector<std::string>& args) {
       ->check(CLI::IsMember({"undeformed", "adapted", "both"}))
       ->capture_default_str();
   auto* rspeed = rn->add_option("--speed", run.speed, "replay speed (1 = real time)")
-                     ->check(CLI::Range(sim::kMinReplaySpeed, sim::kMaxReplaySpeed))
+                     ->check(CLI::Range(session::kMinReplaySpeed, session::kMaxReplaySpeed))
                      ->capture_default_str();
   rn->add_flag("--fast", run.fast, "replay as fast as the node takes the frames")->excludes(rspeed);
   rn->add_option("--loop", run.loops, "replay loops; 0 = until interrupted")->check(CLI::NonNegativeNumber)->capture_default_str();

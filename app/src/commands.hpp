@@ -67,7 +67,7 @@ struct ReplayCommand {
   std::filesystem::path session, report;
   double speed = 1.0;
   bool fast = false;
-  bool preload = false;  ///< decode every frame before playing (sim::ReplayOptions::preload)
+  bool preload = false;  ///< decode every frame before playing (session::ReplayOptions::preload)
   int loops = 1;
   bool progress = true;
   std::string serve_gige;       ///< serial of a GigE Vision camera that shows the frames
@@ -142,7 +142,7 @@ struct RunCommand {
   std::string mode = "both";
   double speed = 1.0;
   bool fast = false;
-  bool preload = false;  ///< decode every frame before playing (sim::ReplayOptions::preload)
+  bool preload = false;  ///< decode every frame before playing (session::ReplayOptions::preload)
   int loops = 1;
   std::optional<double> seconds;
   bool progress = true;

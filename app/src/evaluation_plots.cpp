@@ -11,20 +11,20 @@
 #include "evar/node/frame_view.hpp"
 #include "evar/node/model_adaptation.hpp"
 #include "evar/overlay/frame_compositor.hpp"
-#include "evar/sim/session.hpp"
-#include "evar/sim/session_replay.hpp"
+#include "evar/session/session.hpp"
+#include "evar/session/session_replay.hpp"
 
 namespace evar::app {
 
 namespace {
 
 void snapshot(const std::filesystem::path& path, const CaseEvaluation& c) {
-  const sim::Session& session = *c.recording;
+  const session::Session& session = *c.recording;
   const auto model = std::make_shared<const overlay::RoadmapModel>(node::roadmap_model(*c.scene, c.model.get()));
-  const sim::FrameRecord& record = session.frames[c.snapshot_frame];
-  const sim::CArmSample* sample = sim::carm_at(session, record.timestamp_ns);
-  const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm, sim::to_carm_state(*sample, 0));
-  const cv::Mat image = sim::read_session_frame(session, c.snapshot_frame);
+  const session::FrameRecord& record = session.frames[c.snapshot_frame];
+  const session::CArmSample* sample = session::carm_at(session, record.timestamp_ns);
+  const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm, session::to_carm_state(*sample, 0));
+  const cv::Mat image = session::read_session_frame(session, c.snapshot_frame);
   overlay::FrameCompositor compositor({4, {}});
   const std::string line =
       "frame " + std::to_string(record.frame) + "  " + node::angulation_text(sample->primary_deg, sample->secondary_deg);

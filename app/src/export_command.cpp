@@ -4,20 +4,20 @@
 #include "commands.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/node/logging.hpp"
-#include "evar/sim/session.hpp"
+#include "evar/session/session.hpp"
 #include "progress_bar.hpp"
 
 namespace evar::app {
 
 int run_export(const ExportCommand& cmd) {
-  const sim::Session session = sim::read_session(cmd.session);
+  const session::Session session = session::read_session(cmd.session);
   if (session.frames.empty()) throw geometry::InputError(cmd.session.string() + ": the session has no frames");
   const std::string name = cmd.out.filename().string();
   if (name.size() < 8 || name.compare(name.size() - 8, 8, ".seq.mha") != 0)
     node::log().warn("{}: Slicer's Sequences module recognises sequence metafiles by the name *.seq.mha", cmd.out.string());
   ProgressBar bar("frames", cmd.progress);
-  const sim::ExportSummary summary =
-      sim::export_plus_sequence(session, cmd.out, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
+  const session::ExportSummary summary =
+      session::export_plus_sequence(session, cmd.out, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
   bar.finish();
   if (summary.timestamps_nudged > 0)
     node::log().warn("{} frames came less than 1 ms after the one before; their Timestamp was moved to 1 ms after it "

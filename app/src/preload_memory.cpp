@@ -6,12 +6,12 @@
 #include <string>
 
 #include "evar/node/logging.hpp"
-#include "evar/sim/session_replay.hpp"
+#include "evar/session/session_replay.hpp"
 
 namespace evar::app {
 
-void check_preload_memory(const sim::Session& session) {
-  const std::uint64_t need = sim::preload_bytes(session);
+void check_preload_memory(const session::Session& session) {
+  const std::uint64_t need = session::preload_bytes(session);
   const long pages = ::sysconf(_SC_PHYS_PAGES), page = ::sysconf(_SC_PAGE_SIZE);
   const std::uint64_t have = pages > 0 && page > 0 ? static_cast<std::uint64_t>(pages) * static_cast<std::uint64_t>(page) : 0;
   const std::string sizes = std::to_string(session.frames.size()) + " frames of " + std::to_string(session.detector.cols) +

@@ -11,7 +11,7 @@
 #include "commands.hpp"
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/node/logging.hpp"
-#include "evar/sim/session_recorder.hpp"
+#include "evar/session/session_recorder.hpp"
 #include "interrupt.hpp"
 #include "progress_bar.hpp"
 #include "source_factory.hpp"
@@ -22,7 +22,7 @@ namespace {
 
 // The C-arm link's notices since `before` (each once; the source rate-limits them). More
 // than the recorder keeps between two looks are counted, not lost silently.
-void log_new_notices(const sim::RecorderStatistics& now, const sim::RecorderStatistics& before) {
+void log_new_notices(const session::RecorderStatistics& now, const session::RecorderStatistics& before) {
   const std::uint64_t fresh = now.carm_notices - before.carm_notices;
   const auto kept = static_cast<std::uint64_t>(now.recent_carm_notices.size());
   if (fresh > kept) node::log().warn("C-arm link: {} notices came too fast to log; the last {} follow", fresh - kept, kept);
@@ -32,7 +32,7 @@ void log_new_notices(const sim::RecorderStatistics& now, const sim::RecorderStat
 
 int run_recover(const std::filesystem::path& directory) {
   node::log().info("recovering the recording in {} from its journal", directory.string());
-  const sim::RecoveredRecording r = sim::recover_recording(directory);
+  const session::RecoveredRecording r = session::recover_recording(directory);
   node::log().info("{}: {} frames and {} C-arm states recovered", directory.string(), r.session.frames.size(), r.carm_samples);
   if (r.frames_lost > 0)
     node::log().warn("{} of the {} journaled frames were left out: their PNG is missing or was cut short by the end of the recorder",
@@ -48,13 +48,13 @@ int run_record(const RecordCommand& cmd) {
   if (!cmd.recover.empty()) return run_recover(cmd.recover);
   auto frames = make_frame_source(cmd.frames);
   auto carm = make_carm_source(cmd.carm);
-  sim::RecorderOptions o;
+  session::RecorderOptions o;
   o.out = cmd.out;
   o.scene = cmd.scene;
   o.ct_to_carm = geometry::read_registration(cmd.registration);
   o.pixel_spacing_mm = cmd.pixel_spacing_mm;
   o.device_thickness_mm = cmd.device_thickness_mm;
-  sim::SessionRecorder recorder(o, *frames, *carm);
+  session::SessionRecorder recorder(o, *frames, *carm);
   node::log().info("recording {} and {} into {}", frames->description(), carm->description(), cmd.out.string());
   node::log().info("stop with Ctrl-C or SIGTERM{}{}", cmd.seconds ? fmt::format(", or after {:g} s", *cmd.seconds) : "",
              cmd.frames_to_write ? fmt::format(", or after {} frames", *cmd.frames_to_write) : "");
@@ -63,7 +63,7 @@ int run_record(const RecordCommand& cmd) {
   recorder.start();
   StatusLine status;
   std::uint64_t last_frames = 0;
-  sim::RecorderStatistics s, shown;
+  session::RecorderStatistics s, shown;
   for (;;) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     s = recorder.statistics();
@@ -88,7 +88,7 @@ int run_record(const RecordCommand& cmd) {
   }
   status.finish();
   if (interrupt.interrupted()) node::log().info("{}: finishing the recording", ::strsignal(interrupt.signal_received()));
-  const sim::Session session = recorder.finish();
+  const session::Session session = recorder.finish();
   s = recorder.statistics();
   log_new_notices(s, shown);
   node::log().info("{}: {} frames and {} C-arm states in {:.1f} s; {} frames dropped by the source, {} not recorded",

@@ -7,9 +7,9 @@
 
 #include "commands.hpp"
 #include "evar/node/logging.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/serial_carm_server.hpp"
-#include "evar/sim/session_replay.hpp"
 #include "interrupt.hpp"
 #include "json_file.hpp"
 #include "preload_memory.hpp"
@@ -18,7 +18,7 @@
 namespace evar::app {
 
 int run_replay(const ReplayCommand& cmd) {
-  const sim::Session session = sim::read_session(cmd.session);
+  const session::Session session = session::read_session(cmd.session);
   if (session.frames.empty()) {
     node::log().error("{}: the session has no frames", cmd.session.string());
     return 1;
@@ -45,7 +45,7 @@ int run_replay(const ReplayCommand& cmd) {
   }
   std::string transport_error;  // the first failure to serve; the replay goes on
   if (cmd.preload) check_preload_memory(session);
-  sim::SessionReplay replay(session, {cmd.fast ? 0.0 : cmd.speed, cmd.loops, cmd.preload});
+  session::SessionReplay replay(session, {cmd.fast ? 0.0 : cmd.speed, cmd.loops, cmd.preload});
   const InterruptGuard ctrl_c;  // Ctrl-C stops the replay cleanly
   replay.carm().start(
       [&](const acquisition::CArmState& s) {

@@ -16,7 +16,7 @@
 #include "evar/node/live_node.hpp"
 #include "evar/node/logging.hpp"
 #include "evar/node/output_sinks.hpp"
-#include "evar/sim/session_replay.hpp"
+#include "evar/session/session_replay.hpp"
 #include "interrupt.hpp"
 #include "json_file.hpp"
 #include "node_config.hpp"
@@ -37,7 +37,7 @@ nlohmann::json to_json(const std::vector<std::filesystem::path>& files) {
 }
 
 // Frames per second of a session: the median interval between frames.
-double session_fps(const sim::Session& s) {
+double session_fps(const session::Session& s) {
   std::vector<double> dt;
   for (std::size_t i = 1; i < s.frames.size(); ++i)
     if (s.frames[i].timestamp_ns > s.frames[i - 1].timestamp_ns)
@@ -54,12 +54,12 @@ int run_node(const RunCommand& cmd) {
   if (!cmd.config.empty()) config = read_node_config(cmd.config);
   if (cmd.replay.empty() && !config) throw geometry::InputError("run: give --config node.json or --replay SESSION");
 
-  std::optional<sim::Session> session;
+  std::optional<session::Session> session;
   node::NodeOptions options;
   std::filesystem::path scene_path;
   double fps = 30.0;
   if (!cmd.replay.empty()) {
-    session = sim::read_session(cmd.replay);
+    session = session::read_session(cmd.replay);
     if (session->frames.empty()) throw geometry::InputError(cmd.replay.string() + ": the session has no frames");
     scene_path = cmd.replay / session->scene;
     options.detector = session->detector;
@@ -153,7 +153,7 @@ int run_node(const RunCommand& cmd) {
 
   // The sources before the node: destroyed after it, so a node left running by an
   // exception stops (in its destructor) while its sources still exist.
-  std::unique_ptr<sim::SessionReplay> replay;
+  std::unique_ptr<session::SessionReplay> replay;
   std::unique_ptr<acquisition::FrameSource> live_frames;
   std::unique_ptr<acquisition::CArmGeometrySource> live_carm;
   node::LiveNode node(scene, options, std::move(sinks));
@@ -162,8 +162,8 @@ int run_node(const RunCommand& cmd) {
   acquisition::CArmGeometrySource* carm = nullptr;
   if (session) {
     if (cmd.preload) check_preload_memory(*session);
-    replay = std::make_unique<sim::SessionReplay>(*session,
-                                                  sim::ReplayOptions{cmd.fast ? 0.0 : cmd.speed, cmd.loops, cmd.preload});
+    replay = std::make_unique<session::SessionReplay>(*session,
+                                                  session::ReplayOptions{cmd.fast ? 0.0 : cmd.speed, cmd.loops, cmd.preload});
     frames = &replay->frames();
     carm = &replay->carm();
   } else {

@@ -16,12 +16,12 @@
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/polyline.hpp"
 #include "evar/geometry/scene.hpp"
-#include "evar/sim/session.hpp"
-#include "evar/sim/session_replay.hpp"
+#include "evar/session/session.hpp"
+#include "evar/session/session_replay.hpp"
 
 namespace evar::app {
 
-OstiumErrors::OstiumErrors(std::vector<geometry::ControlPoint> initial, const std::vector<sim::OstiumTruth>& truth)
+OstiumErrors::OstiumErrors(std::vector<geometry::ControlPoint> initial, const std::vector<session::OstiumTruth>& truth)
     : initial_(std::move(initial)) {
   for (const auto& t : truth) truth_.emplace(t.frame, t);
 }
@@ -31,7 +31,7 @@ bool OstiumErrors::add(std::int64_t frame, const geometry::ProjectionMatrix& P_c
   bool any = false;
   const auto [lo, hi] = truth_.equal_range(frame);
   for (auto it = lo; it != hi; ++it) {
-    const sim::OstiumTruth& t = it->second;
+    const session::OstiumTruth& t = it->second;
     for (std::size_t k = 0; k < initial_.size() && k < adapted.size(); ++k) {
       if (initial_[k].label != t.label) continue;
       const auto before = geometry::project(P_ct, initial_[k].position_lps);
@@ -88,8 +88,8 @@ DeviceError device_error(const geometry::Polyline& reconstructed, const geometry
 CaseEvaluation evaluate_session(const std::filesystem::path& directory, const EvaluationOptions& options,
                                 const std::function<void(std::size_t, std::size_t)>& progress) {
   const auto t0 = std::chrono::steady_clock::now();
-  auto recording = std::make_shared<const sim::Session>(sim::read_session(directory));
-  const sim::Session& session = *recording;
+  auto recording = std::make_shared<const session::Session>(session::read_session(directory));
+  const session::Session& session = *recording;
   if (!session.truth)
     throw geometry::InputError((directory / "session.json").string() +
                                ": ground_truth: missing (evaluation needs the true ostia)");
@@ -127,15 +127,15 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   std::shared_ptr<const node::AdaptedModel> model;
   OstiumErrors errors(scene.landmarks, session.truth->ostia);
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
-    const sim::FrameRecord& record = session.frames[i];
-    const sim::CArmSample* sample = sim::carm_at(session, record.timestamp_ns);
+    const session::FrameRecord& record = session.frames[i];
+    const session::CArmSample* sample = session::carm_at(session, record.timestamp_ns);
     if (sample == nullptr || sample->moving || !sample->fluoro_on) {
       if (progress) progress(i + 1, session.frames.size());
       continue;
     }
     const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm,
-                                      sim::to_carm_state(*sample, 0));
-    const cv::Mat image = sim::read_session_frame(session, i);
+                                      session::to_carm_state(*sample, 0));
+    const cv::Mat image = session::read_session_frame(session, i);
     node::FrameAnalysis analysis = node::analyse_frame(image, view, options.candidate);
     if (analysis.candidate) {
       ++result.candidates;
@@ -191,19 +191,19 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
 }
 
 namespace {
-const std::vector<sim::OstiumTruth>& ostia_of(const sim::Session& session) {
+const std::vector<session::OstiumTruth>& ostia_of(const session::Session& session) {
   if (!session.truth || session.frames.empty())
     throw std::invalid_argument("the evaluation needs a session with frames and ground truth");
   return session.truth->ostia;
 }
 }  // namespace
 
-EvaluationSink::EvaluationSink(const sim::Session& session, const geometry::Scene& scene)
+EvaluationSink::EvaluationSink(const session::Session& session, const geometry::Scene& scene)
     : session_(session), errors_(scene.landmarks, ostia_of(session)) {}
 
 void EvaluationSink::write(const node::ComposedFrame& e) {
   if (e.held || !e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) return;
-  const sim::FrameRecord& record = session_.frames[(e.sequence - 1) % session_.frames.size()];
+  const session::FrameRecord& record = session_.frames[(e.sequence - 1) % session_.frames.size()];
   std::lock_guard lock(mutex_);
   if (errors_.add(record.frame, *e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks)) ++frames_;
 }

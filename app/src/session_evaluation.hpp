@@ -21,7 +21,7 @@
 #include "evar/node/live_node.hpp"
 #include "evar/node/model_adaptation.hpp"
 #include "evar/node/view_pair_selector.hpp"
-#include "evar/sim/session.hpp"
+#include "evar/session/session.hpp"
 
 namespace evar::app {
 
@@ -47,7 +47,7 @@ class OstiumErrors {
  public:
   /// The preoperative landmarks (CT LPS mm, labelled as in the truth) and where the true
   /// ostia project, frame by frame.
-  OstiumErrors(std::vector<geometry::ControlPoint> initial, const std::vector<sim::OstiumTruth>& truth);
+  OstiumErrors(std::vector<geometry::ControlPoint> initial, const std::vector<session::OstiumTruth>& truth);
   /// One frame (its number in the session): its projection, mm at the isocenter per pixel
   /// and the adapted landmarks (same order as the initial ones). True when at least one
   /// landmark was measured.
@@ -62,7 +62,7 @@ class OstiumErrors {
     double initial = 0, adapted = 0, initial_v = 0, adapted_v = 0;
   };
   std::vector<geometry::ControlPoint> initial_;
-  std::multimap<std::int64_t, sim::OstiumTruth> truth_;
+  std::multimap<std::int64_t, session::OstiumTruth> truth_;
   std::map<std::string, Sums> sums_;
 };
 
@@ -93,7 +93,7 @@ struct CaseEvaluation {
   double registration_residual_deg = 0.0;  ///< the given registration's rotation off the true one
   std::shared_ptr<const node::AdaptedModel> model;  ///< the last adapted model (null when none)
   geometry::Polyline true_device;  ///< the session's true device in the node's CT frame (LPS mm)
-  std::shared_ptr<const sim::Session> recording;  ///< as read (for pictures)
+  std::shared_ptr<const session::Session> recording;  ///< as read (for pictures)
   std::shared_ptr<const geometry::Scene> scene;   ///< as loaded (for pictures)
   std::size_t snapshot_frame = 0;       ///< index of the last evaluated frame (for pictures)
   double seconds = 0.0;
@@ -110,7 +110,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& session, const Eval
 /// replay looped for hours runs in constant memory. The session must have ground truth.
 class EvaluationSink final : public node::OutputSink {
  public:
-  EvaluationSink(const sim::Session& session, const geometry::Scene& scene);
+  EvaluationSink(const session::Session& session, const geometry::Scene& scene);
   std::string name() const override { return "evaluation"; }
   void write(const node::ComposedFrame& frame) override;
   /// The means per landmark so far (only those measured).
@@ -119,7 +119,7 @@ class EvaluationSink final : public node::OutputSink {
   std::size_t frames() const;
 
  private:
-  const sim::Session& session_;
+  const session::Session& session_;
   mutable std::mutex mutex_;
   OstiumErrors errors_;
   std::size_t frames_ = 0;

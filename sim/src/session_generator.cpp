@@ -37,7 +37,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
 
   GeneratedSession out;
   out.carrier = patient.truth.carrier;
-  Session& s = out.session;
+  session::Session& s = out.session;
   s.directory = dir;
   s.scene = "patient/scene.json";
   s.device_thickness_mm = patient.preoperative.device_thickness_mm;
@@ -88,7 +88,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
   std::vector<FramePlan> frames;
   std::int64_t t = kSecond;
   const auto sample = [&](const ViewPose& p, bool fluoro, bool moving) {
-    CArmSample c;
+    session::CArmSample c;
     c.timestamp_ns = t;
     c.primary_deg = p.primary_deg;
     c.secondary_deg = p.secondary_deg;
@@ -148,13 +148,13 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
 
   // Render: the noise-free image once per (view, contrast), a detector readout per frame.
   std::map<std::pair<std::size_t, double>, XRayExpected> cache;
-  SessionTruth truth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv", {}, std::nullopt};
+  session::SessionTruth truth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv", {}, std::nullopt};
   char name[32];
   for (std::size_t i = 0; i < frames.size(); ++i) {
     const FramePlan& f = frames[i];
-    const CArmSample& c = s.carm[f.carm];
-    const geometry::CArmView view = view_of(s, c);
-    const Eigen::Matrix4d T = patient_to_carm(s, c);
+    const session::CArmSample& c = s.carm[f.carm];
+    const geometry::CArmView view = session::view_of(s, c);
+    const Eigen::Matrix4d T = session::patient_to_carm(s, c);
     // One expected image per C-arm sample (each run has its own) and contrast level.
     const auto key = std::make_pair(f.carm, f.contrast);
     auto it = cache.find(key);
@@ -167,13 +167,13 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
       content.wires = {patient.preoperative.device};
       it = cache.emplace(key, expected_xray(view, content, plan.xray)).first;
     }
-    FrameRecord record;
+    session::FrameRecord record;
     record.frame = static_cast<std::int64_t>(i) + 1;
     record.timestamp_ns = f.t;
     record.source = f.source;
     std::snprintf(name, sizeof name, "%06zu.png", i + 1);
     record.file = name;
-    write_session_frame(dir, record, detect(it->second.quanta, plan.xray, plan.seed * 1'000'003ULL + i));
+    session::write_session_frame(dir, record, detect(it->second.quanta, plan.xray, plan.seed * 1'000'003ULL + i));
     s.frames.push_back(record);
     const geometry::ProjectionMatrix P = geometry::registered(geometry::projection_matrix(view), T);
     for (const auto& lm : patient.truth.landmarks)
@@ -189,7 +189,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
     s.ct_to_carm = s.ct_to_carm * out.residual.transform();
   }
   s.truth = std::move(truth);
-  write_session_files(dir, s);
+  session::write_session_files(dir, s);
   out.render_seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
   return out;
 }

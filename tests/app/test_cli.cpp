@@ -7,13 +7,13 @@
 #include <nlohmann/json.hpp>
 
 #include "evar/app/cli.hpp"
-#include "evar/geometry/mesh_io.hpp"
-#include "evar/geometry/xa_dicom.hpp"
-#include "evar/geometry/markups.hpp"
-#include "evar/geometry/scene.hpp"
 #include "evar/geometry/closest_point.hpp"
-#include "evar/geometry/ray_caster.hpp"
+#include "evar/geometry/markups.hpp"
+#include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/polyline.hpp"
+#include "evar/geometry/ray_caster.hpp"
+#include "evar/geometry/scene.hpp"
+#include "evar/geometry/xa_dicom.hpp"
 #include "evar/sim/fluoro_render.hpp"
 
 #include <opencv2/imgcodecs.hpp>
@@ -21,8 +21,8 @@
 #include <Eigen/SVD>
 #include <iterator>
 #include <map>
+#include "evar/session/session.hpp"
 #include "evar/sim/example_scene.hpp"
-#include "evar/sim/session.hpp"
 #include "geometry/synthetic_fluoro.hpp"
 #include "support/killed_recording.hpp"
 #include "support/ramp_frames.hpp"
@@ -808,12 +808,12 @@ TEST_F(Cli, RunTakesTheReplaysSpeedRange) {
 // --recover` makes them a session `replay` takes.
 TEST_F(Cli, RecordRecoverMakesASessionOfAKilledRecording) {
   const auto out = scratch("record_recover");
-  evar::sim::Session original;
+  evar::session::Session original;
   original.scene = "scene.json";
   original.detector = {32, 24, 0.3, 0.3};
   const auto images = evar::test::add_ramp_frames(original, 6, 50'000'000LL, {3000, 11, 7, 2});
   for (int k = 0; k < 3; ++k) {
-    evar::sim::CArmSample c;
+    evar::session::CArmSample c;
     c.timestamp_ns = 990'000'000LL + k * 100'000'000LL;
     c.primary_deg = 15.0 * k;
     c.sid_mm = 1200;
@@ -821,12 +821,12 @@ TEST_F(Cli, RecordRecoverMakesASessionOfAKilledRecording) {
     c.fluoro_on = true;
     original.carm.push_back(c);
   }
-  evar::sim::write_session(out / "original", original, images);
-  evar::sim::RecorderOptions o;
+  evar::session::write_session(out / "original", original, images);
+  evar::session::RecorderOptions o;
   o.out = out / "recorded";
   o.scene = scene();
   o.pixel_spacing_mm = 0.2;
-  const int status = evar::test::record_then_kill(o, evar::sim::read_session(out / "original"));
+  const int status = evar::test::record_then_kill(o, evar::session::read_session(out / "original"));
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "child status " << status;
 
   const auto r = evarnode({"record", "--recover", o.out.string()});

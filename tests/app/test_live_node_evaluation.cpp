@@ -7,7 +7,7 @@
 
 #include "evar/node/live_node.hpp"
 #include "evar/node/output_sinks.hpp"
-#include "evar/sim/session_replay.hpp"
+#include "evar/session/session_replay.hpp"
 #include "session_evaluation.hpp"
 #include "support/live_node_replay.hpp"
 
@@ -68,7 +68,7 @@ TEST_F(LiveNodeReplay, TheAdaptedOverlayAppearsAndTheOstiumErrorFalls) {
   EXPECT_TRUE(seen) << "no landmark " << carrier_ostium;
   EXPECT_GT(s.latency_ms.n, 0u);
   // A stopped node does not run again (its queues are closed): said, not silently idle.
-  sim::SessionReplay again(session(), {0.0, 1});
+  session::SessionReplay again(session(), {0.0, 1});
   EXPECT_THROW(node.start(again.frames(), again.carm()), std::logic_error);
 }
 

@@ -1,6 +1,6 @@
 // A recorded session's manifest and streams: parts are session.json, frames/index.csv,
 // carm.csv, registration.json (split at "--8<--" lines).
-#include "evar/sim/session.hpp"
+#include "evar/session/session.hpp"
 #include "fuzz_input.hpp"
 
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
@@ -13,6 +13,6 @@ extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size
   // Frame files the index may name (images are read only on demand, not here).
   evar::fuzz::write_file("session/frames/000001.png", {});
   evar::fuzz::write_file("session/frames/000002.png", {});
-  evar::fuzz::expect_rejection_as_input_error([&] { (void)evar::sim::read_session(dir); });
+  evar::fuzz::expect_rejection_as_input_error([&] { (void)evar::session::read_session(dir); });
   return 0;
 }

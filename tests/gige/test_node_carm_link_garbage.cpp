@@ -25,9 +25,9 @@
 #include "evar/acquisition/pseudo_terminal.hpp"
 #include "evar/acquisition/serial_carm_source.hpp"
 #include "evar/node/live_node.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/session_generator.hpp"
-#include "evar/sim/session_replay.hpp"
 #include "support/node_screen.hpp"
 
 namespace {
@@ -113,7 +113,7 @@ TEST(NodeOverTransports, GarbageOnTheCArmLinkCostsNeitherModelNorLinkAndIsShownA
   plan.detector_px = 512;
   plan.pixel_spacing_mm = 0.6;
   const sim::GeneratedSession generated = sim::generate_session(plan, dir / "session");
-  const sim::Session& session = generated.session;
+  const session::Session& session = generated.session;
   const geometry::Scene scene = geometry::load_scene(dir / "session" / session.scene);
 
   // The far ends: the camera, and the C-arm adapter whose line the test spoils.
@@ -121,7 +121,7 @@ TEST(NodeOverTransports, GarbageOnTheCArmLinkCostsNeitherModelNorLinkAndIsShownA
   const std::string link = (dir / "ttyCARM").string();
   sim::GigEFrameServer camera(serial);
   NoisyCArmAdapter adapter(link);
-  sim::SessionReplay replay(session, {1.0, 0});
+  session::SessionReplay replay(session, {1.0, 0});
   replay.carm().start([&](const acquisition::CArmState& s) { adapter.send(s); }, nullptr, nullptr);
   replay.frames().start([&](const acquisition::Frame& f) { camera.show(f); }, nullptr);
 

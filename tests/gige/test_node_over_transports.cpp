@@ -21,10 +21,10 @@
 #include "evar/acquisition/serial_carm_source.hpp"
 #include "evar/node/live_node.hpp"
 #include "evar/node/logging.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/serial_carm_server.hpp"
 #include "evar/sim/session_generator.hpp"
-#include "evar/sim/session_replay.hpp"
 #include "support/node_screen.hpp"
 
 namespace {
@@ -46,7 +46,7 @@ TEST(NodeOverTransports, KeepsItsModelThroughCameraAndLinkFaultsAndSaysEachOnce)
   plan.detector_px = 512;
   plan.pixel_spacing_mm = 0.6;
   const sim::GeneratedSession generated = sim::generate_session(plan, dir / "session");
-  const sim::Session& session = generated.session;
+  const session::Session& session = generated.session;
   const geometry::Scene scene = geometry::load_scene(dir / "session" / session.scene);
 
   // The transports' far ends, switched off and on by the test; the replay feeds whichever
@@ -56,7 +56,7 @@ TEST(NodeOverTransports, KeepsItsModelThroughCameraAndLinkFaultsAndSaysEachOnce)
   std::mutex ends;
   auto camera = std::make_unique<sim::GigEFrameServer>(serial);
   auto carm_link = std::make_unique<sim::SerialCArmServer>(link);
-  sim::SessionReplay replay(session, {1.0, 0});
+  session::SessionReplay replay(session, {1.0, 0});
   replay.carm().start(
       [&](const acquisition::CArmState& s) {
         std::lock_guard lock(ends);

@@ -14,13 +14,14 @@
 
 #include "evar/acquisition/gige_camera_source.hpp"
 #include "evar/app/cli.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/example_scene.hpp"
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/serial_carm_server.hpp"
-#include "evar/sim/session_replay.hpp"
 #include "support/ramp_frames.hpp"
 
 namespace sim = evar::sim;
+namespace session = evar::session;
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
@@ -41,12 +42,12 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
 
   // The original: frames every 200 ms; the C-arm changes halfway between frames, so which
   // state is in force at a frame is clear by 100 ms either way.
-  sim::Session s;
+  session::Session s;
   s.scene = "scene.json";
   s.detector = {128, 96, 0.3, 0.3};  // Aravis 0.8.26's fake camera loses packets of frames under ~6 KB
   const std::vector<cv::Mat> images = evar::test::add_ramp_frames(s, 8, 200'000'000LL, {6000, 67, 5, 1});
   for (int j = -1; j < 7; ++j) {
-    sim::CArmSample c;
+    session::CArmSample c;
     c.timestamp_ns = 1'100'000'000LL + j * 200'000'000LL;
     c.primary_deg = 20.0 - 6.0 * j;
     c.secondary_deg = -4.0;
@@ -55,8 +56,8 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
     c.fluoro_on = true;
     s.carm.push_back(c);
   }
-  sim::write_session(dir / "original", s, images);
-  const sim::Session original = sim::read_session(dir / "original");
+  session::write_session(dir / "original", s, images);
+  const session::Session original = session::read_session(dir / "original");
 
   const std::string serial = "EVARREC" + std::to_string(::getpid() % 100000);
   sim::GigEFrameServer camera(serial);
@@ -66,7 +67,7 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
   const fs::path out = dir / "recorded";
   // The replay loops over the session until the recording is done, so however long the
   // command takes to find the camera and open the link, whole loops get recorded.
-  sim::SessionReplay replay(original, {1.0, 0});
+  session::SessionReplay replay(original, {1.0, 0});
   replay.carm().start([&](const evar::acquisition::CArmState& st) { carm_link.send(st); }, nullptr, nullptr);
   replay.frames().start([&](const evar::acquisition::Frame& f) { camera.show(f); }, nullptr);
   const int code = evar::app::run_cli({"record", "--camera", serial, "--width", "128", "--height", "96", "--fps", "40",
@@ -78,7 +79,7 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
   replay.carm().stop();
   ASSERT_EQ(code, 0);
 
-  const sim::Session back = sim::read_session(out);
+  const session::Session back = session::read_session(out);
   EXPECT_EQ(back.detector.cols, 128);
   EXPECT_DOUBLE_EQ(back.detector.col_spacing_mm, 0.154);
   EXPECT_DOUBLE_EQ(back.ct_to_carm(0, 3), -5.0);
@@ -98,7 +99,7 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
   int last = -1;
   std::size_t unknown = 0;
   for (std::size_t i = 0; i < back.frames.size(); ++i) {
-    const cv::Mat img = sim::read_session_frame(back, i);
+    const cv::Mat img = session::read_session_frame(back, i);
     int which = -1;
     for (int k = 0; k < 8; ++k)
       if (same_pixels(img, images[static_cast<std::size_t>(k)])) which = k;
@@ -127,19 +128,19 @@ TEST(RecordCommand, RecordsAGigECameraAndASerialCArmLinkIntoASessionThatReadsBac
   for (int k = 0; k < 8; ++k) {
     const auto& seen = arrivals[static_cast<std::size_t>(k)];
     ASSERT_FALSE(seen.empty()) << "original frame " << k << " was never recorded with geometry";
-    const auto* was = sim::carm_at(original, original.frames[static_cast<std::size_t>(k)].timestamp_ns);
+    const auto* was = session::carm_at(original, original.frames[static_cast<std::size_t>(k)].timestamp_ns);
     ASSERT_TRUE(was);
     std::size_t right = 0;
     std::string said;
     for (const std::size_t i : seen) {
       const std::int64_t t = back.frames[i].timestamp_ns;
-      const auto* now = sim::carm_at(back, t);
+      const auto* now = session::carm_at(back, t);
       ASSERT_TRUE(now);
       right += std::abs(now->primary_deg - was->primary_deg) < 0.0005;
       // Said on failure: how far the frame was recorded from the C-arm changes around it
       // (about 100 ms each way in the original; the camera period adds up to 25 ms).
       const auto next = std::upper_bound(back.carm.begin(), back.carm.end(), t,
-                                         [](std::int64_t a, const sim::CArmSample& c) { return a < c.timestamp_ns; });
+                                         [](std::int64_t a, const session::CArmSample& c) { return a < c.timestamp_ns; });
       said += "\n  recorded as frame " + std::to_string(i) + " with " + std::to_string(now->primary_deg) + " deg, " +
               std::to_string(1e-6 * static_cast<double>(t - now->timestamp_ns)) + " ms after the state in force and " +
               std::to_string(next == back.carm.end() ? -1.0 : 1e-6 * static_cast<double>(next->timestamp_ns - t)) +

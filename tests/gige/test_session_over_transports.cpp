@@ -10,26 +10,27 @@
 
 #include "evar/acquisition/gige_camera_source.hpp"
 #include "evar/acquisition/serial_carm_source.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/gige_frame_server.hpp"
 #include "evar/sim/serial_carm_server.hpp"
-#include "evar/sim/session_replay.hpp"
-#include "support/stream_log.hpp"
 #include "support/ramp_frames.hpp"
+#include "support/stream_log.hpp"
 
 namespace acq = evar::acquisition;
 namespace sim = evar::sim;
+namespace session = evar::session;
 namespace fs = std::filesystem;
 using namespace std::chrono_literals;
 
 TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources) {
   const fs::path dir = fs::path(testing::TempDir()) / ("evar_transport_session_" + std::to_string(::getpid()));
   fs::remove_all(dir);
-  sim::Session s;
+  session::Session s;
   s.scene = "scene.json";
   s.detector = {128, 96, 0.3, 0.3};  // Aravis 0.8.26's fake camera loses packets of frames under ~6 KB
   const std::vector<cv::Mat> images = evar::test::add_ramp_frames(s, 8, 150'000'000LL, {4000, 61, 7, 1});
   for (int k = 0; k < 6; ++k) {
-    sim::CArmSample c;
+    session::CArmSample c;
     c.timestamp_ns = 1'000'000'000LL + k * 200'000'000LL;
     c.primary_deg = -30.0 + 12.5 * k;
     c.secondary_deg = 5.0;
@@ -39,8 +40,8 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
     c.moving = k % 2 == 1;
     s.carm.push_back(c);
   }
-  sim::write_session(dir, s, images);
-  const sim::Session session = sim::read_session(dir);
+  session::write_session(dir, s, images);
+  const session::Session session = session::read_session(dir);
 
   // The transports' far ends.
   const std::string serial = "EVARSES" + std::to_string(::getpid() % 100000);
@@ -82,7 +83,7 @@ TEST(SessionOverTransports, EveryFrameAndEverySampleArrivesThroughTheRealSources
   ASSERT_TRUE(carm.wait([&] { return carm.said({"waiting for the first geometry sample"}); }));
 
   // The replay drives the far ends in real time.
-  sim::SessionReplay replay(session, {1.0, 1});
+  session::SessionReplay replay(session, {1.0, 1});
   replay.carm().start([&](const acq::CArmState& st) { carm_link.send(st); }, nullptr, nullptr);
   replay.frames().start([&](const acq::Frame& f) { camera.show(f); }, nullptr);
   ASSERT_TRUE(replay.wait(30s));

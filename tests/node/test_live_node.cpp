@@ -13,8 +13,8 @@
 #include "evar/node/live_node.hpp"
 #include "evar/node/logging.hpp"
 #include "evar/node/output_sinks.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/session_generator.hpp"
-#include "evar/sim/session_replay.hpp"
 #include "support/live_node_replay.hpp"
 
 namespace {
@@ -70,9 +70,9 @@ TEST_F(LiveNodeReplay, AfterALaterAdaptationFailsTheLastGoodModelStaysOnScreenAn
   // reports the table 300 mm off (a wrong table reading, an unannounced table move), so
   // the next pair's two views disagree and no device can come of them. A pause before the
   // third view leaves the first pair time to be adapted, however slow the build.
-  sim::Session faulty = session();
+  session::Session faulty = session();
   const auto view_of = [&](std::int64_t t) {
-    const sim::CArmSample* c = sim::carm_at(faulty, t);
+    const session::CArmSample* c = session::carm_at(faulty, t);
     return std::make_pair(std::lround(c->primary_deg), std::lround(c->secondary_deg));
   };
   std::vector<std::pair<long, long>> views;
@@ -107,7 +107,7 @@ TEST_F(LiveNodeReplay, AfterALaterAdaptationFailsTheLastGoodModelStaysOnScreenAn
   std::vector<std::unique_ptr<node::OutputSink>> sinks;
   sinks.push_back(std::move(recorder));
   node::LiveNode node(*scene_, o, std::move(sinks));
-  sim::SessionReplay replay(faulty, {8.0, 1});
+  session::SessionReplay replay(faulty, {8.0, 1});
   node.start(replay.frames(), replay.carm());
   ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
   node.stop();
@@ -208,7 +208,7 @@ TEST_F(LiveNodeReplay, FramesThatCannotBeShownLeaveTheLastGoodOneHeldAndMarked) 
     node::LiveNode node(*scene_, stall_options(), recording(shown));
     // The session's first fluoroscopy run is frames 1-60 at 15/s; replayed at 2x, frames
     // 20-49 are a second of unreadable video within it.
-    sim::SessionReplay replay(session(), {2.0, 1});
+    session::SessionReplay replay(session(), {2.0, 1});
     SpoiledFrames frames(replay.frames(), 20, 50, how);
     node.start(frames, replay.carm());
     ASSERT_TRUE(replay.wait(std::chrono::seconds(60)));
@@ -241,8 +241,8 @@ TEST_F(LiveNodeReplay, FramesThatCannotBeShownLeaveTheLastGoodOneHeldAndMarked) 
 TEST_F(LiveNodeReplay, ASilentCArmLinkAndAStalledVideoAreReportedWhileFramesAreShown) {
   StatusRecorder* shown = nullptr;
   node::LiveNode node(*scene_, stall_options(), recording(shown));
-  SilentCArm carm(sim::to_carm_state(session().carm.front(), 0));
-  sim::SessionReplay replay(session(), {8.0, 1});
+  SilentCArm carm(session::to_carm_state(session().carm.front(), 0));
+  session::SessionReplay replay(session(), {8.0, 1});
   node.start(replay.frames(), carm);
   ASSERT_TRUE(replay.wait(std::chrono::seconds(60)));
   // The replay is over: no more frames, which the node must notice.
@@ -315,7 +315,7 @@ TEST_F(LiveNodeReplay, ANoticeFromTheCArmLinkIsShownForAWhileAndLoggedOnce) {
   node::LiveNode node(*scene_, o, recording(shown));
   // At 4x the session's 10 states a second, the 20th comes half a second in, with some
   // 4.5 s of replay to go.
-  sim::SessionReplay replay(session(), {4.0, 1});
+  session::SessionReplay replay(session(), {4.0, 1});
   NoticingCArm carm(replay.carm(), 20, notice);
   node.start(replay.frames(), carm);
   ASSERT_TRUE(replay.wait(std::chrono::seconds(60)));

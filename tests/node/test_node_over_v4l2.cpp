@@ -18,8 +18,8 @@
 
 #include "evar/acquisition/v4l2_frame_source.hpp"
 #include "evar/node/live_node.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/session_generator.hpp"
-#include "evar/sim/session_replay.hpp"
 #include "support/fake_v4l2_device.hpp"
 #include "support/node_screen.hpp"
 
@@ -39,7 +39,7 @@ TEST(NodeOverV4l2, ShortBuffersAndAnUnpluggedGrabberHoldTheLastImageSayWhyOnceAn
   plan.detector_px = 512;
   plan.pixel_spacing_mm = 0.6;
   const sim::GeneratedSession generated = sim::generate_session(plan, dir / "session");
-  const sim::Session& session = generated.session;
+  const session::Session& session = generated.session;
   const geometry::Scene scene = geometry::load_scene(dir / "session" / session.scene);
 
   // The grabber: Y16 at the detector's size. Its sensor free-runs at the session's frame
@@ -76,7 +76,7 @@ TEST(NodeOverV4l2, ShortBuffersAndAnUnpluggedGrabberHoldTheLastImageSayWhyOnceAn
       t.join();
     }
   } join_sensor{sensor_on, sensor};
-  sim::SessionReplay replay(session, {1.0, 0});
+  session::SessionReplay replay(session, {1.0, 0});
 
   // The node's side, as `evarnode run --config` makes it for a V4L2 grabber (its defaults:
   // stalled after 0.5 s without a frame, reopened every 0.5 s while missing).

@@ -39,7 +39,7 @@ class GeneratedSessionTest : public ::testing::Test {
 fs::path GeneratedSessionTest::dir_;
 
 TEST_F(GeneratedSessionTest, ReadsBackWithViewsRunsAndGroundTruth) {
-  const Session s = read_session(dir_);
+  const session::Session s = session::read_session(dir_);
   ASSERT_TRUE(s.truth.has_value());
   // Three fluoroscopy runs of 6 frames (15 fps x 0.4 s) and a DSA run of 6 (4 fps x 1.5 s).
   std::size_t fluoro = 0, dsa = 0;
@@ -52,7 +52,7 @@ TEST_F(GeneratedSessionTest, ReadsBackWithViewsRunsAndGroundTruth) {
   EXPECT_TRUE(saw_moving);
   std::set<std::pair<double, double>> angles;
   for (const auto& f : s.frames) {
-    const CArmSample* c = carm_at(s, f.timestamp_ns);
+    const session::CArmSample* c = session::carm_at(s, f.timestamp_ns);
     ASSERT_NE(c, nullptr);
     EXPECT_TRUE(c->fluoro_on);
     EXPECT_FALSE(c->moving);
@@ -63,10 +63,10 @@ TEST_F(GeneratedSessionTest, ReadsBackWithViewsRunsAndGroundTruth) {
   const auto landmarks = geometry::read_markups(dir_ / s.truth->scene.parent_path() / "landmarks.mrk.json").front().points;
   ASSERT_FALSE(s.truth->ostia.empty());
   for (const auto& o : s.truth->ostia) {
-    const auto it = std::find_if(s.frames.begin(), s.frames.end(), [&](const FrameRecord& f) { return f.frame == o.frame; });
+    const auto it = std::find_if(s.frames.begin(), s.frames.end(), [&](const session::FrameRecord& f) { return f.frame == o.frame; });
     ASSERT_NE(it, s.frames.end());
-    const CArmSample* c = carm_at(s, it->timestamp_ns);
-    const auto P = geometry::registered(geometry::projection_matrix(view_of(s, *c)), patient_to_carm(s, *c));
+    const session::CArmSample* c = session::carm_at(s, it->timestamp_ns);
+    const auto P = geometry::registered(geometry::projection_matrix(session::view_of(s, *c)), session::patient_to_carm(s, *c));
     const auto lm = std::find_if(landmarks.begin(), landmarks.end(), [&](const auto& p) { return p.label == o.label; });
     ASSERT_NE(lm, landmarks.end());
     EXPECT_LT((geometry::project(P, lm->position_lps).value() - o.pixel).norm(), 1e-6);
@@ -76,12 +76,12 @@ TEST_F(GeneratedSessionTest, ReadsBackWithViewsRunsAndGroundTruth) {
 // The geometry stream says where the device is: along its projection the frame is darker
 // than a few pixels to either side (the renderer and the recorded geometry agree).
 TEST_F(GeneratedSessionTest, TheDeviceShadowLiesWhereTheRecordedGeometryProjectsIt) {
-  const Session s = read_session(dir_);
+  const session::Session s = session::read_session(dir_);
   const auto device = geometry::read_markups(dir_ / s.truth->device).front().points;
   for (std::size_t i : {std::size_t{0}, std::size_t{7}, std::size_t{13}}) {
-    const cv::Mat img = read_session_frame(s, i);
-    const CArmSample* c = carm_at(s, s.frames[i].timestamp_ns);
-    const auto P = geometry::registered(geometry::projection_matrix(view_of(s, *c)), patient_to_carm(s, *c));
+    const cv::Mat img = session::read_session_frame(s, i);
+    const session::CArmSample* c = session::carm_at(s, s.frames[i].timestamp_ns);
+    const auto P = geometry::registered(geometry::projection_matrix(session::view_of(s, *c)), session::patient_to_carm(s, *c));
     double on = 0.0, off = 0.0;
     int n = 0;
     for (std::size_t k = 0; k + 1 < device.size(); k += 3) {
@@ -117,18 +117,18 @@ TEST(SessionGenerator, AtThePapersDifficultyTheNodeIsGivenARegistrationOffByTheR
   plan.fluoro_seconds = 0.2;
   const GeneratedSession generated = generate_session(plan, dir);
   EXPECT_FALSE(generated.residual.is_identity());
-  const Session s = read_session(dir);
+  const session::Session s = session::read_session(dir);
   ASSERT_TRUE(s.truth && s.truth->ct_to_carm);
   const Eigen::Matrix4d given = s.ct_to_carm, truth = *s.truth->ct_to_carm;
   EXPECT_GT((given - truth).norm(), 1e-3);
   const auto landmarks = [&](const fs::path& file) { return geometry::read_markups(file).front().points; };
   const auto true_lms = landmarks(dir / "patient" / "truth" / "landmarks.mrk.json");
   const auto pre_lms = landmarks(dir / "patient" / "landmarks.mrk.json");
-  const CArmSample* c = carm_at(s, s.frames.front().timestamp_ns);
+  const session::CArmSample* c = session::carm_at(s, s.frames.front().timestamp_ns);
   ASSERT_NE(c, nullptr);
   const double mm_per_px = s.detector.col_spacing_mm * c->sod_mm / c->sid_mm;
   const auto P = [&](const Eigen::Matrix4d& reg) {
-    return geometry::registered(geometry::projection_matrix(view_of(s, *c)), geometry::patient_to_carm(reg, c->table_mm));
+    return geometry::registered(geometry::projection_matrix(session::view_of(s, *c)), geometry::patient_to_carm(reg, c->table_mm));
   };
   int checked = 0;
   for (const auto& o : s.truth->ostia) {
@@ -158,10 +158,10 @@ TEST(SessionGenerator, SameSeedSameFrames) {
   plan.fluoro_seconds = 0.2;
   generate_session(plan, a);
   generate_session(plan, b);
-  const Session sa = read_session(a), sb = read_session(b);
+  const session::Session sa = session::read_session(a), sb = session::read_session(b);
   ASSERT_EQ(sa.frames.size(), sb.frames.size());
   for (std::size_t i = 0; i < sa.frames.size(); ++i)
-    EXPECT_EQ(cv::norm(read_session_frame(sa, i), read_session_frame(sb, i), cv::NORM_INF), 0.0) << i;
+    EXPECT_EQ(cv::norm(session::read_session_frame(sa, i), session::read_session_frame(sb, i), cv::NORM_INF), 0.0) << i;
   fs::remove_all(a);
   fs::remove_all(b);
 }

@@ -16,8 +16,8 @@
 #include <string>
 #include <thread>
 
-#include "evar/sim/session_recorder.hpp"
-#include "evar/sim/session_replay.hpp"
+#include "evar/session/session_recorder.hpp"
+#include "evar/session/session_replay.hpp"
 
 namespace evar::test {
 
@@ -32,14 +32,14 @@ inline std::size_t line_count(const std::filesystem::path& file) {
 /// The child's wait status: killed by SIGKILL when all went as planned; exit code 3 when it
 /// failed or its journal did not hold every frame within 30 s. Call it with no other thread running
 /// (fork copies only the calling one).
-inline int record_then_kill(const sim::RecorderOptions& options, const sim::Session& original) {
+inline int record_then_kill(const session::RecorderOptions& options, const session::Session& original) {
   const pid_t pid = ::fork();
   if (pid < 0) return -1;
   if (pid == 0) {
     ::alarm(30);  // a hang ends the child, and the test says so
     try {
-      sim::SessionReplay replay(original, {1.0, 1});
-      sim::SessionRecorder recorder(options, replay.frames(), replay.carm());
+      session::SessionReplay replay(original, {1.0, 1});
+      session::SessionRecorder recorder(options, replay.frames(), replay.carm());
       recorder.start();
       replay.wait();
       const auto journal = options.out / "journal";

@@ -11,8 +11,8 @@
 
 #include "evar/geometry/scene.hpp"
 #include "evar/node/live_node.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/session_generator.hpp"
-#include "evar/sim/session_replay.hpp"
 
 namespace evar::test {
 
@@ -46,11 +46,11 @@ class LiveNodeReplay : public ::testing::Test {
     o.held_frame_interval = std::chrono::milliseconds(200);
     return o;
   }
-  static const sim::Session& session() { return generated_->session; }
+  static const session::Session& session() { return generated_->session; }
   // The whole session through the node as fast as it takes it, `loops` times; false if the
   // replay hangs.
   static bool replay_through(node::LiveNode& node, int loops = 1) {
-    sim::SessionReplay replay(session(), {0.0, loops});
+    session::SessionReplay replay(session(), {0.0, loops});
     node.start(replay.frames(), replay.carm());
     const bool done = replay.wait(std::chrono::seconds(120));
     node.stop();

@@ -6,7 +6,7 @@
 #include <string>
 #include <vector>
 
-#include "evar/sim/session.hpp"
+#include "evar/session/session.hpp"
 
 namespace evar::test {
 
@@ -17,7 +17,7 @@ struct Ramp {
 
 /// Appends n fluoroscopy frames "f<k>.png" to the session, the first at 1 s and then one
 /// every period_ns, of the session's detector size; returns their images.
-inline std::vector<cv::Mat> add_ramp_frames(sim::Session& s, int n, std::int64_t period_ns, const Ramp& r) {
+inline std::vector<cv::Mat> add_ramp_frames(session::Session& s, int n, std::int64_t period_ns, const Ramp& r) {
   std::vector<cv::Mat> images;
   for (int k = 0; k < n; ++k) {
     std::string name = "f";  // in steps: g++ 12 warns falsely (-Wrestrict) on "f" + std::string

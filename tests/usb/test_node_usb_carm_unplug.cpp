@@ -17,8 +17,8 @@
 #include "evar/acquisition/carm_link_protocol.hpp"
 #include "evar/acquisition/usb_carm_source.hpp"
 #include "evar/node/live_node.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/session_generator.hpp"
-#include "evar/sim/session_replay.hpp"
 #include "support/node_screen.hpp"
 #include "usb/emulated_carm_adapter.hpp"
 
@@ -94,7 +94,7 @@ TEST(NodeOverUsbCArmLink, AnUnpluggedAdapterIsShownAndSaidOnceTheModelKeptAndThe
   plan.detector_px = 512;
   plan.pixel_spacing_mm = 0.6;
   const sim::GeneratedSession generated = sim::generate_session(plan, dir / "session");
-  const sim::Session& session = generated.session;
+  const session::Session& session = generated.session;
   const geometry::Scene scene = geometry::load_scene(dir / "session" / session.scene);
 
   // The adapter sends each of the session's C-arm states while it is plugged in; pulled, it
@@ -104,7 +104,7 @@ TEST(NodeOverUsbCArmLink, AnUnpluggedAdapterIsShownAndSaidOnceTheModelKeptAndThe
   std::mutex plug_mutex;
   bool plugged = true;
   std::uint16_t sequence = 0;
-  sim::SessionReplay replay(session, {1.0, 0});
+  session::SessionReplay replay(session, {1.0, 0});
   replay.carm().start(
       [&](const acquisition::CArmState& s) {
         std::lock_guard lock(plug_mutex);

@@ -9,9 +9,9 @@
 #include <string>
 #include <vector>
 
+#include "evar/session/session.hpp"
 #include "evar/sim/patient_plan.hpp"
 #include "evar/sim/registration_residual.hpp"
-#include "evar/sim/session.hpp"
 #include "evar/sim/xray_render.hpp"
 
 namespace evar::sim {
@@ -34,7 +34,7 @@ struct SessionPlan {
 };
 
 struct GeneratedSession {
-  Session session;
+  session::Session session;
   std::string carrier;      ///< the iliac holding the device
   RegistrationResidual residual;  ///< what the registration given to the node is off by
   double render_seconds = 0.0;

@@ -14,7 +14,7 @@
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/input_file.hpp"
 
-namespace evar::sim::detail {
+namespace evar::session::detail {
 
 /// A row longer than this is refused before it is split: the longest real one (a C-arm
 /// sample, ten shortest-round-trip numbers) is under 300 bytes.
@@ -120,4 +120,4 @@ inline bool flag(const std::filesystem::path& file, std::size_t line, const char
   fail(file, line, std::string(field) + ": " + quote(text) + " (expected 0 or 1)");
 }
 
-}  // namespace evar::sim::detail
+}  // namespace evar::session::detail

@@ -24,7 +24,7 @@
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/detector.hpp"
 
-namespace evar::sim {
+namespace evar::session {
 
 /// Timestamps are 0 <= t < 2^62 ns (146 years), so differences and a replay's loop offsets
 /// cannot overflow 64 bits.
@@ -137,4 +137,4 @@ struct ExportSummary {
 ExportSummary export_plus_sequence(const Session& session, const std::filesystem::path& mha,
                                    const std::function<void(std::size_t, std::size_t)>& progress = {});
 
-}  // namespace evar::sim
+}  // namespace evar::session

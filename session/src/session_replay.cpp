@@ -1,4 +1,4 @@
-#include "evar/sim/session_replay.hpp"
+#include "evar/session/session_replay.hpp"
 
 #include <algorithm>
 #include <cstring>
@@ -8,7 +8,7 @@
 #include "evar/acquisition/sequence_tracker.hpp"
 #include "evar/acquisition/stream_state_reporter.hpp"
 
-namespace evar::sim {
+namespace evar::session {
 
 namespace {
 
@@ -358,4 +358,4 @@ void SessionReplay::run() {
   done_cv_.notify_all();
 }
 
-}  // namespace evar::sim
+}  // namespace evar::session

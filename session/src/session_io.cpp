@@ -1,4 +1,4 @@
-#include "evar/sim/session.hpp"
+#include "evar/session/session.hpp"
 
 #include <algorithm>
 #include <cstdio>
@@ -11,15 +11,15 @@
 #include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
+#include "csv_table.hpp"
 #include "evar/geometry/carm_projection.hpp"
+#include "evar/geometry/image_file.hpp"
 #include "evar/geometry/image_header.hpp"
 #include "evar/geometry/input_error.hpp"
-#include "evar/geometry/image_file.hpp"
 #include "evar/geometry/input_file.hpp"
 #include "evar/geometry/json_fields.hpp"
-#include "csv_table.hpp"
 
-namespace evar::sim {
+namespace evar::session {
 
 namespace {
 
@@ -477,4 +477,4 @@ ExportSummary export_plus_sequence(const Session& session, const std::filesystem
   return summary;
 }
 
-}  // namespace evar::sim
+}  // namespace evar::session

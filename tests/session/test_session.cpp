@@ -12,7 +12,7 @@
 
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/input_file.hpp"
-#include "evar/sim/session.hpp"
+#include "evar/session/session.hpp"
 #include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
 
@@ -23,8 +23,8 @@ namespace {
 
 using evar::test::TempDir;
 
-sim::Session small_session(std::vector<cv::Mat>& images) {
-  sim::Session s;
+session::Session small_session(std::vector<cv::Mat>& images) {
+  session::Session s;
   s.scene = "patient/scene.json";
   s.ct_to_carm.block<3, 1>(0, 3) = Eigen::Vector3d(1.25, -2.5, -60.125);
   s.device_thickness_mm = 0.89;
@@ -36,7 +36,7 @@ sim::Session small_session(std::vector<cv::Mat>& images) {
     images.push_back(img);
   }
   for (int k = 0; k < 4; ++k) {
-    sim::CArmSample c;
+    session::CArmSample c;
     c.timestamp_ns = 990'000'000LL + k * 33'333'333LL;
     c.primary_deg = 30.0 + 0.1 * k + 1e-13;  // not representable in a few digits
     c.secondary_deg = -7.0 / 3.0;
@@ -60,23 +60,23 @@ void replace_in(const fs::path& file, const std::string& from, const std::string
 }
 
 // The session written afresh into `dir` (what a test altered before is gone).
-void write_afresh(const fs::path& dir, const sim::Session& s, const std::vector<cv::Mat>& images) {
+void write_afresh(const fs::path& dir, const session::Session& s, const std::vector<cv::Mat>& images) {
   fs::remove_all(dir);
-  sim::write_session(dir, s, images);
+  session::write_session(dir, s, images);
 }
 
 // The small session written to dir/s and exported to dir/run.seq.mha; its frames.
 std::vector<cv::Mat> export_small_session(const fs::path& dir) {
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
-  sim::write_session(dir / "s", s, images);
-  sim::export_plus_sequence(sim::read_session(dir / "s"), dir / "run.seq.mha");
+  session::write_session(dir / "s", s, images);
+  session::export_plus_sequence(session::read_session(dir / "s"), dir / "run.seq.mha");
   return images;
 }
 
 std::string error_reading(const fs::path& dir) {
   try {
-    sim::read_session(dir);
+    session::read_session(dir);
   } catch (const geometry::InputError& e) {
     return e.what();
   }
@@ -89,8 +89,8 @@ TEST(Session, RoundTripsBitExactly) {
   TempDir dir;
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
-  sim::write_session(dir.path, s, images);
-  const auto r = sim::read_session(dir.path);
+  session::write_session(dir.path, s, images);
+  const auto r = session::read_session(dir.path);
   EXPECT_EQ(r.scene, s.scene);
   EXPECT_EQ(r.ct_to_carm, s.ct_to_carm);
   EXPECT_EQ(r.device_thickness_mm, s.device_thickness_mm);
@@ -99,7 +99,7 @@ TEST(Session, RoundTripsBitExactly) {
     EXPECT_EQ(r.frames[i].frame, s.frames[i].frame);
     EXPECT_EQ(r.frames[i].timestamp_ns, s.frames[i].timestamp_ns);
     EXPECT_EQ(r.frames[i].source, s.frames[i].source);
-    EXPECT_EQ(cv::norm(sim::read_session_frame(r, i), images[i], cv::NORM_INF), 0.0);
+    EXPECT_EQ(cv::norm(session::read_session_frame(r, i), images[i], cv::NORM_INF), 0.0);
   }
   ASSERT_EQ(r.carm.size(), 4u);
   for (std::size_t i = 0; i < 4; ++i) {
@@ -131,15 +131,15 @@ TEST(Session, ATrueRegistrationRoundTripsAndAMissingOneIsNamed) {
   std::vector<cv::Mat> images;
   auto s = small_session(images);
   write_truth_stand_ins(dir.path);
-  s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv", {}, std::nullopt};
-  sim::write_session(dir.path, s, images);
-  EXPECT_FALSE(sim::read_session(dir.path).truth->ct_to_carm.has_value());
+  s.truth = session::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv", {}, std::nullopt};
+  session::write_session(dir.path, s, images);
+  EXPECT_FALSE(session::read_session(dir.path).truth->ct_to_carm.has_value());
   EXPECT_FALSE(fs::exists(dir.path / "truth" / "registration.json"));
   Eigen::Matrix4d truth = s.ct_to_carm;
   truth.topRightCorner<3, 1>() += Eigen::Vector3d(0.25, -1.0 / 3.0, 2.0);
   s.truth->ct_to_carm = truth;
-  sim::write_session(dir.path, s, images);
-  const auto r = sim::read_session(dir.path);
+  session::write_session(dir.path, s, images);
+  const auto r = session::read_session(dir.path);
   ASSERT_TRUE(r.truth->ct_to_carm.has_value());
   EXPECT_EQ(*r.truth->ct_to_carm, truth);
   EXPECT_EQ(r.ct_to_carm, s.ct_to_carm);
@@ -153,10 +153,10 @@ TEST(Session, GroundTruthRoundTripsAndItsErrorsAreNamed) {
   std::vector<cv::Mat> images;
   auto s = small_session(images);
   write_truth_stand_ins(dir.path);
-  s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
+  s.truth = session::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
                               {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 1e-9}}}, std::nullopt};
-  sim::write_session(dir.path, s, images);
-  const auto r = sim::read_session(dir.path);
+  session::write_session(dir.path, s, images);
+  const auto r = session::read_session(dir.path);
   ASSERT_TRUE(r.truth.has_value());
   ASSERT_EQ(r.truth->ostia.size(), 2u);
   EXPECT_EQ(r.truth->ostia[0].pixel, s.truth->ostia[0].pixel);
@@ -174,14 +174,14 @@ TEST(Session, AFrameOfAnotherSizeThanTheDetectorIsRefused) {
   TempDir dir;
   std::vector<cv::Mat> images;
   auto s = small_session(images);
-  sim::write_session(dir.path, s, images);
+  session::write_session(dir.path, s, images);
   auto wrong = images;
   wrong[1] = cv::Mat(41, 60, CV_16UC1, cv::Scalar(5));
-  EXPECT_THROW(sim::write_session(dir.path, s, wrong), std::invalid_argument);  // the writer refuses it too
+  EXPECT_THROW(session::write_session(dir.path, s, wrong), std::invalid_argument);  // the writer refuses it too
   cv::imwrite((dir.path / "frames" / "f1.png").string(), wrong[1]);                // a file changed behind its back
-  const auto r = sim::read_session(dir.path);
+  const auto r = session::read_session(dir.path);
   try {
-    sim::read_session_frame(r, 1);
+    session::read_session_frame(r, 1);
     FAIL() << "no error";
   } catch (const geometry::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("f1.png: 60 x 41 pixels, but the detector is 60 x 40"), std::string::npos) << e.what();
@@ -233,9 +233,9 @@ TEST(Session, TruncatedFilesAreClearErrorsAtEveryLength) {
   std::vector<cv::Mat> images;
   auto s = small_session(images);
   write_truth_stand_ins(dir.path);
-  s.truth = sim::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
+  s.truth = session::SessionTruth{"patient/truth/scene.json", "patient/device.mrk.json", "truth/ostia_2d.csv",
                               {{1, "renal_left", {10.5, 20.0 / 3.0}}, {3, "internal_iliac_right", {-4.0, 40.625}}}, std::nullopt};
-  sim::write_session(dir.path, s, images);
+  session::write_session(dir.path, s, images);
   for (const char* name : {"session.json", "carm.csv", "frames/index.csv", "truth/ostia_2d.csv"}) {
     const bool table = std::string(name) != "session.json";
     std::ifstream in(dir.path / name, std::ios::binary);
@@ -268,8 +268,8 @@ TEST(Session, TruncatedFilesAreClearErrorsAtEveryLength) {
   EXPECT_NE(error_reading(dir.path).find("ostia_2d.csv:3: cut short"), std::string::npos) << error_reading(dir.path);
   std::ofstream(dir.path / "truth" / "ostia_2d.csv", std::ios::binary | std::ios::trunc) << ostia;
   std::ofstream(dir.path / "frames" / "f0.png", std::ios::binary | std::ios::trunc) << "\x89PNG garbage";
-  const auto r = sim::read_session(dir.path);
-  EXPECT_THROW(sim::read_session_frame(r, 0), geometry::InputError);
+  const auto r = session::read_session(dir.path);
+  EXPECT_THROW(session::read_session_frame(r, 0), geometry::InputError);
 }
 
 TEST(Session, ExportsAPlusSequenceMetafileForSlicer) {
@@ -302,27 +302,27 @@ TEST(Session, ExportsAPlusSequenceMetafileForSlicer) {
 TEST(Session, TheCArmSampleInForceIsTheLastOneBefore) {
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
-  EXPECT_EQ(sim::carm_at(s, 0), &s.carm[0]);                   // before all: the first
-  EXPECT_EQ(sim::carm_at(s, 1'023'333'333LL), &s.carm[1]);     // exactly at a sample
-  EXPECT_EQ(sim::carm_at(s, 1'050'000'000LL), &s.carm[1]);
-  EXPECT_EQ(sim::carm_at(s, 9'000'000'000LL), &s.carm[3]);     // after all: the last
-  EXPECT_EQ(sim::carm_at(sim::Session{}, 5), nullptr);
+  EXPECT_EQ(session::carm_at(s, 0), &s.carm[0]);                   // before all: the first
+  EXPECT_EQ(session::carm_at(s, 1'023'333'333LL), &s.carm[1]);     // exactly at a sample
+  EXPECT_EQ(session::carm_at(s, 1'050'000'000LL), &s.carm[1]);
+  EXPECT_EQ(session::carm_at(s, 9'000'000'000LL), &s.carm[3]);     // after all: the last
+  EXPECT_EQ(session::carm_at(session::Session{}, 5), nullptr);
 }
 
 TEST(Session, AnOversizedTableOrFrameIsRefusedByNameBeforeItIsRead) {
   TempDir dir;
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
-  sim::write_session(dir.path, s, images);
+  session::write_session(dir.path, s, images);
   fs::resize_file(dir.path / "carm.csv", geometry::kTableLimit.bytes + 1);  // sparse: no disk used
   EXPECT_NE(error_reading(dir.path).find("carm.csv: is 268435457 bytes, more than the 256 MiB accepted for a CSV table"),
             std::string::npos)
       << error_reading(dir.path);
-  sim::write_session(dir.path, s, images);
-  const auto r = sim::read_session(dir.path);
+  session::write_session(dir.path, s, images);
+  const auto r = session::read_session(dir.path);
   fs::resize_file(dir.path / "frames" / "f0.png", geometry::kImageLimit.bytes + 1);
   try {
-    sim::read_session_frame(r, 0);
+    session::read_session_frame(r, 0);
     FAIL() << "no error";
   } catch (const geometry::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("f0.png: is 268435457 bytes, more than the 256 MiB accepted for an image file"),
@@ -339,14 +339,14 @@ TEST(Session, WritersRefuseWhatTheReaderRefuses) {
   TempDir dir;
   std::vector<cv::Mat> images;
   const auto good = small_session(images);
-  const auto refused = [&](const std::function<void(sim::Session&)>& spoil, const std::string& expected) {
+  const auto refused = [&](const std::function<void(session::Session&)>& spoil, const std::string& expected) {
     fs::remove_all(dir.path);
-    for (std::size_t i = 0; i < good.frames.size(); ++i) sim::write_session_frame(dir.path, good.frames[i], images[i]);
+    for (std::size_t i = 0; i < good.frames.size(); ++i) session::write_session_frame(dir.path, good.frames[i], images[i]);
     auto s = good;
     spoil(s);
     std::string what = "no error";
     try {
-      sim::write_session_files(dir.path, s);
+      session::write_session_files(dir.path, s);
     } catch (const std::invalid_argument& e) {
       what = e.what();
     }
@@ -354,34 +354,34 @@ TEST(Session, WritersRefuseWhatTheReaderRefuses) {
     EXPECT_FALSE(fs::exists(dir.path / "session.json")) << expected;
   };
   const double nan = std::numeric_limits<double>::quiet_NaN();
-  refused([](sim::Session& s) { s.carm[1].sid_mm = 5000.5; }, "C-arm sample 1: sid_mm, sod_mm: need 0 < SOD < SID <= 5000");
-  refused([](sim::Session& s) { s.carm[1].sod_mm = s.carm[1].sid_mm; }, "sid_mm, sod_mm");
-  refused([](sim::Session& s) { s.carm[2].primary_deg = 180.5; }, "primary_deg: 180.5 is outside -180 to 180");
-  refused([](sim::Session& s) { s.carm[2].secondary_deg = -91; }, "secondary_deg: -91 is outside -90 to 90");
-  refused([&](sim::Session& s) { s.carm[0].table_mm.y() = nan; }, "table_y_mm: nan is not finite");
-  refused([](sim::Session& s) { s.carm[3].timestamp_ns = s.carm[2].timestamp_ns - 1; }, "C-arm sample 3: timestamp_ns: goes back in time");
-  refused([](sim::Session& s) { s.frames[1].file = "f,1.png"; }, "frame 2: file: 'f,1.png' must be a relative path");
-  refused([](sim::Session& s) { s.frames[1].file = "f\n1.png"; }, "holds a comma or a control character");
-  refused([](sim::Session& s) { s.frames[1].file = "../f1.png"; }, "has a '..' component");
-  refused([](sim::Session& s) { s.frames[1].source = "fluoro,dsa"; }, "frame 2: source: 'fluoro,dsa'");
-  refused([](sim::Session& s) { s.frames[2].timestamp_ns = -5; }, "frame 3: timestamp_ns: -5 is outside 0 to 2^62 ns");
-  refused([](sim::Session& s) { s.detector.cols = s.detector.rows = 9000; }, "detector: 9000 x 9000 pixels; at most 67108864");
-  refused([](sim::Session& s) { s.scene = "/etc/scene.json"; }, "scene: '/etc/scene.json' must be a relative file name");
-  refused([](sim::Session& s) { s.device_thickness_mm = 16; }, "device_thickness_mm: must be 0 to 15");
-  refused([](sim::Session& s) { s.ct_to_carm(0, 0) = -1; }, "registration: ");
-  refused([&](sim::Session& s) { s.truth = sim::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}, std::nullopt}; },
+  refused([](session::Session& s) { s.carm[1].sid_mm = 5000.5; }, "C-arm sample 1: sid_mm, sod_mm: need 0 < SOD < SID <= 5000");
+  refused([](session::Session& s) { s.carm[1].sod_mm = s.carm[1].sid_mm; }, "sid_mm, sod_mm");
+  refused([](session::Session& s) { s.carm[2].primary_deg = 180.5; }, "primary_deg: 180.5 is outside -180 to 180");
+  refused([](session::Session& s) { s.carm[2].secondary_deg = -91; }, "secondary_deg: -91 is outside -90 to 90");
+  refused([&](session::Session& s) { s.carm[0].table_mm.y() = nan; }, "table_y_mm: nan is not finite");
+  refused([](session::Session& s) { s.carm[3].timestamp_ns = s.carm[2].timestamp_ns - 1; }, "C-arm sample 3: timestamp_ns: goes back in time");
+  refused([](session::Session& s) { s.frames[1].file = "f,1.png"; }, "frame 2: file: 'f,1.png' must be a relative path");
+  refused([](session::Session& s) { s.frames[1].file = "f\n1.png"; }, "holds a comma or a control character");
+  refused([](session::Session& s) { s.frames[1].file = "../f1.png"; }, "has a '..' component");
+  refused([](session::Session& s) { s.frames[1].source = "fluoro,dsa"; }, "frame 2: source: 'fluoro,dsa'");
+  refused([](session::Session& s) { s.frames[2].timestamp_ns = -5; }, "frame 3: timestamp_ns: -5 is outside 0 to 2^62 ns");
+  refused([](session::Session& s) { s.detector.cols = s.detector.rows = 9000; }, "detector: 9000 x 9000 pixels; at most 67108864");
+  refused([](session::Session& s) { s.scene = "/etc/scene.json"; }, "scene: '/etc/scene.json' must be a relative file name");
+  refused([](session::Session& s) { s.device_thickness_mm = 16; }, "device_thickness_mm: must be 0 to 15");
+  refused([](session::Session& s) { s.ct_to_carm(0, 0) = -1; }, "registration: ");
+  refused([&](session::Session& s) { s.truth = session::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}, std::nullopt}; },
           "ground truth 't.json' is missing");
   refused(
-      [&](sim::Session& s) {
+      [&](session::Session& s) {
         std::ofstream(dir.path / "t.json") << "{}";
         std::ofstream(dir.path / "d.json") << "{}";
-        s.truth = sim::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}, std::nullopt};
+        s.truth = session::SessionTruth{"t.json", "d.json", "o.csv", {{1, "renal_left", {nan, 2.0}}}, std::nullopt};
       },
       "ostium of frame 1: u_px: nan is not finite");
   // And what the writers take, the reader takes.
   fs::remove_all(dir.path);
-  sim::write_session(dir.path, good, images);
-  EXPECT_EQ(sim::read_session(dir.path).carm.size(), good.carm.size());
+  session::write_session(dir.path, good, images);
+  EXPECT_EQ(session::read_session(dir.path).carm.size(), good.carm.size());
 }
 
 // Timestamps are held to 0 <= t < 2^62 ns, so their differences (replay loops, the export)
@@ -410,12 +410,12 @@ TEST(Session, ALongFieldIsQuotedShortAndAHugeLineIsRefused) {
   TempDir dir;
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
-  sim::write_session(dir.path, s, images);
+  session::write_session(dir.path, s, images);
   replace_in(dir.path / "carm.csv", ",785.5,", "," + std::string(3000, 'x') + ",");
   std::string error = error_reading(dir.path);
   EXPECT_NE(error.find("carm.csv:2: sod_mm: '" + std::string(40, 'x') + "...' is not a number"), std::string::npos) << error;
   EXPECT_LT(error.size(), 300u);
-  sim::write_session(dir.path, s, images);
+  session::write_session(dir.path, s, images);
   replace_in(dir.path / "frames" / "index.csv", ",f1.png", "," + std::string(1'000'000, 'a') + ".png");
   error = error_reading(dir.path);
   EXPECT_NE(error.find("index.csv:3: a line of 1000024 bytes; rows are at most 4096"), std::string::npos) << error;
@@ -426,13 +426,13 @@ TEST(Session, AFrameThatIsNotAPngIsRefusedWhateverItsName) {
   TempDir dir;
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
-  sim::write_session(dir.path, s, images);
+  session::write_session(dir.path, s, images);
   cv::imwrite((dir.path / "f1.tiff").string(), images[1]);  // 16-bit TIFF: OpenCV would decode it
   fs::rename(dir.path / "f1.tiff", dir.path / "frames" / "f1.png");
-  const auto r = sim::read_session(dir.path);
-  const std::string error = evar::test::error_message([&] { sim::read_session_frame(r, 1); });
+  const auto r = session::read_session(dir.path);
+  const std::string error = evar::test::error_message([&] { session::read_session_frame(r, 1); });
   EXPECT_NE(error.find("f1.png: is a TIFF file; only PNG is accepted here"), std::string::npos) << error;
-  EXPECT_EQ(cv::norm(sim::read_session_frame(r, 0), images[0], cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(session::read_session_frame(r, 0), images[0], cv::NORM_INF), 0.0);
 }
 
 // A symbolic link inside the session passed the "inside the session" check wherever it
@@ -442,7 +442,7 @@ TEST(Session, SymbolicLinksOutOfTheSessionAreRefusedAndDotsInANameAreNot) {
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
   const fs::path session = dir.path / "s";
-  sim::write_session(session, s, images);
+  session::write_session(session, s, images);
   cv::imwrite((dir.path / "outside.png").string(), images[1]);
   fs::remove(session / "frames" / "f1.png");
   fs::create_symlink(dir.path / "outside.png", session / "frames" / "f1.png");
@@ -451,16 +451,16 @@ TEST(Session, SymbolicLinksOutOfTheSessionAreRefusedAndDotsInANameAreNot) {
   // One replaced by a link after the session was read is refused when it is read.
   fs::remove(session / "frames" / "f1.png");
   cv::imwrite((session / "frames" / "f1.png").string(), images[1]);
-  const auto r = sim::read_session(session);
+  const auto r = session::read_session(session);
   fs::remove(session / "frames" / "f1.png");
   fs::create_symlink(dir.path / "outside.png", session / "frames" / "f1.png");
-  EXPECT_NE(evar::test::error_message([&] { sim::read_session_frame(r, 1); }).find("leads out of the session directory"),
+  EXPECT_NE(evar::test::error_message([&] { session::read_session_frame(r, 1); }).find("leads out of the session directory"),
             std::string::npos);
   // A link that stays inside is fine, and so is a file of session.json's.
   fs::remove(session / "frames" / "f1.png");
   cv::imwrite((session / "f1-elsewhere.png").string(), images[1]);
   fs::create_symlink("../f1-elsewhere.png", session / "frames" / "f1.png");
-  EXPECT_EQ(cv::norm(sim::read_session_frame(sim::read_session(session), 1), images[1], cv::NORM_INF), 0.0);
+  EXPECT_EQ(cv::norm(session::read_session_frame(session::read_session(session), 1), images[1], cv::NORM_INF), 0.0);
   fs::rename(session / "registration.json", dir.path / "registration.json");
   fs::create_symlink(dir.path / "registration.json", session / "registration.json");
   EXPECT_NE(error_reading(session).find("session.json: registration: 'registration.json' leads out of the session"),
@@ -469,8 +469,8 @@ TEST(Session, SymbolicLinksOutOfTheSessionAreRefusedAndDotsInANameAreNot) {
 
   auto dotted = s;
   dotted.frames[1].file = "a..b.png";
-  sim::write_session(dir.path / "dotted", dotted, images);
-  EXPECT_EQ(sim::read_session(dir.path / "dotted").frames[1].file, "a..b.png");
+  session::write_session(dir.path / "dotted", dotted, images);
+  EXPECT_EQ(session::read_session(dir.path / "dotted").frames[1].file, "a..b.png");
 }
 
 // PLUS reads a sequence with no UltrasoundImageType as B-mode and needs its orientation MF
@@ -509,8 +509,8 @@ TEST(Session, ExportedTimestampsRiseByAtLeastAMillisecond) {
   auto s = small_session(images);
   s.frames[1].timestamp_ns = s.frames[0].timestamp_ns;            // the same time
   s.frames[2].timestamp_ns = s.frames[0].timestamp_ns + 400'000;  // 0.4 ms later
-  sim::write_session(dir.path / "s", s, images);
-  const auto summary = sim::export_plus_sequence(sim::read_session(dir.path / "s"), dir.path / "run.seq.mha");
+  session::write_session(dir.path / "s", s, images);
+  const auto summary = session::export_plus_sequence(session::read_session(dir.path / "s"), dir.path / "run.seq.mha");
   EXPECT_EQ(summary.frames, 3u);
   EXPECT_EQ(summary.timestamps_nudged, 2u);
   std::ifstream in(dir.path / "run.seq.mha", std::ios::binary);
@@ -524,16 +524,16 @@ TEST(Session, TheExportRefusesAnOutputInsideTheSession) {
   TempDir dir;
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
-  sim::write_session(dir.path / "s", s, images);
-  const auto r = sim::read_session(dir.path / "s");
+  session::write_session(dir.path / "s", s, images);
+  const auto r = session::read_session(dir.path / "s");
   std::ifstream in(dir.path / "s" / "carm.csv", std::ios::binary);
   const std::string carm((std::istreambuf_iterator<char>(in)), {});
   for (const fs::path& out : {dir.path / "s" / "carm.csv", dir.path / "s" / "frames" / "run.seq.mha", dir.path / "s" / "." / "x.seq.mha"}) {
-    const std::string error = evar::test::error_message<std::invalid_argument>([&] { sim::export_plus_sequence(r, out); });
+    const std::string error = evar::test::error_message<std::invalid_argument>([&] { session::export_plus_sequence(r, out); });
     EXPECT_NE(error.find("is inside the session directory"), std::string::npos) << out << ": " << error;
   }
   std::ifstream again(dir.path / "s" / "carm.csv", std::ios::binary);
   EXPECT_EQ(std::string((std::istreambuf_iterator<char>(again)), {}), carm);
   EXPECT_FALSE(fs::exists(dir.path / "s" / "frames" / "run.seq.mha"));
-  EXPECT_NO_THROW(sim::export_plus_sequence(r, dir.path / "run.seq.mha"));
+  EXPECT_NO_THROW(session::export_plus_sequence(r, dir.path / "run.seq.mha"));
 }

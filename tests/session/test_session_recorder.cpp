@@ -14,14 +14,14 @@
 
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/scene.hpp"
+#include "evar/session/session_recorder.hpp"
+#include "evar/session/session_replay.hpp"
 #include "evar/sim/example_scene.hpp"
-#include "evar/sim/session_recorder.hpp"
-#include "evar/sim/session_replay.hpp"
 #include "support/error_message.hpp"
 #include "support/killed_recording.hpp"
 #include "support/ramp_frames.hpp"
 
-namespace evar::sim {
+namespace evar::session {
 namespace {
 
 namespace fs = std::filesystem;
@@ -34,10 +34,10 @@ class Recording : public ::testing::Test {
             ("evar_record_" + std::string(::testing::UnitTest::GetInstance()->current_test_info()->name()) + "_" +
              std::to_string(::getpid()));
     fs::remove_all(root_);
-    ExampleSceneParams p;
+    sim::ExampleSceneParams p;
     p.aorta_vertices = 800;
     p.iliac_vertices = 400;
-    write_example_scene(make_example_scene(p), root_ / "plan");
+    sim::write_example_scene(sim::make_example_scene(p), root_ / "plan");
     Session s;
     s.scene = "scene.json";
     s.detector = {40, 30, 0.3, 0.3};
@@ -425,4 +425,4 @@ TEST(CArmOnHostClock, FollowsADriftingCArmClockThroughJumpsAndRestarts) {
 }
 
 }  // namespace
-}  // namespace evar::sim
+}  // namespace evar::session

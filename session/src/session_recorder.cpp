@@ -1,4 +1,4 @@
-#include "evar/sim/session_recorder.hpp"
+#include "evar/session/session_recorder.hpp"
 
 #include <fcntl.h>
 #include <unistd.h>
@@ -25,7 +25,7 @@
 #include "evar/geometry/json_fields.hpp"
 #include "evar/geometry/scene.hpp"
 
-namespace evar::sim {
+namespace evar::session {
 
 namespace fs = std::filesystem;
 using acquisition::CArmState;
@@ -668,4 +668,4 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
   return result;
 }
 
-}  // namespace evar::sim
+}  // namespace evar::session

@@ -22,9 +22,9 @@
 
 #include "evar/acquisition/carm_geometry_source.hpp"
 #include "evar/acquisition/frame_source.hpp"
-#include "evar/sim/session.hpp"
+#include "evar/session/session.hpp"
 
-namespace evar::sim {
+namespace evar::session {
 
 /// Time for the replay, so tests can check the pacing without waiting.
 class ReplayClock {
@@ -113,4 +113,4 @@ acquisition::Frame to_frame(const cv::Mat& image16, std::uint64_t sequence, std:
 /// A C-arm sample as a C-arm state (device time shifted by `offset_ns`).
 acquisition::CArmState to_carm_state(const CArmSample& sample, std::int64_t offset_ns);
 
-}  // namespace evar::sim
+}  // namespace evar::session

@@ -23,9 +23,9 @@
 
 #include "evar/acquisition/carm_geometry_source.hpp"
 #include "evar/acquisition/frame_source.hpp"
-#include "evar/sim/session.hpp"
+#include "evar/session/session.hpp"
 
-namespace evar::sim {
+namespace evar::session {
 
 struct RecorderOptions {
   std::filesystem::path out;                  ///< the session directory; must not exist or be empty
@@ -104,4 +104,4 @@ std::vector<CArmSample> carm_on_host_clock(const std::vector<acquisition::CArmSt
 /// A grabbed frame as the session's 16-bit image (Mono8 ×257, Mono12 ×16, Mono16 as is).
 cv::Mat to_session_image(const acquisition::Frame& frame);
 
-}  // namespace evar::sim
+}  // namespace evar::session

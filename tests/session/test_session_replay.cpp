@@ -9,9 +9,9 @@
 #include <mutex>
 #include <thread>
 
-#include "evar/sim/session_replay.hpp"
+#include "evar/session/session_replay.hpp"
 
-namespace evar::sim {
+namespace evar::session {
 namespace {
 
 namespace fs = std::filesystem;
@@ -280,4 +280,4 @@ TEST_F(Replay, LoopingForeverEndsBeforeDeviceTimesOverflow) {
 }
 
 }  // namespace
-}  // namespace evar::sim
+}  // namespace evar::session
