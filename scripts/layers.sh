@@ -13,19 +13,20 @@ root=$(cd "$(dirname "$0")/.." && pwd)
 
 # What each layer may use, downstream first: acquisition -> geometry -> deform -> overlay ->
 # node, session (recorded sessions) and sim (which makes them) feeding in from the side,
-# app on top.
+# app on top; base (an owned file descriptor, elapsed time) under all of them.
 declare -A may_use=(
-  [acquisition]="acquisition"
-  [geometry]="geometry"
-  [deform]="deform geometry"
-  [overlay]="overlay geometry"
-  [session]="session geometry acquisition"
-  [sim]="sim session geometry acquisition"
-  [node]="node acquisition geometry deform overlay"
-  [app]="app node session sim acquisition geometry deform overlay"
+  [base]="base"
+  [acquisition]="acquisition base"
+  [geometry]="geometry base"
+  [deform]="deform geometry base"
+  [overlay]="overlay geometry base"
+  [session]="session geometry acquisition base"
+  [sim]="sim session geometry acquisition base"
+  [node]="node acquisition geometry deform overlay base"
+  [app]="app node session sim acquisition geometry deform overlay base"
 )
 # The CMake library of each layer.
-declare -A target=([acquisition]=evar_acquisition [geometry]=evar_geometry [deform]=evar_deform
+declare -A target=([base]=evar_base [acquisition]=evar_acquisition [geometry]=evar_geometry [deform]=evar_deform
   [overlay]=evar_overlay [session]=evar_session [sim]=evar_sim [node]=evar_node [app]=evar_cli)
 declare -A layer_of
 for l in "${!target[@]}"; do layer_of[${target[$l]}]=$l; done

@@ -13,6 +13,8 @@
 #include <cstring>
 #include <stdexcept>
 
+#include "evar/base/unique_fd.hpp"
+
 namespace evar::acquisition {
 
 
@@ -20,17 +22,18 @@ PseudoTerminal::PseudoTerminal(const std::string& link) {
   termios raw{};
   ::cfmakeraw(&raw);
   char name[256] = {};
-  if (::openpty(&master_, &slave_, name, &raw, nullptr) != 0)
+  int master = -1, slave = -1;
+  if (::openpty(&master, &slave, name, &raw, nullptr) != 0)
     throw std::runtime_error(std::string("pseudo-terminal: openpty failed: ") + std::strerror(errno));
-  ::fcntl(master_, F_SETFD, FD_CLOEXEC);
-  ::fcntl(master_, F_SETFL, ::fcntl(master_, F_GETFL) | O_NONBLOCK);  // write() waits by poll, write_or_drop() not
-  ::fcntl(slave_, F_SETFD, FD_CLOEXEC);
+  master_.reset(master);
+  slave_.reset(slave);
+  ::fcntl(master_.get(), F_SETFD, FD_CLOEXEC);
+  ::fcntl(master_.get(), F_SETFL, ::fcntl(master_.get(), F_GETFL) | O_NONBLOCK);  // write() waits by poll, write_or_drop() not
+  ::fcntl(slave_.get(), F_SETFD, FD_CLOEXEC);
   slave_path_ = name;
   if (!link.empty()) {
     struct stat st {};
     if (::lstat(link.c_str(), &st) == 0 && !S_ISLNK(st.st_mode)) {
-      ::close(master_);
-      ::close(slave_);
       throw std::runtime_error("pseudo-terminal: " + link + " exists and is not a symbolic link; not replacing it");
     }
     const std::string tmp = link + ".new";
@@ -39,8 +42,6 @@ PseudoTerminal::PseudoTerminal(const std::string& link) {
     if (::symlink(slave_path_.c_str(), tmp.c_str()) != 0 || ::rename(tmp.c_str(), link.c_str()) != 0) {
       const std::string why = std::strerror(errno);
       ::unlink(tmp.c_str());
-      ::close(master_);
-      ::close(slave_);
       throw std::runtime_error("pseudo-terminal: cannot link " + link + " to " + slave_path_ + ": " + why);
     }
     link_ = link;
@@ -54,13 +55,12 @@ PseudoTerminal::~PseudoTerminal() {
     const ssize_t n = ::readlink(link_.c_str(), target, sizeof target - 1);
     if (n > 0 && slave_path_ == std::string(target, static_cast<std::size_t>(n))) ::unlink(link_.c_str());
   }
-  ::close(slave_);
-  ::close(master_);
+  // The descriptors close after this, the slave first.
 }
 
 bool PseudoTerminal::write_or_drop(std::span<const std::uint8_t> bytes) {
   ssize_t n = 0;
-  do n = ::write(master_, bytes.data(), bytes.size());
+  do n = ::write(master_.get(), bytes.data(), bytes.size());
   while (n < 0 && errno == EINTR);
   if (n < 0 && errno == EAGAIN) return false;  // nothing of it went out: dropped whole
   if (n < 0) throw std::runtime_error("pseudo-terminal " + slave_path_ + ": write failed: " + std::strerror(errno));
@@ -72,10 +72,10 @@ bool PseudoTerminal::write_or_drop(std::span<const std::uint8_t> bytes) {
   while (done < bytes.size()) {
     const auto left = std::chrono::duration_cast<std::chrono::milliseconds>(deadline - std::chrono::steady_clock::now());
     if (left.count() <= 0) return false;
-    pollfd p{master_, POLLOUT, 0};
+    pollfd p{master_.get(), POLLOUT, 0};
     if (::poll(&p, 1, static_cast<int>(left.count())) < 0 && errno != EINTR)
       throw std::runtime_error("pseudo-terminal " + slave_path_ + ": poll failed: " + std::strerror(errno));
-    n = ::write(master_, bytes.data() + done, bytes.size() - done);
+    n = ::write(master_.get(), bytes.data() + done, bytes.size() - done);
     if (n > 0) done += static_cast<std::size_t>(n);
     else if (n < 0 && errno != EINTR && errno != EAGAIN)
       throw std::runtime_error("pseudo-terminal " + slave_path_ + ": write failed: " + std::strerror(errno));
@@ -86,14 +86,14 @@ bool PseudoTerminal::write_or_drop(std::span<const std::uint8_t> bytes) {
 void PseudoTerminal::write(std::span<const std::uint8_t> bytes) {
   std::size_t done = 0;
   while (done < bytes.size()) {
-    const ssize_t n = ::write(master_, bytes.data() + done, bytes.size() - done);
+    const ssize_t n = ::write(master_.get(), bytes.data() + done, bytes.size() - done);
     if (n > 0) {
       done += static_cast<std::size_t>(n);
       continue;
     }
     if (n < 0 && errno == EINTR) continue;
     if (n < 0 && errno == EAGAIN) {
-      pollfd p{master_, POLLOUT, 0};
+      pollfd p{master_.get(), POLLOUT, 0};
       ::poll(&p, 1, 100);
       continue;
     }

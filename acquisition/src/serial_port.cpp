@@ -70,15 +70,12 @@ SerialPort::SerialPort(const std::string& path, const SerialSettings& settings) 
   check_settings(settings);
   const speed_t speed = baud_constant(settings.baud);
   // O_NOCTTY: a C-arm link must never become the node's controlling terminal.
-  fd_ = ::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
-  if (fd_ < 0) fail(path, "open");
+  fd_.reset(::open(path.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC));
+  if (!fd_) fail(path, "open");
+  // On a throw below the descriptor closes with fd_ (after the message has read errno).
+  const int fd = fd_.get();
   termios tio{};
-  if (::tcgetattr(fd_, &tio) != 0) {
-    const int e = errno;
-    ::close(fd_);
-    errno = e;
-    fail(path, "tcgetattr (not a terminal?)");
-  }
+  if (::tcgetattr(fd, &tio) != 0) fail(path, "tcgetattr (not a terminal?)");
   ::cfmakeraw(&tio);
   tio.c_cflag |= CLOCAL | CREAD;
   tio.c_cflag &= ~(CRTSCTS | CSTOPB | PARENB | PARODD);
@@ -89,27 +86,20 @@ SerialPort::SerialPort(const std::string& path, const SerialSettings& settings) 
   tio.c_iflag &= ~(IXON | IXOFF | IXANY | INPCK);
   tio.c_cc[VMIN] = 0;
   tio.c_cc[VTIME] = 0;
-  if (::cfsetispeed(&tio, speed) != 0 || ::cfsetospeed(&tio, speed) != 0 || ::tcsetattr(fd_, TCSANOW, &tio) != 0) {
-    const int e = errno;
-    ::close(fd_);
-    errno = e;
+  if (::cfsetispeed(&tio, speed) != 0 || ::cfsetospeed(&tio, speed) != 0 || ::tcsetattr(fd, TCSANOW, &tio) != 0)
     fail(path, "tcsetattr");
-  }
   // tcsetattr succeeds when any setting took: read back what the driver accepted.
   termios got{};
-  if (::tcgetattr(fd_, &got) != 0 || ::cfgetospeed(&got) != speed ||
+  if (::tcgetattr(fd, &got) != 0 || ::cfgetospeed(&got) != speed ||
       (got.c_cflag & (CSTOPB | PARENB | PARODD | CSIZE)) != (tio.c_cflag & (CSTOPB | PARENB | PARODD | CSIZE))) {
-    ::close(fd_);
     throw std::runtime_error("serial port " + path + ": the driver refused " + std::to_string(settings.baud) +
                              " baud, parity " + to_string(settings.parity) + ", " +
                              std::to_string(settings.stop_bits) + " stop bit(s)");
   }
   // Bytes queued before we listened are old geometry: a late reader must not take them as new.
-  ::tcflush(fd_, TCIFLUSH);
+  ::tcflush(fd, TCIFLUSH);
 }
 
-SerialPort::~SerialPort() {
-  if (fd_ >= 0) ::close(fd_);
-}
+SerialPort::~SerialPort() = default;
 
 }  // namespace evar::acquisition

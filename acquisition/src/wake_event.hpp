@@ -12,37 +12,36 @@
 #include <stdexcept>
 #include <string>
 
+#include "evar/base/unique_fd.hpp"
+
 namespace evar::acquisition {
 
 class WakeEvent {
  public:
   explicit WakeEvent(const char* owner) : fd_(::eventfd(0, EFD_CLOEXEC | EFD_NONBLOCK)) {
-    if (fd_ < 0) throw std::runtime_error(std::string(owner) + ": eventfd: " + std::strerror(errno));
+    if (!fd_) throw std::runtime_error(std::string(owner) + ": eventfd: " + std::strerror(errno));
   }
-  WakeEvent(const WakeEvent&) = delete;
-  WakeEvent& operator=(const WakeEvent&) = delete;
-  ~WakeEvent() { ::close(fd_); }
 
   /// For poll() beside the thread's own descriptors (POLLIN once signalled).
-  int fd() const { return fd_; }
+  int fd() const { return fd_.get(); }
   void signal() {
     const std::uint64_t one = 1;
-    [[maybe_unused]] const ssize_t n = ::write(fd_, &one, sizeof one);
+    [[maybe_unused]] const ssize_t n = ::write(fd_.get(), &one, sizeof one);
   }
   /// Forgets an earlier signal (before a restart).
   void clear() {
     std::uint64_t count = 0;
-    while (::read(fd_, &count, sizeof count) > 0) {
+    while (::read(fd_.get(), &count, sizeof count) > 0) {
     }
   }
   /// Sleeps up to `d`; true when signalled.
   bool wait(std::chrono::milliseconds d) const {
-    pollfd p{fd_, POLLIN, 0};
+    pollfd p{fd_.get(), POLLIN, 0};
     return ::poll(&p, 1, static_cast<int>(d.count())) > 0;
   }
 
  private:
-  int fd_;
+  base::UniqueFd fd_;
 };
 
 }  // namespace evar::acquisition

@@ -9,15 +9,14 @@
 #include <string>
 
 #include "anderson_mixing.hpp"
+#include "evar/base/elapsed.hpp"
 #include "evar/deform/closest_rotation.hpp"
 
 namespace evar::deform {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+using base::ms_since;
 
 // Union-find over unknowns to check that every component is pinned down.
 struct DisjointSets {

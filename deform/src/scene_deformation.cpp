@@ -15,6 +15,7 @@
 
 #include "evar/deform/landmark_binding.hpp"
 #include "evar/deform/registration_tether.hpp"
+#include "evar/base/elapsed.hpp"
 #include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/input_error.hpp"
 
@@ -22,7 +23,7 @@ namespace evar::deform {
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+using base::ms_since;
 
 }  // namespace
 

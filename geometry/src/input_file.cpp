@@ -8,6 +8,7 @@
 #include <cstring>
 #include <system_error>
 
+#include "evar/base/unique_fd.hpp"
 #include "evar/geometry/input_error.hpp"
 
 namespace evar::geometry {
@@ -46,12 +47,9 @@ std::string read_input_file(const std::filesystem::path& file, InputLimit limit)
   check_input_file(file, limit);  // the clear messages (missing, a directory, too large)
   // What was checked may be replaced before it is opened: the descriptor is checked again.
   // O_NONBLOCK, so that a FIFO put there cannot hold the open.
-  const int fd = ::open(file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY);
-  if (fd < 0) fail(file, std::string("cannot open: ") + std::strerror(errno));
-  struct Close {
-    int fd;
-    ~Close() { ::close(fd); }
-  } closer{fd};
+  const base::UniqueFd owned(::open(file.c_str(), O_RDONLY | O_NONBLOCK | O_CLOEXEC | O_NOCTTY));
+  if (!owned) fail(file, std::string("cannot open: ") + std::strerror(errno));
+  const int fd = owned.get();
   struct stat st {};
   if (::fstat(fd, &st) != 0) fail(file, std::string("cannot read its status: ") + std::strerror(errno));
   if (!S_ISREG(st.st_mode)) fail(file, "is not a regular file");

@@ -6,15 +6,12 @@
 #include <limits>
 #include <numeric>
 
+#include "evar/base/elapsed.hpp"
 #include "evar/geometry/input_error.hpp"
 
 namespace evar::node {
 
-namespace {
-double ms_since(std::chrono::steady_clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
-}
-}  // namespace
+using base::ms_since;
 
 overlay::RoadmapModel roadmap_model(const geometry::Scene& scene, const AdaptedModel* adapted) {
   overlay::RoadmapModel r;

@@ -24,6 +24,7 @@
 #include <igtlPolyDataMessage.h>
 #include <igtlStatusMessage.h>
 
+#include "evar/base/unique_fd.hpp"
 #include "igtl_request_reader.hpp"
 
 namespace evar::overlay {
@@ -31,27 +32,6 @@ namespace evar::overlay {
 namespace {
 
 using Bytes = std::shared_ptr<const std::vector<std::uint8_t>>;
-
-// An owned file descriptor.
-class Fd {
- public:
-  explicit Fd(int fd = -1) : fd_(fd) {}
-  ~Fd() {
-    if (fd_ >= 0) ::close(fd_);
-  }
-  Fd(Fd&& o) noexcept : fd_(std::exchange(o.fd_, -1)) {}
-  Fd& operator=(Fd&& o) noexcept {
-    if (this != &o) {
-      if (fd_ >= 0) ::close(fd_);
-      fd_ = std::exchange(o.fd_, -1);
-    }
-    return *this;
-  }
-  int get() const { return fd_; }
-
- private:
-  int fd_;
-};
 
 std::string system_error(const std::string& what) { return what + ": " + std::strerror(errno); }
 
@@ -71,7 +51,7 @@ struct Pending {
 };
 
 struct Client {
-  Fd fd;
+  base::UniqueFd fd;
   std::deque<Pending> backlog;
   std::size_t backlog_bytes = 0;
   IgtlRequestReader requests;
@@ -96,7 +76,7 @@ Bytes status_message(const std::string& name, int code, const std::string& text)
 
 struct IgtlServer::Impl {
   IgtlServerOptions options;
-  Fd listener, wake;
+  base::UniqueFd listener, wake;
   int port = 0;
   std::thread thread;
   std::atomic<bool> stop{false};
@@ -241,7 +221,7 @@ struct IgtlServer::Impl {
         if (gone[i]) clients.erase(clients.begin() + static_cast<std::ptrdiff_t>(i));
       if (clients.empty()) latest_image.reset();  // images are packed only while someone listens
       if (fds[0].revents & POLLIN) {
-        Fd fd(::accept4(listener.get(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC));
+        base::UniqueFd fd(::accept4(listener.get(), nullptr, nullptr, SOCK_NONBLOCK | SOCK_CLOEXEC));
         if (fd.get() >= 0) {
           if (clients.size() >= options.max_clients) {
             ++stats.clients_refused;
@@ -269,7 +249,7 @@ IgtlServer::IgtlServer(IgtlServerOptions options) : impl_(std::make_unique<Impl>
   if (::inet_pton(AF_INET, options.bind_address.c_str(), &addr.sin_addr) != 1)
     throw std::invalid_argument("OpenIGTLink: bind address '" + options.bind_address + "' is not an IPv4 address");
   const std::string where = options.bind_address + ":" + std::to_string(options.port);
-  impl_->listener = Fd(::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0));
+  impl_->listener = base::UniqueFd(::socket(AF_INET, SOCK_STREAM | SOCK_NONBLOCK | SOCK_CLOEXEC, 0));
   if (impl_->listener.get() < 0) throw std::runtime_error(system_error("OpenIGTLink: socket"));
   const int yes = 1;
   ::setsockopt(impl_->listener.get(), SOL_SOCKET, SO_REUSEADDR, &yes, sizeof yes);
@@ -279,7 +259,7 @@ IgtlServer::IgtlServer(IgtlServerOptions options) : impl_(std::make_unique<Impl>
   socklen_t len = sizeof addr;
   ::getsockname(impl_->listener.get(), reinterpret_cast<sockaddr*>(&addr), &len);
   impl_->port = ntohs(addr.sin_port);
-  impl_->wake = Fd(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC));
+  impl_->wake = base::UniqueFd(::eventfd(0, EFD_NONBLOCK | EFD_CLOEXEC));
   if (impl_->wake.get() < 0) throw std::runtime_error(system_error("OpenIGTLink: eventfd"));
   impl_->thread = std::thread([impl = impl_.get()] { impl->run(); });
 }

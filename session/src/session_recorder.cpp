@@ -19,6 +19,7 @@
 
 #include "csv_table.hpp"
 #include "evar/acquisition/clock_offset.hpp"
+#include "evar/base/unique_fd.hpp"
 #include "evar/geometry/image_header.hpp"
 #include "evar/geometry/input_error.hpp"
 #include "evar/geometry/input_file.hpp"
@@ -39,10 +40,9 @@ using acquisition::StreamState;
 void sync_session_files(const fs::path& dir) {
   for (const fs::path& p : {dir / "session.json", dir / "carm.csv", dir / "frames" / "index.csv",
                             dir / "record_report.json", dir / "frames", dir}) {
-    const int fd = ::open(p.c_str(), O_RDONLY | O_CLOEXEC);
-    if (fd < 0) continue;  // a file the session does not have
-    ::fsync(fd);
-    ::close(fd);
+    const base::UniqueFd fd(::open(p.c_str(), O_RDONLY | O_CLOEXEC));
+    if (!fd) continue;  // a file the session does not have
+    ::fsync(fd.get());
   }
 }
 

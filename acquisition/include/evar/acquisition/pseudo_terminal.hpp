@@ -6,6 +6,8 @@
 #include <span>
 #include <string>
 
+#include "evar/base/unique_fd.hpp"
+
 namespace evar::acquisition {
 
 class PseudoTerminal {
@@ -28,8 +30,8 @@ class PseudoTerminal {
   bool write_or_drop(std::span<const std::uint8_t> bytes);
 
  private:
-  int master_ = -1;
-  int slave_ = -1;  // held open so the slave side does not report hangup before the reader opens it
+  base::UniqueFd master_;
+  base::UniqueFd slave_;  // held open so the slave side does not report hangup before the reader opens it
   std::string slave_path_, link_;
 };
 

@@ -3,6 +3,8 @@
 // non-blocking), owned by RAII. Works on real UARTs, USB-serial adapters and pseudo-terminals.
 #include <string>
 
+#include "evar/base/unique_fd.hpp"
+
 namespace evar::acquisition {
 
 enum class Parity { None, Even, Odd };
@@ -30,10 +32,10 @@ class SerialPort {
   SerialPort(const SerialPort&) = delete;
   SerialPort& operator=(const SerialPort&) = delete;
 
-  int fd() const { return fd_; }
+  int fd() const { return fd_.get(); }
 
  private:
-  int fd_ = -1;
+  base::UniqueFd fd_;
 };
 
 }  // namespace evar::acquisition
