@@ -417,7 +417,7 @@ void LiveNode::Impl::compose_loop() {
     // Shown first, then handed on: the frame moves to the analysis (a copy is kept to be
     // held; assigning into the kept one reuses its buffer). Handing it on before compositing
     // was tried: the segmentation then shares its core with the compositing, and neither
-    // the model nor the frame came sooner (session 19, docs/BENCHMARKS.md).
+    // the model nor the frame came sooner (docs/BENCHMARKS.md, "The live node").
     if (!last_shown) last_shown.emplace();
     last_shown->geometry = g;
     last_shown->view = view;

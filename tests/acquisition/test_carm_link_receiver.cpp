@@ -96,7 +96,7 @@ TEST(CArmLinkReceiver, AStatusTheCArmRepeatsIsReportedOncePerInterval) {
 }
 
 // A C-arm that repeats two warnings in turn, every message, says each once per interval
-// (before session 20 only the last text was remembered: each turn was news, ten a second).
+// (before the fix only the last text was remembered: each turn was news, ten a second).
 // A peer sending ever new texts is held to kMaxStatusTexts notices per interval.
 TEST(CArmLinkReceiver, WarningsTakingTurnsAreReportedOncePerIntervalEachAndNewTextsAreCapped) {
   CArmLinkReceiver rx("usb 1209:ea01", 1000ms);

@@ -152,7 +152,7 @@ TEST(GeometryTimeline, ALateRepeatedOrAbsurdSampleIsDroppedNotTakenForARestart) 
 }
 
 // A stray time ahead of the clock (garbage that passed the CRC, an hour or 0.6 s ahead):
-// before session 15 it was taken at once, served as the newest geometry, spoiled the clock
+// before the fix it was taken at once, served as the newest geometry, spoiled the clock
 // offset by its lead and made the real samples after it look late, so they were dropped
 // and every frame for the next 25 s was stale. Now it is held, and dropped when the next
 // sample goes on from the real clock.
@@ -204,7 +204,7 @@ TEST(GeometryTimeline, AClockSetForwardStartsAFreshHistory) {
 
 // After a reboot, a C-arm that sends only every 1.5 s (slower than the protocol asks, as
 // older recordings do) is still recognised: the second sample goes on from the first as
-// far as the host's clock did (before session 15 it had to come within 1 s).
+// far as the host's clock did (before the fix it had to come within 1 s).
 TEST(GeometryTimeline, ASlowSenderRestartIsConfirmedAndTimedByItsNewClock) {
   Scenario sc;
   acq::GeometryTimeline tl;

@@ -181,7 +181,7 @@ TEST_F(SerialCArmLink, AHangupIsReportedAndTheLinkReconnectsOnItsOwn) {
   EXPECT_EQ(source.statistics().disconnections, 1u);
   EXPECT_EQ(rec.states.back().device_time_ns, 9'000'000'000LL);
   // The new adapter numbered its messages from 30000: a new link, not 29 995 lost samples;
-  // the two lost on the first link are still counted (before session 15 a reconnect
+  // the two lost on the first link are still counted (before the fix a reconnect
   // forgot them), and every message of both links is.
   EXPECT_EQ(source.statistics().link.sequence.dropped, 2u);
   EXPECT_EQ(source.statistics().link.sequence.received, 10u);
@@ -245,7 +245,7 @@ TEST(SerialPorts, ListsAdaptersInNumberOrderWithTheirStableNames) {
 
 // A replay serving the C-arm link with no node reading it must not hang: once the pty's
 // buffer is full, messages are dropped (a part-written one after at most 200 ms) and the
-// writer goes on. Before session 15 it blocked for good on the first part-written message
+// writer goes on. Before the fix it blocked for good on the first part-written message
 // (after about 400 messages). In a child process with an alarm, so a hang fails the test.
 TEST(PseudoTerminal, AWriterNobodyReadsDropsMessagesInsteadOfHanging) {
   EXPECT_EXIT(

@@ -693,9 +693,9 @@ TEST_F(Cli, EvalOfASessionWithoutGroundTruthNamesTheField) {
   EXPECT_NE(r.err.find("ground_truth"), std::string::npos) << r.err;
 }
 
-// Seed 7's tortuous iliac, pushed into a tight bend, was refused until session 12 and then
+// Seed 7's tortuous iliac, pushed into a tight bend, was refused at first and then
 // made with an extra pass on the meshes; both came from the inside test's repeated hits
-// (fixed in session 14). Its truth holds the device in the distorted vessels, checked here
+// (since fixed). Its truth holds the device in the distorted vessels, checked here
 // on the written files: every device point inside a truth mesh or within Δd of a wall.
 TEST_F(Cli, SimPatientSeed7HoldsTheDeviceInItsTruth) {
   const auto out = scratch("sim_patient_seed7");

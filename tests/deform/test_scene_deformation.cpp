@@ -73,7 +73,7 @@ TEST(SceneDeformation, AfterDeformEveryDevicePointIsInsideItsVesselOrWithinDelta
 }
 
 // CT coordinates put a patient anywhere, often a metre from the scanner's origin: the same
-// scene and device moved there deform the same, moved. (Before session 14 the ray
+// scene and device moved there deform the same, moved. (Before the fix the ray
 // caster's inside test failed in single precision there: 2.6 mm apart, other handles and
 // erased vertices, 1.9 s instead of 40 ms.)
 TEST(SceneDeformation, DeformsTheSameWhereverTheScannerPutThePatient) {
@@ -107,7 +107,7 @@ TEST(SceneDeformation, DeformsTheSameWhereverTheScannerPutThePatient) {
 }
 
 // The device's order (tip first, by the format) does not change where it is: given from
-// the access end it deforms the scene the same (before session 14 its samples started at
+// the access end it deforms the scene the same (before the fix its samples started at
 // its first point and equal-depth handles were thinned in its order: 0.84 mm apart).
 TEST(SceneDeformation, ADeviceGivenFromEitherEndDeformsTheSame) {
   const auto scene = sim::to_scene(example());
@@ -238,7 +238,7 @@ TEST(SceneDeformation, ErasesOnlyTheAorticStumpInsideTheDeviceIliac) {
 
 // A landmark on the part of the aorta the carrier iliac replaces (an overlap between the
 // aortic and iliac segmentations) must follow the iliac: the erased stump's vertices had
-// nothing to hold them where the device bent the iliac (before session 15 it stayed on them).
+// nothing to hold them where the device bent the iliac (before the fix it stayed on them).
 TEST(SceneDeformation, ALandmarkOnTheErasedStumpFollowsTheCarrierIliac) {
   auto scene = sim::to_scene(example());
   const auto first = deform::deform_scene(scene, example().device);
@@ -274,7 +274,7 @@ TEST(SceneDeformation, ALandmarkOnTheErasedStumpFollowsTheCarrierIliac) {
 
 // A device that runs inside the carrier iliac's lumen all the way gives it no handles; it
 // still carries the device, so the aortic stump it replaces is erased as when it bends it
-// (before session 14 the erasure came and went with the handles, frame to frame).
+// (before the fix the erasure came and went with the handles, frame to frame).
 TEST(SceneDeformation, TheStumpIsErasedAlsoWhenTheCarrierNeedsNoHandles) {
   const auto scene = sim::to_scene(example());
   const auto& aortic = example().vessel("aorta").centerline;
@@ -296,7 +296,7 @@ TEST(SceneDeformation, TheStumpIsErasedAlsoWhenTheCarrierNeedsNoHandles) {
 
 // Segmentations often leave a vessel's ends open. An iliac whose top cap is cut off has no
 // inside for ray parity, yet the device in it must still count as in its lumen, not as
-// pushing the aortic wall (before session 14 the aorta got 5 handles instead of 1 and
+// pushing the aortic wall (before the fix the aorta got 5 handles instead of 1 and
 // moved 3.8 mm instead of 1.5).
 TEST(SceneDeformation, AnIliacWithAnOpenTopStillHoldsTheDeviceForTheAorta) {
   const auto closed = sim::to_scene(example());
@@ -440,7 +440,7 @@ TEST(SceneDeformation, RefusesAReversedIliacCenterline) {
 }
 
 // A mesh in metres (a unit slip on export) lies nowhere near its centerline in mm: refused,
-// and the message says where each lies and what to check (before session 15 it said only
+// and the message says where each lies and what to check (before the fix it said only
 // that no slicing plane hit the wall).
 TEST(SceneDeformation, AMeshInOtherUnitsIsRefusedSayingWhereMeshAndCenterlineLie) {
   auto scene = sim::to_scene(example());

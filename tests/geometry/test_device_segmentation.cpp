@@ -190,7 +190,7 @@ TEST(DeviceSegmentation, EightBitInputWorksToo) {
 }
 
 // A frame grabber on the C-arm's video output sees the processed display: log, windowed
-// (1-99 % here), 8 bits, its darkest anatomy clipped to black. Before session 15 the
+// (1-99 % here), 8 bits, its darkest anatomy clipped to black. Before the fix the
 // ragged edge of the clipped region outshone the wire (a fifth of it found, the tip
 // placed 700 px away, on a frame like this from a simulated session).
 TEST(DeviceSegmentation, AnEightBitDisplayWithClippedBlacksStillShowsTheWire) {

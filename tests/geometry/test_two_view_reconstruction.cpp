@@ -161,7 +161,7 @@ TEST(TwoViewReconstruction, RefusesAbsurdCurvesAndOptions) {
 
 // Where the device runs along the epipolar lines its depth is not measured, and a depth
 // made up there reprojects onto both curves (a point moved along its view-1 ray slides
-// along its epipolar line in view 2), so no residual can catch it. Before session 15 the
+// along its epipolar line in view 2), so no residual can catch it. Before the fix the
 // ends took the nearest measured depth and gaps of any length were interpolated: up to
 // 32 mm wrong with a residual under 0.3 px. Now what is returned is right, and the rest is
 // left out and said (kept_fraction).
@@ -190,7 +190,7 @@ TEST(TwoViewReconstruction, AStretchAlongTheEpipolarLinesIsLeftOutNotMadeUp) {
 
 // A crossover catheter (up one iliac, over the bifurcation, down the other) in a LAO/RAO
 // pair: its limbs are at the same heights, so curve 2 matches curve 1 as traced and
-// reversed alike, with no residual either way; before session 15 the forward reading was
+// reversed alike, with no residual either way; before the fix the forward reading was
 // taken unchecked (46 mm wrong when curve 2 had been traced the other way).
 TEST(TwoViewReconstruction, ASymmetricCrossoverReadsTwoWaysAndSaysSo) {
   geometry::Polyline crossover;  // tip low on the left (+x), access low on the right

@@ -207,7 +207,7 @@ TEST(XaDicom, RotationalRunFramesAreRefusedNotMisplaced) {
   EXPECT_NO_THROW(read_xa_dicom(p, 0));
   EXPECT_NE(error_of(p, 1).find("PositionerPrimaryAngleIncrement (0018,1520)"), std::string::npos) << error_of(p, 1);
   // Increments read as steps from the first frame put frame 2 at base + 15 + 0: refused
-  // too (before session 15 only its own increment, 0, was looked at).
+  // too (before the fix only its own increment, 0, was looked at).
   const fs::path three = dir.path / "rot3.dcm";
   write_xa_dicom(three, view(), {ramp16(0), ramp16(1), ramp16(2)}, false, 12);
   rewrite(three, [](DcmDataset& ds) { ds.putAndInsertString(DCM_PositionerSecondaryAngleIncrement, "0\\15\\0"); });
@@ -222,7 +222,7 @@ TEST(XaDicom, RotationalRunFramesAreRefusedNotMisplaced) {
 }
 
 // Attributes that would make the plain detector model place the roadmap wrongly (mirrored,
-// turned, not a C-arm) are refused by name; before session 15 they were ignored.
+// turned, not a C-arm) are refused by name; before the fix they were ignored.
 TEST(XaDicom, AFlippedOrTurnedFieldOfViewOrAnotherPositionerIsRefusedByName) {
   TempDir dir;
   const std::pair<DcmTagKey, const char*> cases[] = {{DCM_FieldOfViewHorizontalFlip, "YES"},

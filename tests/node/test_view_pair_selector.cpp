@@ -45,7 +45,7 @@ TEST(ViewPairSelector, PairsTheFirstCandidateOfANewViewWithAFarEnoughEarlierView
 
 // A pair that keeps failing with the same partner frame (a false segmentation there) is
 // not retried with it for ever: after two failures in a row the partner is forgotten and
-// the next older view far enough pairs instead (before session 15 every frame of the
+// the next older view far enough pairs instead (before the fix every frame of the
 // current view failed against the same partner until the C-arm moved).
 TEST(ViewPairSelector, APartnerThatKeepsFailingIsForgottenForAnOlderView) {
   const auto candidate = [](std::uint64_t frame, double primary) { return view_candidate(frame, primary); };
@@ -101,7 +101,7 @@ TEST(ViewPairSelector, OnlyFailuresInARowWithThePairsOwnPartnerCount) {
 // A source that reconnects (a camera restarted, a grabber plugged back) numbers its frames
 // from the start again: a frame number seen before is another frame. Forgetting a partner
 // that kept failing forgets that frame only, not an older view that had the same number
-// (before session 20 both went, and with them the only view left to pair with).
+// (before the fix both went, and with them the only view left to pair with).
 TEST(ViewPairSelector, AFrameNumberUsedAgainAfterAReconnectIsAnotherFrame) {
   node::ViewPairSelector selector(20.0);
   EXPECT_FALSE(selector.add(view_candidate(5, 0, 0.0, 1.0)));  // AP, frame 5
