@@ -330,11 +330,12 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
       result.converged = true;
       break;
     }
-    candidate = g;
-    bool accelerated = false;
-    if (options.anderson && anderson.mix(g.data(), f.data(), candidate.data())) {
+    // The mixed iterate, or the plain one g when there is nothing to mix.
+    const bool accelerated = options.anderson && anderson.mix(g.data(), f.data(), candidate.data());
+    if (accelerated) {
       for (const int k : constrained_) candidate.row(k) = X_C_full.row(k);
-      accelerated = true;
+    } else {
+      candidate = g;
     }
     double E_candidate = system_->local_step(candidate, R, R_candidate, &b_candidate);
     if (accelerated && !(E_candidate < E)) {
