@@ -5,7 +5,7 @@
 
 #include "commands.hpp"
 #include "evar/geometry/image_header.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/node/logging.hpp"
 #include "evar/session/session_replay.hpp"
 
@@ -412,7 +412,7 @@ int run_cli(const std::vector<std::string>& args) {
     if (rd->parsed()) return run_record(record);
     if (ev->parsed()) return run_eval(eval);
     if (rn->parsed()) return run_node(run);
-  } catch (const geometry::InputError& err) {
+  } catch (const base::InputError& err) {
     node::log().error("{}", err.what());
     return 1;
   } catch (const std::exception& err) {

@@ -4,7 +4,7 @@
 
 #include "commands.hpp"
 #include "evar/deform/scene_deformation.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/scene.hpp"
@@ -74,9 +74,9 @@ int run_deform(const DeformCommand& cmd) {
   deform::SceneDeformation result;
   try {
     result = deform::deform_scene(scene, device, options);
-  } catch (const geometry::InputError& e) {
+  } catch (const base::InputError& e) {
     const std::string what = e.what();
-    if (what.rfind("device:", 0) == 0) throw geometry::InputError(cmd.device.string() + ": " + what.substr(8));
+    if (what.rfind("device:", 0) == 0) throw base::InputError(cmd.device.string() + ": " + what.substr(8));
     throw;
   }
 
@@ -94,10 +94,10 @@ int run_deform(const DeformCommand& cmd) {
   for (std::size_t i = 0; i < outputs.size(); ++i) {
     for (const auto& in : inputs)
       if (!in.empty() && same_file(outputs[i], in))
-        throw geometry::InputError(outputs[i].string() + ": writing this output would overwrite an input; choose another --out");
+        throw base::InputError(outputs[i].string() + ": writing this output would overwrite an input; choose another --out");
     for (std::size_t j = 0; j < i; ++j)
       if (same_file(outputs[i], outputs[j]))
-        throw geometry::InputError(outputs[i].string() + ": two outputs would have this name (vessel mesh files with the same name in different folders); rename one");
+        throw base::InputError(outputs[i].string() + ": two outputs would have this name (vessel mesh files with the same name in different folders); rename one");
   }
 
   std::filesystem::create_directories(cmd.out);

@@ -2,7 +2,7 @@
 #include <filesystem>
 
 #include "commands.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/node/logging.hpp"
 #include "evar/session/session.hpp"
 #include "progress_bar.hpp"
@@ -11,7 +11,7 @@ namespace evar::app {
 
 int run_export(const ExportCommand& cmd) {
   const session::Session session = session::read_session(cmd.session);
-  if (session.frames.empty()) throw geometry::InputError(cmd.session.string() + ": the session has no frames");
+  if (session.frames.empty()) throw base::InputError(cmd.session.string() + ": the session has no frames");
   const std::string name = cmd.out.filename().string();
   if (name.size() < 8 || name.compare(name.size() - 8, 8, ".seq.mha") != 0)
     node::log().warn("{}: Slicer's Sequences module recognises sequence metafiles by the name *.seq.mha", cmd.out.string());

@@ -6,8 +6,8 @@
 #include <vector>
 
 #include "evar/geometry/image_file.hpp"
-#include "evar/geometry/input_error.hpp"
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_error.hpp"
+#include "evar/base/input_file.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "view_input.hpp"
 
@@ -15,7 +15,7 @@ namespace evar::app {
 
 FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesystem::path& geometry) {
   FluoroInput in;
-  geometry::check_input_file(image, geometry::kDicomLimit);  // exists, regular; the tighter limit below
+  base::check_input_file(image, base::kDicomLimit);  // exists, regular; the tighter limit below
   if (is_dicom_file(image)) {
     auto frame = geometry::read_xa_dicom(image);
     in.image = frame.pixels;
@@ -28,13 +28,13 @@ FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesyste
       raw = grey;
     }
     if (raw.channels() != 1 || (raw.depth() != CV_8U && raw.depth() != CV_16U))
-      throw geometry::InputError(image.string() + ": expected an 8- or 16-bit grey-level image");
+      throw base::InputError(image.string() + ": expected an 8- or 16-bit grey-level image");
     in.image = raw;
   }
   if (!geometry.empty()) {
     in.view = read_view(geometry);
     if (in.view->detector_cols != in.image.cols || in.view->detector_rows != in.image.rows)
-      throw geometry::InputError(geometry.string() + ": detector_size_px is " + std::to_string(in.view->detector_cols) +
+      throw base::InputError(geometry.string() + ": detector_size_px is " + std::to_string(in.view->detector_cols) +
                                  " x " + std::to_string(in.view->detector_rows) + " but " + image.string() + " is " +
                                  std::to_string(in.image.cols) + " x " + std::to_string(in.image.rows));
   }

@@ -1,17 +1,15 @@
 #pragma once
 // Machine-readable reports beside the human log lines.
 #include <filesystem>
-#include <fstream>
 #include <nlohmann/json.hpp>
-#include <stdexcept>
 #include <string>
+
+#include "evar/base/atomic_file.hpp"
 
 namespace evar::app {
 
 inline void write_text(const std::filesystem::path& path, const std::string& text) {
-  std::ofstream out(path);
-  out << text;
-  if (!out) throw std::runtime_error(path.string() + ": cannot write");
+  base::write_file_atomically(path, text);
 }
 
 inline void write_json(const std::filesystem::path& path, const nlohmann::json& j) { write_text(path, j.dump(2) + '\n'); }

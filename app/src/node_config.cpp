@@ -3,7 +3,7 @@
 #include <nlohmann/json.hpp>
 
 #include "evar/geometry/image_header.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/json_fields.hpp"
 
 namespace evar::app {

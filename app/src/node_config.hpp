@@ -42,7 +42,7 @@ struct NodeConfig {
   double max_view_gap_s = 120.0;
 };
 
-/// Throws geometry::InputError "<file>: <field>: <problem>".
+/// Throws base::InputError "<file>: <field>: <problem>".
 NodeConfig read_node_config(const std::filesystem::path& path);
 
 }  // namespace evar::app

@@ -9,7 +9,7 @@
 
 #include "commands.hpp"
 #include "evar/geometry/carm_projection.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/node/logging.hpp"
 #include "json_file.hpp"
@@ -33,7 +33,7 @@ int run_project(const ProjectCommand& cmd) {
   std::vector<geometry::ControlPoint> points;
   for (const auto& m : geometry::read_markups(cmd.points))
     points.insert(points.end(), m.points.begin(), m.points.end());
-  if (points.empty()) throw geometry::InputError(cmd.points.string() + ": the file has no control points");
+  if (points.empty()) throw base::InputError(cmd.points.string() + ": the file has no control points");
 
   std::printf("# %s: %s, detector %d x %d px (%.3f x %.3f mm)\n", cmd.geometry.string().c_str(), describe(view).c_str(),
               view.detector_cols, view.detector_rows, view.col_spacing_mm, view.row_spacing_mm);

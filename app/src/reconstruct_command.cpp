@@ -5,7 +5,8 @@
 
 #include "commands.hpp"
 #include "evar/geometry/device_segmentation.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/geometry/image_file.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/two_view_reconstruction.hpp"
 #include "evar/node/logging.hpp"
@@ -16,9 +17,9 @@
 namespace evar::app {
 
 int run_reconstruct(const ReconstructCommand& cmd) {
-  if (cmd.images.size() != 2) throw geometry::InputError("reconstruct: give --image exactly twice");
+  if (cmd.images.size() != 2) throw base::InputError("reconstruct: give --image exactly twice");
   if (!cmd.geometries.empty() && cmd.geometries.size() != 2)
-    throw geometry::InputError("reconstruct: give --geometry for both images (in the same order) or for none (DICOM)");
+    throw base::InputError("reconstruct: give --geometry for both images (in the same order) or for none (DICOM)");
   const auto t0 = std::chrono::steady_clock::now();
   FluoroInput in[2];
   geometry::DeviceCurve2D found[2];
@@ -27,7 +28,7 @@ int run_reconstruct(const ReconstructCommand& cmd) {
   for (int k = 0; k < 2; ++k) {
     in[k] = load_fluoro(cmd.images[static_cast<std::size_t>(k)], cmd.geometries.empty() ? std::filesystem::path() : cmd.geometries[static_cast<std::size_t>(k)]);
     if (!in[k].view)
-      throw geometry::InputError(cmd.images[static_cast<std::size_t>(k)].string() +
+      throw base::InputError(cmd.images[static_cast<std::size_t>(k)].string() +
                                  ": no view geometry (give --geometry, or a DICOM XA file)");
     P[k] = geometry::projection_matrix(*in[k].view);
     options[k] = segmentation_options(cmd.params, in[k]);
@@ -45,8 +46,7 @@ int run_reconstruct(const ReconstructCommand& cmd) {
     report["views"].push_back(v);
     if (!cmd.overlay_prefix.empty()) {
       const auto path = cmd.overlay_prefix.string() + std::to_string(k + 1) + ".png";
-      if (!cv::imwrite(path, device_overlay(in[k].image, found[k].points, found[k].found)))
-        throw std::runtime_error(path + ": cannot write the overlay picture");
+      geometry::write_image_file(path, device_overlay(in[k].image, found[k].points, found[k].found));
     }
   }
   const auto write_report = [&] {
@@ -56,7 +56,7 @@ int run_reconstruct(const ReconstructCommand& cmd) {
     if (!found[k].found) {
       report["error"] = "no device in view " + std::to_string(k + 1) + ": " + found[k].reason;
       write_report();
-      throw geometry::InputError(cmd.images[static_cast<std::size_t>(k)].string() + ": no device found: " + found[k].reason);
+      throw base::InputError(cmd.images[static_cast<std::size_t>(k)].string() + ": no device found: " + found[k].reason);
     }
   geometry::ReconstructionOptions ro;
   ro.min_separation_deg = cmd.min_separation_deg;
@@ -67,7 +67,7 @@ int run_reconstruct(const ReconstructCommand& cmd) {
   } catch (const geometry::ReconstructionError& e) {
     report["error"] = e.what();
     write_report();
-    throw geometry::InputError(std::string("reconstruct: ") + e.what());
+    throw base::InputError(std::string("reconstruct: ") + e.what());
   }
   const double reconstruct_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
 

@@ -12,7 +12,7 @@
 
 #include "commands.hpp"
 #include "evar/geometry/carm_projection.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/node/live_node.hpp"
 #include "evar/node/logging.hpp"
 #include "evar/node/output_sinks.hpp"
@@ -52,7 +52,7 @@ double session_fps(const session::Session& s) {
 int run_node(const RunCommand& cmd) {
   std::optional<NodeConfig> config;
   if (!cmd.config.empty()) config = read_node_config(cmd.config);
-  if (cmd.replay.empty() && !config) throw geometry::InputError("run: give --config node.json or --replay SESSION");
+  if (cmd.replay.empty() && !config) throw base::InputError("run: give --config node.json or --replay SESSION");
 
   std::optional<session::Session> session;
   node::NodeOptions options;
@@ -60,7 +60,7 @@ int run_node(const RunCommand& cmd) {
   double fps = 30.0;
   if (!cmd.replay.empty()) {
     session = session::read_session(cmd.replay);
-    if (session->frames.empty()) throw geometry::InputError(cmd.replay.string() + ": the session has no frames");
+    if (session->frames.empty()) throw base::InputError(cmd.replay.string() + ": the session has no frames");
     scene_path = cmd.replay / session->scene;
     options.detector = session->detector;
     options.registration = session->ct_to_carm;
@@ -77,11 +77,11 @@ int run_node(const RunCommand& cmd) {
     options.timeline.ahead_after =
         std::max(options.timeline.ahead_after, std::chrono::milliseconds(gap_ns / 1'000'000 + 250));
   } else {
-    if (!config->scene) throw geometry::InputError(config->file.string() + ": scene: missing (needed for live sources)");
-    if (!config->registration) throw geometry::InputError(config->file.string() + ": registration: missing");
-    if (!config->detector) throw geometry::InputError(config->file.string() + ": detector: missing");
-    if (!config->frames) throw geometry::InputError(config->file.string() + ": frames: missing");
-    if (!config->carm) throw geometry::InputError(config->file.string() + ": carm: missing");
+    if (!config->scene) throw base::InputError(config->file.string() + ": scene: missing (needed for live sources)");
+    if (!config->registration) throw base::InputError(config->file.string() + ": registration: missing");
+    if (!config->detector) throw base::InputError(config->file.string() + ": detector: missing");
+    if (!config->frames) throw base::InputError(config->file.string() + ": frames: missing");
+    if (!config->carm) throw base::InputError(config->file.string() + ": carm: missing");
     scene_path = *config->scene;
     options.registration = geometry::read_registration(*config->registration);
     options.detector = *config->detector;

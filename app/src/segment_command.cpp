@@ -4,7 +4,8 @@
 
 #include "commands.hpp"
 #include "evar/geometry/device_segmentation.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/geometry/image_file.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/node/logging.hpp"
 #include "fluoro_input.hpp"
 #include "json_file.hpp"
@@ -25,8 +26,7 @@ int run_segment(const SegmentCommand& cmd) {
   j["image_size_px"] = {in.image.cols, in.image.rows};
   j["segment_ms"] = ms;
   write_json(cmd.out, j);
-  if (!cmd.overlay.empty() && !cv::imwrite(cmd.overlay.string(), device_overlay(in.image, found.points, found.found)))
-    throw std::runtime_error(cmd.overlay.string() + ": cannot write the overlay picture");
+  if (!cmd.overlay.empty()) geometry::write_image_file(cmd.overlay, device_overlay(in.image, found.points, found.found));
   if (!found.found) {
     node::log().warn("{}: no device found: {}", cmd.image.string(), found.reason);
     return 3;

@@ -1,7 +1,7 @@
 #include "segmentation_setup.hpp"
 
 #include "evar/geometry/carm_projection.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 
 namespace evar::app {
 
@@ -10,7 +10,7 @@ geometry::SegmentationOptions segmentation_options(const SegmentParams& p, const
   if (p.width_px) o.device_width_px = *p.width_px;
   else if (in.view) o.device_width_px = geometry::device_shadow_width_px(*in.view, p.diameter_mm);
   if (!(o.device_width_px > 0.5 && o.device_width_px < 100.0))
-    throw geometry::InputError("the device's shadow would be " + std::to_string(o.device_width_px) +
+    throw base::InputError("the device's shadow would be " + std::to_string(o.device_width_px) +
                                " px wide with this geometry and --device-diameter-mm; 0.5 to 100 px can be searched "
                                "(check the pixel spacing, or give --width-px)");
   if (p.seed.size() == 2) o.seed_px = Eigen::Vector2d(p.seed[0], p.seed[1]);

@@ -11,7 +11,7 @@
 #include <Eigen/Geometry>
 #include <numbers>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/json_fields.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/polyline.hpp"
@@ -91,12 +91,12 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   auto recording = std::make_shared<const session::Session>(session::read_session(directory));
   const session::Session& session = *recording;
   if (!session.truth)
-    throw geometry::InputError((directory / "session.json").string() +
+    throw base::InputError((directory / "session.json").string() +
                                ": ground_truth: missing (evaluation needs the true ostia)");
   auto loaded = std::make_shared<const geometry::Scene>(geometry::load_scene(directory / session.scene));
   const geometry::Scene& scene = *loaded;
   if (scene.landmarks.empty())
-    throw geometry::InputError(scene.file.string() + ": landmarks: none (nothing to evaluate)");
+    throw base::InputError(scene.file.string() + ": landmarks: none (nothing to evaluate)");
   const deform::SceneDeformer deformer(scene, options.deform);
   geometry::Polyline true_device;
   for (const auto& p : geometry::read_curve(directory / session.truth->device, 2).points) true_device.push_back(p.position_lps);

@@ -99,7 +99,7 @@ struct CaseEvaluation {
   double seconds = 0.0;
 };
 
-/// Throws geometry::InputError for a session without ground truth or with unreadable
+/// Throws base::InputError for a session without ground truth or with unreadable
 /// files. `progress(done, total)` after each frame.
 CaseEvaluation evaluate_session(const std::filesystem::path& session, const EvaluationOptions& options = {},
                                 const std::function<void(std::size_t, std::size_t)>& progress = {});

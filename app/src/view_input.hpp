@@ -5,7 +5,7 @@
 #include <fstream>
 
 #include "evar/geometry/carm_projection.hpp"
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_file.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 
 namespace evar::app {
@@ -17,7 +17,7 @@ inline bool is_dicom_file(const std::filesystem::path& path) {
 }
 
 inline geometry::CArmView read_view(const std::filesystem::path& path) {
-  geometry::check_input_file(path, geometry::kDicomLimit);  // before opening: a FIFO would block
+  base::check_input_file(path, base::kDicomLimit);  // before opening: a FIFO would block
   return is_dicom_file(path) ? geometry::read_xa_dicom(path).view : geometry::read_view_geometry(path);
 }
 

@@ -17,7 +17,7 @@
 #include "evar/deform/registration_tether.hpp"
 #include "evar/base/elapsed.hpp"
 #include "evar/geometry/closest_point.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 
 namespace evar::deform {
 namespace {
@@ -97,7 +97,7 @@ std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformO
     };
     std::vector<Eigen::Vector3d> corners;
     for (Eigen::Index k = 0; k < mesh.V.rows(); ++k) corners.emplace_back(mesh.V.row(k).transpose());
-    throw geometry::InputError(v.centerline_path.string() + ": the centerline of vessel '" + v.name +
+    throw base::InputError(v.centerline_path.string() + ": the centerline of vessel '" + v.name +
                                "' does not run inside its mesh " + v.mesh_path.string() +
                                " (no slicing plane hit the wall). The mesh spans " + box(corners) +
                                " mm, the centerline " + box(v.centerline) +
@@ -285,15 +285,15 @@ const geometry::Vertices* warm_start(const SceneDeformation* previous, std::size
 }
 
 void check_device(const geometry::Polyline& device) {
-  if (device.size() < 2) throw geometry::InputError("device: the curve has " + std::to_string(device.size()) +
+  if (device.size() < 2) throw base::InputError("device: the curve has " + std::to_string(device.size()) +
                                                     " point(s); at least 2 are needed");
   for (std::size_t i = 0; i < device.size(); ++i)
-    if (!device[i].allFinite()) throw geometry::InputError("device: point " + std::to_string(i) + " is not finite");
+    if (!device[i].allFinite()) throw base::InputError("device: point " + std::to_string(i) + " is not finite");
   const double length = geometry::arc_lengths(device).back();
-  if (length <= 0.0) throw geometry::InputError("device: all points coincide");
+  if (length <= 0.0) throw base::InputError("device: all points coincide");
   // Guidewires are at most a few metres long; more means a stray control point.
   if (length > 1e4)
-    throw geometry::InputError("device: the curve is " + std::to_string(length) +
+    throw base::InputError("device: the curve is " + std::to_string(length) +
                                " mm long; at most 10000 mm is plausible (a stray control point?)");
 }
 
@@ -354,7 +354,7 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
     throw std::invalid_argument("deform options: coarse_knot_spacing_mm must be 0 (none) or a positive length");
   if (std::none_of(scene.vessels.begin(), scene.vessels.end(),
                    [](const geometry::Vessel& v) { return v.kind == geometry::VesselKind::Aorta; }))
-    throw geometry::InputError(scene.file.string() + ": the scene has no vessel of kind \"aorta\"");
+    throw base::InputError(scene.file.string() + ": the scene has no vessel of kind \"aorta\"");
   const auto& aorta = *std::find_if(scene.vessels.begin(), scene.vessels.end(),
                                     [](const geometry::Vessel& v) { return v.kind == geometry::VesselKind::Aorta; });
   // Where each iliac begins, against the aortic lumen (a closed aortic mesh has one).
@@ -367,7 +367,7 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
     if (v.kind == geometry::VesselKind::Iliac &&
         geometry::project_onto(aorta.centerline, v.centerline.front()).distance_mm >
             geometry::project_onto(aorta.centerline, v.centerline.back()).distance_mm)
-      throw geometry::InputError(v.centerline_path.string() + ": the centerline of iliac '" + v.name +
+      throw base::InputError(v.centerline_path.string() + ": the centerline of iliac '" + v.name +
                                  "' runs toward the aorta; it must run from the bifurcation to the distal end");
     models_.push_back(make_model(v, options_));
     if (v.kind == geometry::VesselKind::Iliac) {
@@ -379,7 +379,7 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
       if (aortic_lumen && !aortic_lumen->contains(start) && gap > allowed) {
         char text[64];
         std::snprintf(text, sizeof text, "%.1f mm (at most %.1f)", gap, allowed);
-        throw geometry::InputError(v.centerline_path.string() + ": iliac '" + v.name + "' begins " + text +
+        throw base::InputError(v.centerline_path.string() + ": iliac '" + v.name + "' begins " + text +
                                    " outside the aorta " + aorta.mesh_path.string() +
                                    "; its centerline must start at the bifurcation, inside or at the aortic wall");
       }
@@ -399,7 +399,7 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
       if (lb.on.back().distance_mm < nearest_mm) nearest_mm = lb.on.back().distance_mm, lb.vessel = i;
     }
     if (nearest_mm > kMaxLandmarkDistanceMm)
-      throw geometry::InputError(scene.landmarks_path.string() + ": landmark '" + lm.label + "' is " +
+      throw base::InputError(scene.landmarks_path.string() + ": landmark '" + lm.label + "' is " +
                                  std::to_string(nearest_mm) + " mm from the nearest vessel surface (at most " +
                                  std::to_string(kMaxLandmarkDistanceMm) + " mm expected)");
     landmark_bindings_.push_back(std::move(lb));
@@ -520,7 +520,7 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
       }
     char approach[32];
     std::snprintf(approach, sizeof approach, "%.1f", nearest);
-    throw geometry::InputError("device: no part of the device lies in any vessel (closest approach " +
+    throw base::InputError("device: no part of the device lies in any vessel (closest approach " +
                                std::string(approach) + " mm to the centerline of '" + which +
                                "'); check where the device came from (its file, or the views and C-arm "
                                "geometry it was reconstructed from) and the CT to C-arm registration");
@@ -581,7 +581,7 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
     r.timings.control_points_ms = ms_since(t0);
     const bool carries = static_cast<int>(i) == device_iliac;
     if (carries && bound.empty())
-      throw geometry::InputError(v.mesh_path.string() + ": no vertex of iliac '" + v.name + "' lies within " +
+      throw base::InputError(v.mesh_path.string() + ": no vertex of iliac '" + v.name + "' lies within " +
                                  std::to_string(options.bind_length_mm) +
                                  " mm of its centerline's proximal end, so it cannot be bound to the aorta");
     auto& V_out = out.vessels[i].mesh.V;

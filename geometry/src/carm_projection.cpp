@@ -9,7 +9,8 @@
 #include <stdexcept>
 #include <string>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/atomic_file.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/json_fields.hpp"
 #include "mesh_formats.hpp"
 
@@ -169,7 +170,7 @@ void write_view_geometry(const std::filesystem::path& path, const CArmView& view
     }
     j["projection_matrix"] = rows;
   }
-  detail::write_file(path, j.dump(2) + "\n");
+  base::write_file_atomically(path, j.dump(2) + "\n");
 }
 
 Eigen::Matrix4d read_registration(const std::filesystem::path& path) {

@@ -1,6 +1,6 @@
 #include "evar/geometry/image_header.hpp"
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 
 namespace evar::geometry {
 namespace {
@@ -18,7 +18,7 @@ class Bytes {
     return big_endian ? (u16(at, true) << 16) | u16(at + 2, true) : u16(at, false) | (u16(at + 2, false) << 16);
   }
   [[noreturn]] void fail(std::size_t at, const std::string& what) const {
-    throw InputError(source_ + ": " + format_ + " header, byte " + std::to_string(at) + ": " + what);
+    throw base::InputError(source_ + ": " + format_ + " header, byte " + std::to_string(at) + ": " + what);
   }
 
  private:
@@ -86,14 +86,14 @@ ImageHeader read_image_header(std::string_view bytes, const std::string& source)
   else if (starts(std::string_view("MM\0*", 4))) h = tiff(Bytes(bytes, source, "TIFF"), true);
   else if (starts("\xFF\xD8")) h = jpeg(Bytes(bytes, source, "JPEG"));
   else if (starts(std::string_view("II+\0", 4)) || starts(std::string_view("MM\0+", 4)))
-    throw InputError(source + ": a BigTIFF file; only classic TIFF, PNG and JPEG images are read");
+    throw base::InputError(source + ": a BigTIFF file; only classic TIFF, PNG and JPEG images are read");
   else
-    throw InputError(source + ": not a PNG, TIFF or JPEG image (those are the image formats read)");
+    throw base::InputError(source + ": not a PNG, TIFF or JPEG image (those are the image formats read)");
   if (h.width < 1 || h.height < 1)
-    throw InputError(source + ": the " + h.format + " header declares " + std::to_string(h.width) + " x " +
+    throw base::InputError(source + ": the " + h.format + " header declares " + std::to_string(h.width) + " x " +
                      std::to_string(h.height) + " pixels");
   if (h.width > kMaxImageSidePx || h.height > kMaxImageSidePx || h.width * h.height > kMaxImagePixels)
-    throw InputError(source + ": the " + h.format + " header declares " + std::to_string(h.width) + " x " +
+    throw base::InputError(source + ": the " + h.format + " header declares " + std::to_string(h.width) + " x " +
                      std::to_string(h.height) + " pixels; at most " + std::to_string(kMaxImageSidePx) +
                      " per side and " + std::to_string(kMaxImagePixels) + " in all are read");
   return h;

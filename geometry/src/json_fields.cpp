@@ -3,7 +3,7 @@
 #include <cmath>
 #include <sstream>
 
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_file.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry::detail {
@@ -15,7 +15,7 @@ void bad_field(const std::filesystem::path& file, const std::string& field, cons
 }
 
 json parse_json_file(const std::filesystem::path& file) {
-  const std::string text = read_input_file(file, kJsonLimit);
+  const std::string text = base::read_input_file(file, base::kJsonLimit);
   try {
     return json::parse(text);
   } catch (const json::exception& e) {

@@ -1,5 +1,6 @@
 // 3D Slicer markups JSON (.mrk.json), read into LPS millimetres and written as LPS.
 #include "evar/geometry/markups.hpp"
+#include "evar/base/atomic_file.hpp"
 #include "evar/geometry/triangle_mesh.hpp"
 
 #include <cmath>
@@ -8,7 +9,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/json_fields.hpp"
 #include "mesh_formats.hpp"
 
@@ -226,7 +227,7 @@ void write_markups(const std::filesystem::path& path, const std::vector<Markup>&
   }
   const ordered root = {{"@schema", kSchema}, {"markups", std::move(list)}};
   // Invalid UTF-8 in a label must not abort the write; it is replaced with U+FFFD.
-  detail::write_file(path, root.dump(4, ' ', false, ordered::error_handler_t::replace) + "\n");
+  base::write_file_atomically(path, root.dump(4, ' ', false, ordered::error_handler_t::replace) + "\n");
 }
 
 }  // namespace evar::geometry

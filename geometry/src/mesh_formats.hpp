@@ -9,7 +9,7 @@
 #include <string>
 #include <string_view>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/triangle_mesh.hpp"
 
@@ -55,9 +55,6 @@ NumberParse parse_number(std::string_view token, T& value) {
 
 /// Throws InputError "<path>: <what>".
 [[noreturn]] void fail(const std::filesystem::path& path, const std::string& what);
-
-/// Writes `bytes` to `path`; std::runtime_error naming the path if that fails.
-void write_file(const std::filesystem::path& path, std::string_view bytes);
 
 /// std::invalid_argument if a face index is outside [0, #V): writers index V with them.
 void check_indices_for_writing(const TriangleMesh& mesh, const std::filesystem::path& path);

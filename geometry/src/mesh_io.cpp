@@ -8,7 +8,7 @@
 #include <fstream>
 #include <stdexcept>
 
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_file.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry {
@@ -26,17 +26,7 @@ std::string quoted(std::string_view token) {
 }
 
 void fail(const std::filesystem::path& path, const std::string& what) {
-  throw InputError(path.string() + ": " + what);
-}
-
-void write_file(const std::filesystem::path& path, std::string_view bytes) {
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) {
-    throw std::runtime_error(path.string() + ": cannot open for writing: " + std::strerror(errno));
-  }
-  out.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  out.close();
-  if (!out) throw std::runtime_error(path.string() + ": write failed");
+  throw base::InputError(path.string() + ": " + what);
 }
 
 void check_indices_for_writing(const TriangleMesh& mesh, const std::filesystem::path& path) {
@@ -72,7 +62,7 @@ LoadedMesh read_mesh(const std::filesystem::path& path) {
     detail::fail(path, "unknown mesh extension '" + path.extension().string() +
                            "' (expected .stl, .ply, .obj or .vtk)");
   }
-  const std::string bytes = read_input_file(path, kMeshLimit);
+  const std::string bytes = base::read_input_file(path, base::kMeshLimit);
   LoadedMesh loaded = ext == ".stl"   ? detail::read_stl(path, bytes)
                       : ext == ".ply" ? detail::read_ply(path, bytes)
                       : ext == ".vtk" ? detail::read_vtk(path, bytes)

@@ -7,7 +7,7 @@
 #include <string>
 #include <vector>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/triangle_mesh.hpp"
 
 namespace evar::geometry {
@@ -15,7 +15,7 @@ namespace evar::geometry {
 namespace {
 
 [[noreturn]] void reject(std::string_view source, const std::string& what) {
-  throw InputError(std::string(source) + ": " + what);
+  throw base::InputError(std::string(source) + ": " + what);
 }
 
 std::uint64_t edge_key(int a, int b) {

@@ -13,6 +13,7 @@
 #include <vector>
 
 #include "mesh_formats.hpp"
+#include "evar/base/atomic_file.hpp"
 
 namespace evar::geometry::detail {
 
@@ -164,7 +165,7 @@ void write_obj(const std::filesystem::path& path, const TriangleMesh& mesh, std:
     }
     out += '\n';
   }
-  write_file(path, out);
+  base::write_file_atomically(path, out);
 }
 
 }  // namespace evar::geometry::detail

@@ -19,6 +19,7 @@
 #include <vector>
 
 #include "mesh_formats.hpp"
+#include "evar/base/atomic_file.hpp"
 
 namespace evar::geometry::detail {
 
@@ -597,7 +598,7 @@ void write_ply(const std::filesystem::path& path, const TriangleMesh& mesh, bool
       out += '\n';
     }
   }
-  write_file(path, out);
+  base::write_file_atomically(path, out);
 }
 
 }  // namespace evar::geometry::detail

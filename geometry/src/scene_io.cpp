@@ -1,5 +1,6 @@
 // scene.json ("evarnode-scene" version 1): the patient's vessels, landmarks and device.
 #include "evar/geometry/scene.hpp"
+#include "evar/base/atomic_file.hpp"
 #include "evar/geometry/polyline.hpp"
 
 #include <cctype>
@@ -10,7 +11,7 @@
 
 #include <nlohmann/json.hpp>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/json_fields.hpp"
 #include "mesh_formats.hpp"
 
@@ -82,7 +83,7 @@ template <class F>
 auto loading(const fs::path& scene, const std::string& field, F&& load) {
   try {
     return load();
-  } catch (const InputError& e) {
+  } catch (const base::InputError& e) {
     bad(scene, field, e.what());
   }
 }
@@ -228,7 +229,7 @@ void write_scene_manifest(const std::filesystem::path& scene_json, const SceneMa
                   {"vessels", std::move(vessels)}};
   if (!manifest.landmarks.empty()) root["landmarks"] = manifest.landmarks;
   root["device_thickness_mm"] = manifest.device_thickness_mm;
-  detail::write_file(scene_json, root.dump(2, ' ', false, ordered::error_handler_t::replace) + "\n");
+  base::write_file_atomically(scene_json, root.dump(2, ' ', false, ordered::error_handler_t::replace) + "\n");
 }
 
 std::filesystem::path copy_scene(const Scene& scene, const std::filesystem::path& directory) {

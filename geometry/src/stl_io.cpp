@@ -24,6 +24,7 @@
 #include <assimp/scene.h>
 
 #include "mesh_formats.hpp"
+#include "evar/base/atomic_file.hpp"
 
 namespace evar::geometry::detail {
 
@@ -311,7 +312,7 @@ LoadedMesh read_stl(const std::filesystem::path& path, std::string_view bytes) {
   if (starts_with_solid(bytes)) {
     try {
       return {AsciiStlParser(path, bytes).parse(), MeshFormat::StlAscii};
-    } catch (const InputError&) {
+    } catch (const base::InputError&) {
       // A damaged binary file whose header says "solid" is better reported as binary.
       if (!binary_size_ok && !looks_binary) throw;
     }
@@ -374,7 +375,7 @@ void write_stl(const std::filesystem::path& path, const TriangleMesh& mesh, bool
     }
     out += "endsolid evarnode\n";
   }
-  write_file(path, out);
+  base::write_file_atomically(path, out);
 }
 
 }  // namespace evar::geometry::detail

@@ -22,6 +22,7 @@
 #include <vector>
 
 #include "mesh_formats.hpp"
+#include "evar/base/atomic_file.hpp"
 
 namespace evar::geometry::detail {
 
@@ -551,7 +552,7 @@ void write_vtk(const std::filesystem::path& path, const TriangleMesh& mesh, bool
     }
   }
   if (binary) out += '\n';
-  write_file(path, out);
+  base::write_file_atomically(path, out);
 }
 
 }  // namespace evar::geometry::detail

@@ -17,8 +17,8 @@
 #include <string>
 #include <vector>
 
-#include "evar/geometry/input_error.hpp"
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_error.hpp"
+#include "evar/base/input_file.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry {
@@ -132,7 +132,7 @@ void ok(const OFCondition& c, const std::string& what) {
 
 XaFrame read_xa_dicom(const std::filesystem::path& path, int frame) {
   register_decoders();
-  check_input_file(path, kDicomLimit);
+  base::check_input_file(path, base::kDicomLimit);
   DcmFileFormat file;
   if (const OFCondition c = file.loadFile(OFFilename(path.c_str())); c.bad())
     detail::fail(path, std::string("not a readable DICOM file: ") + c.text());

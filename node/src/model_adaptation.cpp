@@ -7,7 +7,7 @@
 #include <numeric>
 
 #include "evar/base/elapsed.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 
 namespace evar::node {
 
@@ -118,7 +118,7 @@ AdaptedModel adapt_model(const deform::SceneDeformer& deformer, const ViewPair& 
   t0 = std::chrono::steady_clock::now();
   try {
     m.deformation = deformer.deform(r.points, previous);
-  } catch (const geometry::InputError& e) {
+  } catch (const base::InputError& e) {
     throw AdaptationError(std::string("deformation refused the device: ") + e.what());
   } catch (const std::runtime_error& e) {
     throw AdaptationError(std::string("deformation failed: ") + e.what());

@@ -15,6 +15,7 @@
 #include <stdexcept>
 #include <string>
 #include <utility>
+#include "evar/geometry/image_file.hpp"
 #include "image_mat.hpp"
 
 namespace evar::overlay {
@@ -686,22 +687,9 @@ Image render_comparison(const ComparisonPicture& picture, const PreviewOptions& 
 }
 
 void write_png(const std::filesystem::path& path, const Image& image) {
-  // Encode in memory and write ourselves: the format does not depend on the extension and
-  // a failure can name its reason (imwrite only returns false).
-  std::vector<std::uint8_t> png;
-  if (!cv::imencode(".png", detail::wrap(image), png))
-    throw std::runtime_error("write_png: PNG encoding failed for " + path.string());
-  std::ofstream out(path, std::ios::binary | std::ios::trunc);
-  if (!out) throw std::runtime_error("write_png: cannot open " + path.string() + " for writing: " + std::strerror(errno));
-  out.write(reinterpret_cast<const char*>(png.data()), static_cast<std::streamsize>(png.size()));
-  out.close();
-  if (!out) {
-    // A full disk leaves a truncated file: not a picture, so not left behind as one (only
-    // a regular file: a device or pipe written to is not ours to remove).
-    std::error_code ignored;
-    if (std::filesystem::is_regular_file(path, ignored)) std::filesystem::remove(path, ignored);
-    throw std::runtime_error("write_png: writing " + path.string() + " failed (disk full?)");
-  }
+  // PNG whatever the extension; a failure names the file and its reason, and leaves no
+  // truncated picture behind.
+  geometry::write_image_file(path, detail::wrap(image), {.format = ".png"});
 }
 
 void write_comparison_png(const std::filesystem::path& path, const ComparisonPicture& picture,

@@ -11,8 +11,8 @@
 #include <type_traits>
 #include <vector>
 
-#include "evar/geometry/input_error.hpp"
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_error.hpp"
+#include "evar/base/input_file.hpp"
 
 namespace evar::session::detail {
 
@@ -23,7 +23,7 @@ inline constexpr std::size_t kMaxRowBytes = 4096;
 inline constexpr std::size_t kMaxQuotedChars = 40;
 
 [[noreturn]] inline void fail(const std::filesystem::path& file, std::size_t line, const std::string& what) {
-  throw geometry::InputError(file.string() + (line ? ":" + std::to_string(line) : std::string()) + ": " + what);
+  throw base::InputError(file.string() + (line ? ":" + std::to_string(line) : std::string()) + ": " + what);
 }
 
 /// `text` for a message: at most kMaxQuotedChars characters (then "..."), anything but
@@ -63,7 +63,7 @@ enum class CutLastLine { Refuse, Skip };
 /// cut last line was skipped.
 template <class Row>
 bool for_each_row(const std::filesystem::path& file, const char* header, std::size_t fields, CutLastLine cut, Row row) {
-  const std::string text = geometry::read_input_file(file, geometry::kTableLimit);
+  const std::string text = base::read_input_file(file, base::kTableLimit);
   std::size_t start = 0, line = 0;
   bool skipped = false;
   while (start < text.size() || line == 0) {

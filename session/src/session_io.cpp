@@ -12,11 +12,12 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "csv_table.hpp"
+#include "evar/base/atomic_file.hpp"
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/image_file.hpp"
 #include "evar/geometry/image_header.hpp"
-#include "evar/geometry/input_error.hpp"
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_error.hpp"
+#include "evar/base/input_file.hpp"
 #include "evar/geometry/json_fields.hpp"
 
 namespace evar::session {
@@ -74,7 +75,7 @@ bool resolves_inside(const fs::path& root, const fs::path& full) {
 fs::path canonical_root(const fs::path& directory) {
   std::error_code ec;
   fs::path root = fs::weakly_canonical(directory, ec);
-  if (ec) throw geometry::InputError(directory.string() + ": cannot resolve the session directory (" + ec.message() + ")");
+  if (ec) throw base::InputError(directory.string() + ": cannot resolve the session directory (" + ec.message() + ")");
   return root;
 }
 
@@ -114,12 +115,7 @@ bool has_frame(const std::vector<FrameRecord>& frames, std::int64_t frame) {
   return at != frames.end() && at->frame == frame;
 }
 
-void write_text(const fs::path& file, const std::string& text) {
-  std::ofstream out(file, std::ios::binary);
-  out << text;
-  out.close();
-  if (!out) throw std::runtime_error(file.string() + ": cannot write (disk full?)");
-}
+void write_text(const fs::path& file, const std::string& text) { base::write_file_atomically(file, text); }
 
 }  // namespace
 
@@ -276,7 +272,8 @@ void write_session_frame(const std::filesystem::path& directory, const FrameReco
     throw std::invalid_argument("write_session: frame " + std::to_string(f.frame) + ": " + problem);
   const fs::path out = directory / "frames" / f.file;
   fs::create_directories(out.parent_path());
-  if (!cv::imwrite(out.string(), image, {cv::IMWRITE_PNG_COMPRESSION, 1})) throw std::runtime_error(out.string() + ": cannot write");
+  // Not synced one by one: a recording syncs its frames' folder when it finishes.
+  geometry::write_image_file(out, image, {".png", {cv::IMWRITE_PNG_COMPRESSION, 1}, base::Durability::Deferred});
 }
 
 void write_session_files(const std::filesystem::path& directory, const Session& session) {
@@ -324,7 +321,7 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
     write_text(file, nlohmann::json{{"matrix", rows}}.dump(2) + "\n");
     try {
       geometry::read_registration(file);
-    } catch (const geometry::InputError& e) {
+    } catch (const base::InputError& e) {
       refuse(what + ": " + e.what());
     }
   };
@@ -446,34 +443,23 @@ ExportSummary export_plus_sequence(const Session& session, const std::filesystem
   }
   h << "ElementDataFile = LOCAL\n";
 
-  // Written beside the target and renamed over it: a failure leaves no partial sequence.
-  std::filesystem::path partial = mha;
-  partial += ".partial";
-  try {
-    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
-    if (!out) throw std::runtime_error(partial.string() + ": cannot create");
-    out << h.str();
-    std::vector<char> row(static_cast<std::size_t>(W) * 2);
-    for (std::size_t i = 0; i < session.frames.size(); ++i) {
-      const cv::Mat image = read_session_frame(session, i);
-      for (int r = 0; r < H; ++r) {
-        const auto* px = image.ptr<std::uint16_t>(r);
-        for (int c = 0; c < W; ++c) {  // little endian, whatever the host
-          row[2 * static_cast<std::size_t>(c)] = static_cast<char>(px[c] & 0xff);
-          row[2 * static_cast<std::size_t>(c) + 1] = static_cast<char>(px[c] >> 8);
-        }
-        out.write(row.data(), static_cast<std::streamsize>(row.size()));
+  // Through an AtomicFile: a failure (a bad frame half-way) leaves no partial sequence.
+  base::AtomicFile out(mha);
+  out.write(h.str());
+  std::vector<char> row(static_cast<std::size_t>(W) * 2);
+  for (std::size_t i = 0; i < session.frames.size(); ++i) {
+    const cv::Mat image = read_session_frame(session, i);
+    for (int r = 0; r < H; ++r) {
+      const auto* px = image.ptr<std::uint16_t>(r);
+      for (int c = 0; c < W; ++c) {  // little endian, whatever the host
+        row[2 * static_cast<std::size_t>(c)] = static_cast<char>(px[c] & 0xff);
+        row[2 * static_cast<std::size_t>(c) + 1] = static_cast<char>(px[c] >> 8);
       }
-      if (progress) progress(i + 1, session.frames.size());
+      out.write({row.data(), row.size()});
     }
-    out.close();
-    if (!out) throw std::runtime_error(partial.string() + ": cannot write (disk full?)");
-    std::filesystem::rename(partial, mha);
-  } catch (...) {
-    std::error_code ignored;
-    std::filesystem::remove(partial, ignored);
-    throw;
+    if (progress) progress(i + 1, session.frames.size());
   }
+  out.commit();
   return summary;
 }
 

@@ -19,10 +19,11 @@
 
 #include "csv_table.hpp"
 #include "evar/acquisition/clock_offset.hpp"
+#include "evar/base/atomic_file.hpp"
 #include "evar/base/unique_fd.hpp"
 #include "evar/geometry/image_header.hpp"
-#include "evar/geometry/input_error.hpp"
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_error.hpp"
+#include "evar/base/input_file.hpp"
 #include "evar/geometry/json_fields.hpp"
 #include "evar/geometry/scene.hpp"
 
@@ -184,18 +185,9 @@ std::string journal_carm_row(const CArmState& s) {
          "\n";
 }
 
-// Written beside and renamed over, so a recorder killed while writing leaves the last
-// whole report.
+// Through an AtomicFile, so a recorder killed while writing leaves the last whole report.
 void write_json_file(const fs::path& file, const nlohmann::ordered_json& j) {
-  fs::path partial = file;
-  partial += ".partial";
-  {
-    std::ofstream out(partial, std::ios::binary | std::ios::trunc);
-    out << j.dump(2) << "\n";
-    out.close();
-    if (!out) throw std::runtime_error(partial.string() + ": cannot write (disk full?)");
-  }
-  fs::rename(partial, file);
+  base::write_file_atomically(file, j.dump(2) + "\n");
 }
 
 RecordingSettings read_settings(const fs::path& file) {
@@ -229,7 +221,7 @@ bool whole_png(const fs::path& file, int cols, int rows) {
   try {
     const geometry::ImageHeader h = geometry::read_image_header(head, file.string());
     if (h.format != "PNG" || h.width != cols || h.height != rows) return false;
-  } catch (const geometry::InputError&) {
+  } catch (const base::InputError&) {
     return false;
   }
   static constexpr unsigned char kIend[12] = {0, 0, 0, 0, 'I', 'E', 'N', 'D', 0xAE, 0x42, 0x60, 0x82};
@@ -582,8 +574,8 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
   const fs::path journal = journal_of(directory);
   if (!fs::is_directory(journal)) {
     if (fs::is_regular_file(directory / "session.json"))
-      throw geometry::InputError(directory.string() + ": a finished session (session.json and no journal/); nothing to recover");
-    throw geometry::InputError(journal.string() + ": no recording journal here; recover the --out directory of `evarnode record`");
+      throw base::InputError(directory.string() + ": a finished session (session.json and no journal/); nothing to recover");
+    throw base::InputError(journal.string() + ": no recording journal here; recover the --out directory of `evarnode record`");
   }
   const RecordingSettings settings = read_settings(journal / "recording.json");
   RecoveredRecording result;
@@ -646,7 +638,7 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
   // The report the recorder last wrote, said to be recovered (or a new one if it never wrote one).
   nlohmann::ordered_json report;
   try {
-    report = nlohmann::ordered_json::parse(geometry::read_input_file(directory / "record_report.json", geometry::kJsonLimit));
+    report = nlohmann::ordered_json::parse(base::read_input_file(directory / "record_report.json", base::kJsonLimit));
   } catch (const std::exception&) {  // missing or cut: a new one
   }
   if (!report.is_object()) report = {{"format", "evarnode-record-report"}, {"version", 1}};

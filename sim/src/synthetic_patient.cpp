@@ -7,6 +7,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "evar/base/atomic_file.hpp"
 #include "evar/sim/conforming_distortion.hpp"
 #include "seeded_uniform.hpp"
 
@@ -150,9 +151,7 @@ void write_patient(const SyntheticPatient& patient, const std::filesystem::path&
                        {"contact_rounds", patient.truth.rounds}, {"mesh_passes", patient.truth.mesh_passes},
                        {"max_intrusion_mm", patient.truth.max_intrusion_mm},
                        {"vessels", vessels}};
-  std::ofstream f(dir / "patient.json");
-  f << j.dump(2) << '\n';
-  if (!f) throw std::runtime_error("write_patient: cannot write " + (dir / "patient.json").string());
+  base::write_file_atomically(dir / "patient.json", j.dump(2) + "\n");
 }
 
 }  // namespace evar::sim

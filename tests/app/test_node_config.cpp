@@ -9,7 +9,7 @@
 #include <fstream>
 #include <string>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "node_config.hpp"
 #include "support/error_message.hpp"
 

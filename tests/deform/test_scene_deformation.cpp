@@ -2,7 +2,7 @@
 
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/closest_point.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/ray_caster.hpp"
 #include "evar/geometry/scene.hpp"
@@ -170,16 +170,16 @@ TEST(SceneDeformation, DeviceFarFromEveryVesselIsAClearError) {
   const std::vector<Eigen::Vector3d> device{{500, 500, 0}, {520, 500, 0}};
   try {
     deform::deform_scene(scene, device);
-    FAIL() << "expected an InputError";
-  } catch (const geometry::InputError& e) {
+    FAIL() << "expected an evar::base::InputError";
+  } catch (const base::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("no part of the device lies in any vessel"), std::string::npos) << e.what();
   }
 }
 
 TEST(SceneDeformation, EmptyOrNonFiniteDeviceIsAClearError) {
   const auto scene = sim::to_scene(example());
-  EXPECT_THROW(deform::deform_scene(scene, {}), geometry::InputError);
-  EXPECT_THROW(deform::deform_scene(scene, {{0, 0, 0}, {NAN, 0, 0}}), geometry::InputError);
+  EXPECT_THROW(deform::deform_scene(scene, {}), base::InputError);
+  EXPECT_THROW(deform::deform_scene(scene, {{0, 0, 0}, {NAN, 0, 0}}), base::InputError);
 }
 
 TEST(SceneDeformation, TetherKeepsLandmarksFarFromTheDeviceWhereRegistrationPutThem) {
@@ -334,7 +334,7 @@ TEST(SceneDeformation, AnIliacThatBeginsOutsideTheAortaIsRefusedByName) {
   try {
     (void)deform::SceneDeformer(scene);
     ADD_FAILURE() << "an iliac 40 mm from the aorta was bound to it";
-  } catch (const geometry::InputError& e) {
+  } catch (const base::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("iliac 'iliac_right' begins"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("outside the aorta"), std::string::npos) << e.what();
   }
@@ -432,8 +432,8 @@ TEST(SceneDeformation, RefusesAReversedIliacCenterline) {
   std::reverse(scene.vessels[2].centerline.begin(), scene.vessels[2].centerline.end());
   try {
     deform::SceneDeformer deformer(scene);
-    FAIL() << "expected an InputError";
-  } catch (const geometry::InputError& e) {
+    FAIL() << "expected an evar::base::InputError";
+  } catch (const base::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("iliac_right.centerline.mrk.json"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("runs toward the aorta"), std::string::npos) << e.what();
   }
@@ -447,8 +447,8 @@ TEST(SceneDeformation, AMeshInOtherUnitsIsRefusedSayingWhereMeshAndCenterlineLie
   scene.vessels[0].mesh.mesh.V /= 1000.0;
   try {
     deform::SceneDeformer deformer(scene);
-    FAIL() << "expected an InputError";
-  } catch (const geometry::InputError& e) {
+    FAIL() << "expected an evar::base::InputError";
+  } catch (const base::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("does not run inside its mesh"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("The mesh spans"), std::string::npos) << e.what();
     EXPECT_NE(std::string(e.what()).find("millimetres in patient LPS"), std::string::npos) << e.what();
@@ -460,8 +460,8 @@ TEST(SceneDeformation, RefusesALandmarkFarFromEveryVessel) {
   scene.landmarks.push_back({"stray", {300.0, 0.0, 0.0}});
   try {
     deform::SceneDeformer deformer(scene);
-    FAIL() << "expected an InputError";
-  } catch (const geometry::InputError& e) {
+    FAIL() << "expected an evar::base::InputError";
+  } catch (const base::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("landmark 'stray'"), std::string::npos) << e.what();
   }
 }
@@ -472,8 +472,8 @@ TEST(SceneDeformation, RefusesADeviceWithAStrayFarPoint) {
   device.insert(device.begin() + 10, Eigen::Vector3d(9e4, 0.0, 0.0));
   try {
     deform::deform_scene(scene, device);
-    FAIL() << "expected an InputError";
-  } catch (const geometry::InputError& e) {
+    FAIL() << "expected an evar::base::InputError";
+  } catch (const base::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("stray control point"), std::string::npos) << e.what();
   }
 }

@@ -1,7 +1,7 @@
 #pragma once
 // Shared by the fuzz harnesses: the input as files in a private temporary folder (the
 // parsers under test read files), and the rule every harness enforces: a parser may
-// reject its input only with geometry::InputError, whose message names the file.
+// reject its input only with base::InputError, whose message names the file.
 #include <unistd.h>
 
 #include <cstdint>
@@ -16,7 +16,7 @@
 #include <typeinfo>
 #include <vector>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 
 namespace evar::fuzz {
 
@@ -68,10 +68,10 @@ template <typename Parse>
 void expect_input_error_only(Parse&& parse) {
   try {
     parse();
-  } catch (const geometry::InputError&) {
+  } catch (const base::InputError&) {
     throw;
   } catch (const std::exception& e) {
-    std::fprintf(stderr, "not an InputError (%s): %s\n", typeid(e).name(), e.what());
+    std::fprintf(stderr, "not an evar::base::InputError (%s): %s\n", typeid(e).name(), e.what());
     std::abort();
   }
 }
@@ -81,9 +81,9 @@ template <typename Parse>
 void expect_clean_rejection(const std::filesystem::path& file, Parse&& parse) {
   try {
     expect_input_error_only(parse);
-  } catch (const geometry::InputError& e) {
+  } catch (const base::InputError& e) {
     if (std::string_view(e.what()).find(file.filename().string()) == std::string_view::npos) {
-      std::fprintf(stderr, "InputError without the file name %s: %s\n", file.filename().c_str(), e.what());
+      std::fprintf(stderr, "evar::base::InputError without the file name %s: %s\n", file.filename().c_str(), e.what());
       std::abort();
     }
   }
@@ -94,7 +94,7 @@ template <typename Parse>
 void expect_rejection_as_input_error(Parse&& parse) {
   try {
     expect_input_error_only(parse);
-  } catch (const geometry::InputError&) {
+  } catch (const base::InputError&) {
   }
 }
 

@@ -6,7 +6,7 @@
 #include <unistd.h>
 
 #include "evar/geometry/carm_projection.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 
 using namespace evar::geometry;
 namespace fs = std::filesystem;
@@ -173,7 +173,7 @@ TEST(CArmProjection, BadViewGeometryNamesTheField) {
     write(dir / "bad.json", text);
     try {
       read_view_geometry(dir / "bad.json");
-    } catch (const InputError& e) {
+    } catch (const evar::base::InputError& e) {
       return std::string(e.what());
     }
     return std::string("no error");
@@ -207,7 +207,7 @@ TEST(CArmProjection, RegistrationFileIsCheckedForMirrorsAndScale) {
     write(dir / "t.json", text);
     try {
       read_registration(dir / "t.json");
-    } catch (const InputError& e) {
+    } catch (const evar::base::InputError& e) {
       return std::string(e.what());
     }
     return std::string("no error");

@@ -8,12 +8,12 @@
 #include <opencv2/imgcodecs.hpp>
 
 #include "evar/geometry/image_file.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
 
 namespace fs = std::filesystem;
-using evar::geometry::InputError;
+using evar::base::InputError;
 using evar::geometry::read_image_file;
 using testing::HasSubstr;
 

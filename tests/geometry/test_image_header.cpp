@@ -12,7 +12,7 @@
 
 #include "evar/geometry/image_file.hpp"
 #include "evar/geometry/image_header.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
 

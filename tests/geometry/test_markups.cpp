@@ -13,12 +13,12 @@
 
 #include <nlohmann/json.hpp>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/markups.hpp"
 
 namespace fs = std::filesystem;
 using evar::geometry::ControlPoint;
-using evar::geometry::InputError;
+using evar::base::InputError;
 using evar::geometry::Markup;
 using evar::geometry::read_curve;
 using evar::geometry::read_fiducials;
@@ -45,10 +45,10 @@ fs::path write_text(const fs::path& path, const std::string& text) {
 std::string markups_error(const fs::path& path) {
   try {
     read_markups(path);
-  } catch (const InputError& e) {
+  } catch (const evar::base::InputError& e) {
     return e.what();
   }
-  ADD_FAILURE() << "read_markups(" << path << ") did not throw InputError";
+  ADD_FAILURE() << "read_markups(" << path << ") did not throw evar::base::InputError";
   return {};
 }
 
@@ -144,7 +144,7 @@ TEST(ReadCurve, RefusesFilesWithoutACurveOrWithTooFewPoints) {
   try {
     read_curve(fiducials);
     ADD_FAILURE() << "no throw";
-  } catch (const InputError& e) {
+  } catch (const evar::base::InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("landmarks.mrk.json: no markup of type \"Curve\""));
     EXPECT_THAT(e.what(), HasSubstr("found: Fiducial"));
   }
@@ -154,7 +154,7 @@ TEST(ReadCurve, RefusesFilesWithoutACurveOrWithTooFewPoints) {
   try {
     read_curve(short_curve, 2);
     ADD_FAILURE() << "no throw";
-  } catch (const InputError& e) {
+  } catch (const evar::base::InputError& e) {
     EXPECT_THAT(e.what(), HasSubstr("short.mrk.json: markups[0].controlPoints: Curve 'iliac' has 1 "
                                     "control points; at least 2 are needed"));
   }

@@ -17,14 +17,14 @@
 #include <string>
 #include <vector>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/triangle_mesh.hpp"
 #include "support/file_bytes.hpp"
 
 namespace fs = std::filesystem;
 using evar::geometry::format_for_extension;
-using evar::geometry::InputError;
+using evar::base::InputError;
 using evar::geometry::LoadedMesh;
 using evar::geometry::mean_edge_length;
 using evar::geometry::MeshFormat;
@@ -52,20 +52,20 @@ fs::path test_dir() {
 std::string read_error(const fs::path& path) {
   try {
     read_mesh(path);
-  } catch (const InputError& e) {
+  } catch (const evar::base::InputError& e) {
     return e.what();
   }
-  ADD_FAILURE() << "read_mesh(" << path << ") did not throw InputError";
+  ADD_FAILURE() << "read_mesh(" << path << ") did not throw evar::base::InputError";
   return {};
 }
 
 std::string validate_error(const TriangleMesh& mesh) {
   try {
     validate_mesh(mesh, "patient7/aorta.stl");
-  } catch (const InputError& e) {
+  } catch (const evar::base::InputError& e) {
     return e.what();
   }
-  ADD_FAILURE() << "validate_mesh did not throw InputError";
+  ADD_FAILURE() << "validate_mesh did not throw evar::base::InputError";
   return {};
 }
 
@@ -628,7 +628,7 @@ TEST(FormatForExtension, ChoosesBinaryForStlAndPly) {
   EXPECT_EQ(format_for_extension("a/b.stl"), MeshFormat::StlBinary);
   EXPECT_EQ(format_for_extension("b.Ply"), MeshFormat::PlyBinary);
   EXPECT_EQ(format_for_extension("c.OBJ"), MeshFormat::Obj);
-  EXPECT_THROW(format_for_extension("d.vtp"), InputError);
+  EXPECT_THROW(format_for_extension("d.vtp"), evar::base::InputError);
 }
 
 TEST(WriteMesh, RefusesFaceIndicesOutsideTheVertices) {

@@ -10,7 +10,7 @@
 #include <sstream>
 #include <string>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "support/error_message.hpp"
 #include "support/file_bytes.hpp"

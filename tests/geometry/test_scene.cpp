@@ -11,13 +11,13 @@
 
 #include <nlohmann/json.hpp>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/scene.hpp"
 
 namespace fs = std::filesystem;
-using evar::geometry::InputError;
+using evar::base::InputError;
 using evar::geometry::load_scene;
 using evar::geometry::Markup;
 using evar::geometry::MeshFormat;
@@ -87,10 +87,10 @@ void write_json(const fs::path& file, const json& j) { std::ofstream(file) << j.
 std::string scene_error(const fs::path& file) {
   try {
     load_scene(file);
-  } catch (const InputError& e) {
+  } catch (const evar::base::InputError& e) {
     return e.what();
   }
-  ADD_FAILURE() << "load_scene(" << file << ") did not throw InputError";
+  ADD_FAILURE() << "load_scene(" << file << ") did not throw evar::base::InputError";
   return {};
 }
 

@@ -13,7 +13,7 @@
 #include <filesystem>
 #include <string>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "support/error_message.hpp"
 #include "support/file_bytes.hpp"
@@ -38,7 +38,7 @@ fs::path file_of(const TempDir& dir, const std::string& name, const std::string&
 }
 
 std::string read_error(const fs::path& path) {
-  return evar::test::error_message([&] { read_mesh(path); }, "read_mesh(" + path.string() + ") did not throw InputError");
+  return evar::test::error_message([&] { read_mesh(path); }, "read_mesh(" + path.string() + ") did not throw evar::base::InputError");
 }
 
 template <class T>

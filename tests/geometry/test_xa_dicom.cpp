@@ -12,7 +12,7 @@
 #include <fstream>
 #include <unistd.h>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "support/temp_dir.hpp"
 #include "support/error_message.hpp"
@@ -181,7 +181,7 @@ TEST(XaDicom, GarbageIsAClearErrorNotACrash) {
   const std::string bytes((std::istreambuf_iterator<char>(in)), {});
   for (std::size_t n = 0; n < bytes.size(); n += 97) {
     std::ofstream(dir.path / "cut.dcm", std::ios::binary) << bytes.substr(0, n);
-    EXPECT_THROW(read_xa_dicom(dir.path / "cut.dcm"), InputError) << "cut at " << n;
+    EXPECT_THROW(read_xa_dicom(dir.path / "cut.dcm"), evar::base::InputError) << "cut at " << n;
   }
 }
 

@@ -10,8 +10,8 @@
 #include <regex>
 #include <unistd.h>
 
-#include "evar/geometry/input_error.hpp"
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_error.hpp"
+#include "evar/base/input_file.hpp"
 #include "evar/session/session.hpp"
 #include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
@@ -77,7 +77,7 @@ std::vector<cv::Mat> export_small_session(const fs::path& dir) {
 std::string error_reading(const fs::path& dir) {
   try {
     session::read_session(dir);
-  } catch (const geometry::InputError& e) {
+  } catch (const base::InputError& e) {
     return e.what();
   }
   return "no error";
@@ -183,7 +183,7 @@ TEST(Session, AFrameOfAnotherSizeThanTheDetectorIsRefused) {
   try {
     session::read_session_frame(r, 1);
     FAIL() << "no error";
-  } catch (const geometry::InputError& e) {
+  } catch (const base::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("f1.png: 60 x 41 pixels, but the detector is 60 x 40"), std::string::npos) << e.what();
   }
 }
@@ -269,7 +269,7 @@ TEST(Session, TruncatedFilesAreClearErrorsAtEveryLength) {
   std::ofstream(dir.path / "truth" / "ostia_2d.csv", std::ios::binary | std::ios::trunc) << ostia;
   std::ofstream(dir.path / "frames" / "f0.png", std::ios::binary | std::ios::trunc) << "\x89PNG garbage";
   const auto r = session::read_session(dir.path);
-  EXPECT_THROW(session::read_session_frame(r, 0), geometry::InputError);
+  EXPECT_THROW(session::read_session_frame(r, 0), base::InputError);
 }
 
 TEST(Session, ExportsAPlusSequenceMetafileForSlicer) {
@@ -314,17 +314,17 @@ TEST(Session, AnOversizedTableOrFrameIsRefusedByNameBeforeItIsRead) {
   std::vector<cv::Mat> images;
   const auto s = small_session(images);
   session::write_session(dir.path, s, images);
-  fs::resize_file(dir.path / "carm.csv", geometry::kTableLimit.bytes + 1);  // sparse: no disk used
+  fs::resize_file(dir.path / "carm.csv", base::kTableLimit.bytes + 1);  // sparse: no disk used
   EXPECT_NE(error_reading(dir.path).find("carm.csv: is 268435457 bytes, more than the 256 MiB accepted for a CSV table"),
             std::string::npos)
       << error_reading(dir.path);
   session::write_session(dir.path, s, images);
   const auto r = session::read_session(dir.path);
-  fs::resize_file(dir.path / "frames" / "f0.png", geometry::kImageLimit.bytes + 1);
+  fs::resize_file(dir.path / "frames" / "f0.png", base::kImageLimit.bytes + 1);
   try {
     session::read_session_frame(r, 0);
     FAIL() << "no error";
-  } catch (const geometry::InputError& e) {
+  } catch (const base::InputError& e) {
     EXPECT_NE(std::string(e.what()).find("f0.png: is 268435457 bytes, more than the 256 MiB accepted for an image file"),
               std::string::npos)
         << e.what();

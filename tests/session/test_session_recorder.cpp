@@ -12,7 +12,7 @@
 #include <random>
 #include <nlohmann/json.hpp>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 #include "evar/geometry/scene.hpp"
 #include "evar/session/session_recorder.hpp"
 #include "evar/session/session_replay.hpp"
@@ -306,7 +306,7 @@ TEST_F(Recording, ARecordingKilledMidwayIsRecoveredFromItsJournal) {
   const fs::path out = root_ / "recorded";
   const int status = evar::test::record_then_kill(options(), original_);
   ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "child status " << status;
-  EXPECT_THROW(read_session(out), geometry::InputError);  // no session.json: nothing a reader takes
+  EXPECT_THROW(read_session(out), base::InputError);  // no session.json: nothing a reader takes
   if (fs::exists(out / "record_report.json")) {  // the periodic report, if one was written before the kill
     EXPECT_EQ(nlohmann::json::parse(std::ifstream(out / "record_report.json"))["in_progress"], true);
   }

@@ -3,12 +3,12 @@
 #include <string>
 #include <utility>
 
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 
 namespace evar::test {
 
 /// What `call` throws as an E (its what()), or `none` when it returns normally.
-template <class E = geometry::InputError, class F>
+template <class E = base::InputError, class F>
 std::string error_message(F&& call, std::string none = "no error") {
   try {
     std::forward<F>(call)();

@@ -117,13 +117,13 @@ struct SceneDeformation {
 /// control points, a numeric factorization and the iterations. The scene must outlive it.
 class SceneDeformer {
  public:
-  /// Throws geometry::InputError when a vessel's centerline does not run inside its mesh.
+  /// Throws base::InputError when a vessel's centerline does not run inside its mesh.
   SceneDeformer(const geometry::Scene& scene, DeformOptions options = {});
   ~SceneDeformer();
   SceneDeformer(const SceneDeformer&) = delete;
   SceneDeformer& operator=(const SceneDeformer&) = delete;
 
-  /// Throws geometry::InputError when the device is unusable (fewer than 2 points, not
+  /// Throws base::InputError when the device is unusable (fewer than 2 points, not
   /// finite, or nowhere near any vessel) and std::runtime_error when a solve fails.
   /// In the reports, weights_ms and skeleton_ms are the precomputation's (the constructor),
   /// the other stages this call's; total_ms of a vessel is their sum (its cold cost) and

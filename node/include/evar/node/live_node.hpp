@@ -31,7 +31,7 @@ namespace evar::node {
 
 class LiveNode {
  public:
-  /// The scene must outlive the node. Throws geometry::InputError for a scene the
+  /// The scene must outlive the node. Throws base::InputError for a scene the
   /// deformation cannot use, std::invalid_argument for bad options.
   LiveNode(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks);
   ~LiveNode();

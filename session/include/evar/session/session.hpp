@@ -88,7 +88,7 @@ std::string frame_record_problem(const FrameRecord& record);
 std::string carm_sample_problem(const CArmSample& sample);
 
 /// Reads and checks a session directory (not the frame images: see read_session_frame).
-/// Throws geometry::InputError "<file>:<line>: <field>: <problem>" (session.json, which has
+/// Throws base::InputError "<file>:<line>: <field>: <problem>" (session.json, which has
 /// no rows: "<file>: <field>: <problem>"). Files must stay inside the directory, symbolic
 /// links followed.
 Session read_session(const std::filesystem::path& directory);

@@ -56,7 +56,7 @@ struct RecorderStatistics {
 
 class SessionRecorder {
  public:
-  /// Checks the options and loads the scene (geometry::InputError naming the file); the
+  /// Checks the options and loads the scene (base::InputError naming the file); the
   /// sources are only borrowed and must outlive the recorder.
   SessionRecorder(RecorderOptions options, acquisition::FrameSource& frames, acquisition::CArmGeometrySource& carm);
   ~SessionRecorder();
@@ -91,7 +91,7 @@ struct RecoveredRecording {
 /// Turns an unfinished recording (the --out of a recorder that never reached finish()) into
 /// a session from its journal: every frame whose PNG is whole, every C-arm state, timed as
 /// finish() would; the report gains a "recovered" part; the journal is removed.
-/// geometry::InputError naming the file and line for a directory that holds no journal or
+/// base::InputError naming the file and line for a directory that holds no journal or
 /// a damaged one; std::runtime_error, as finish(), when it holds no frame or no C-arm
 /// sample (the latter after writing the session).
 RecoveredRecording recover_recording(const std::filesystem::path& directory);

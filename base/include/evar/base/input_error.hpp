@@ -4,11 +4,11 @@
 #include <stdexcept>
 #include <string>
 
-namespace evar::geometry {
+namespace evar::base {
 
 class InputError : public std::runtime_error {
  public:
   using std::runtime_error::runtime_error;
 };
 
-}  // namespace evar::geometry
+}  // namespace evar::base

@@ -7,7 +7,7 @@
 #include <filesystem>
 #include <string>
 
-namespace evar::geometry {
+namespace evar::base {
 
 struct InputLimit {
   std::uintmax_t bytes;  ///< largest accepted file size
@@ -35,4 +35,4 @@ void check_input_file(const std::filesystem::path& file, InputLimit limit);
 /// too, since the file may grow under us.
 std::string read_input_file(const std::filesystem::path& file, InputLimit limit);
 
-}  // namespace evar::geometry
+}  // namespace evar::base

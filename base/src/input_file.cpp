@@ -1,4 +1,4 @@
-#include "evar/geometry/input_file.hpp"
+#include "evar/base/input_file.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -9,9 +9,9 @@
 #include <system_error>
 
 #include "evar/base/unique_fd.hpp"
-#include "evar/geometry/input_error.hpp"
+#include "evar/base/input_error.hpp"
 
-namespace evar::geometry {
+namespace evar::base {
 namespace {
 
 [[noreturn]] void fail(const std::filesystem::path& file, const std::string& what) {
@@ -69,4 +69,4 @@ std::string read_input_file(const std::filesystem::path& file, InputLimit limit)
   return bytes;
 }
 
-}  // namespace evar::geometry
+}  // namespace evar::base
