@@ -1,4 +1,4 @@
-#include "evar/acquisition/carm_link_receiver.hpp"
+#include "carm_link_receiver.hpp"
 
 #include <utility>
 #include <variant>

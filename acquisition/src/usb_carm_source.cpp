@@ -11,6 +11,8 @@
 #include <tuple>
 #include <utility>
 
+#include "carm_link_receiver.hpp"
+
 namespace evar::acquisition {
 
 namespace {

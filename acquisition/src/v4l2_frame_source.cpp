@@ -17,6 +17,8 @@
 
 #include "evar/acquisition/sequence_tracker.hpp"
 #include "evar/acquisition/stream_state_reporter.hpp"
+#include "v4l2_buffer_conversion.hpp"
+#include "v4l2_io.hpp"
 #include "wake_event.hpp"
 
 namespace evar::acquisition {
@@ -439,6 +441,8 @@ struct V4l2FrameSource::Impl {
 
 };
 
+V4l2FrameSource::V4l2FrameSource(V4l2Options options) : V4l2FrameSource(std::move(options), system_v4l2_io()) {}
+
 V4l2FrameSource::V4l2FrameSource(V4l2Options options, V4l2Io& io) {
   if (options.buffers < 2) throw std::invalid_argument("V4L2: need at least 2 buffers");
   if ((options.width && *options.width <= 0) || (options.height && *options.height <= 0))
@@ -493,6 +497,8 @@ std::string V4l2FrameSource::description() const {
   const auto& o = impl_->options;
   return "V4L2 device " + o.device + ", " + fourcc_list(o.formats.empty() ? readable_v4l2_formats() : o.formats);
 }
+
+std::vector<V4l2DeviceInfo> list_v4l2_devices() { return list_v4l2_devices(system_v4l2_io(), "/dev"); }
 
 std::vector<V4l2DeviceInfo> list_v4l2_devices(V4l2Io& io, const std::filesystem::path& dev_dir) {
   std::vector<std::pair<long, std::filesystem::path>> nodes;

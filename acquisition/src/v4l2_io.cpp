@@ -1,4 +1,4 @@
-#include "evar/acquisition/v4l2_io.hpp"
+#include "v4l2_io.hpp"
 
 #include <fcntl.h>
 #include <sys/ioctl.h>

@@ -10,7 +10,7 @@
 #include <vector>
 
 #include "evar/acquisition/carm_link_protocol.hpp"
-#include "evar/acquisition/carm_link_receiver.hpp"
+#include "carm_link_receiver.hpp"
 
 using namespace evar::acquisition;
 using namespace std::chrono_literals;

@@ -14,7 +14,7 @@
 #include <future>
 #include <thread>
 
-#include "evar/acquisition/v4l2_formats.hpp"
+#include "v4l2_buffer_conversion.hpp"
 #include "evar/acquisition/v4l2_frame_source.hpp"
 #include "support/fake_v4l2_device.hpp"
 #include "support/stream_log.hpp"

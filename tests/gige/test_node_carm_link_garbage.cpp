@@ -20,9 +20,9 @@
 #include <utility>
 
 #include "evar/acquisition/carm_link_protocol.hpp"
-#include "evar/acquisition/carm_link_receiver.hpp"
+#include "carm_link_receiver.hpp"
 #include "evar/acquisition/gige_camera_source.hpp"
-#include "evar/acquisition/pseudo_terminal.hpp"
+#include "evar/sim/pseudo_terminal.hpp"
 #include "evar/acquisition/serial_carm_source.hpp"
 #include "evar/node/live_node.hpp"
 #include "evar/session/session_replay.hpp"
@@ -86,7 +86,7 @@ class NoisyCArmAdapter {
   }
 
  private:
-  acquisition::PseudoTerminal pty_;
+  sim::PseudoTerminal pty_;
   std::atomic<Line> line_{Line::Clean};
   std::mutex warning_mutex_;
   std::string warning_;

@@ -27,7 +27,7 @@
 #include <utility>
 #include <vector>
 
-#include "evar/acquisition/v4l2_io.hpp"
+#include "v4l2_io.hpp"
 
 namespace evar::test {
 

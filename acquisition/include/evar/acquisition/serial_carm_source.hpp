@@ -2,19 +2,15 @@
 // The C-arm geometry over a serial line (RS-232, USB-serial adapter, or a pseudo-terminal)
 // speaking the C-arm link protocol. Reconnects on its own after a hangup or a missing
 // device: the node never has to be restarted because a cable was pulled.
-#include <atomic>
 #include <chrono>
 #include <memory>
 #include <string>
-#include <thread>
 
 #include "evar/acquisition/carm_geometry_source.hpp"
-#include "evar/acquisition/carm_link_receiver.hpp"
-#include "evar/acquisition/serial_port.hpp"
+#include "evar/acquisition/carm_link_statistics.hpp"
+#include "evar/acquisition/serial_settings.hpp"
 
 namespace evar::acquisition {
-
-class WakeEvent;
 
 struct SerialLinkOptions {
   std::string path;                                   ///< /dev/ttyUSB0, /dev/ttyS0, a pty or a link to one
@@ -38,14 +34,8 @@ class SerialCArmSource final : public CArmGeometrySource {
   CArmLinkStatistics statistics() const;
 
  private:
-  void run();
-  bool wait_for_stop(std::chrono::milliseconds d);  ///< true when stop was asked
-
-  SerialLinkOptions options_;
-  CArmLinkReceiver receiver_;
-  std::unique_ptr<WakeEvent> wake_;  // stop() wakes the thread's poll
-  std::atomic<bool> stop_{false};
-  std::thread thread_;
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
 };
 
 }  // namespace evar::acquisition

@@ -14,7 +14,7 @@
 #include <vector>
 
 #include "evar/acquisition/carm_geometry_source.hpp"
-#include "evar/acquisition/carm_link_receiver.hpp"
+#include "evar/acquisition/carm_link_statistics.hpp"
 
 namespace evar::acquisition {
 

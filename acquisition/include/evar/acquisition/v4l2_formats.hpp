@@ -1,15 +1,12 @@
 #pragma once
-// The V4L2 pixel formats the grabber reads and how one filled buffer becomes a Frame:
+// The V4L2 pixel formats the grabber reads, by name, and the layout a driver agreed to:
 // GREY → Mono8, Y16 (little-endian) → Mono16, YUYV → Mono8 (its luma), MJPEG → Mono8
 // (decoded). Fluoroscopy is grey; colour grabbers deliver it as luma.
 #include <cstdint>
 #include <optional>
-#include <span>
 #include <string>
 #include <string_view>
 #include <vector>
-
-#include "evar/acquisition/frame.hpp"
 
 namespace evar::acquisition {
 
@@ -22,9 +19,6 @@ std::optional<std::uint32_t> fourcc_from_string(std::string_view name);
 /// The formats the grabber reads, most preferred first (deepest grey first).
 const std::vector<std::uint32_t>& readable_v4l2_formats();
 bool is_readable_v4l2_format(std::uint32_t fourcc);
-/// The Frame format a V4L2 format is delivered as.
-PixelFormat frame_format_of(std::uint32_t fourcc);
-
 /// What the driver agreed to (read back after VIDIOC_S_FMT).
 struct V4l2Layout {
   std::uint32_t fourcc = 0;
@@ -32,11 +26,5 @@ struct V4l2Layout {
   int bytes_per_line = 0;      ///< 0 for compressed formats
   std::uint32_t size_image = 0;
 };
-
-/// Fills `out` (format, size, stride, pixels) from one dequeued buffer holding `data`
-/// (its bytesused). Returns a message naming what is wrong for a buffer that is short or
-/// does not decode; `out` is then unspecified.
-std::optional<std::string> convert_v4l2_buffer(const V4l2Layout& layout, std::span<const std::uint8_t> data,
-                                               Frame& out);
 
 }  // namespace evar::acquisition

@@ -3,8 +3,8 @@
 // out): format negotiation with read-back, mmap streaming, non-blocking dequeue under
 // poll with a watchdog, drops from sequence-number gaps, monotonic buffer timestamps, and
 // a full teardown and reopen when the device goes away (ENODEV, POLLERR) or hangs.
-// Everything goes through a V4l2Io, so the same code runs on the kernel and on a scripted
-// device in tests.
+// Everything goes through a V4l2Io (acquisition/src/v4l2_io.hpp, the seam tests drive with
+// a scripted device), so the same code runs on the kernel and where no /dev/video* exists.
 #include <chrono>
 #include <cstdint>
 #include <filesystem>
@@ -15,9 +15,10 @@
 
 #include "evar/acquisition/frame_source.hpp"
 #include "evar/acquisition/v4l2_formats.hpp"
-#include "evar/acquisition/v4l2_io.hpp"
 
 namespace evar::acquisition {
+
+class V4l2Io;
 
 struct V4l2Options {
   std::string device = "/dev/video0";
@@ -45,7 +46,10 @@ struct V4l2Statistics {
 
 class V4l2FrameSource final : public FrameSource {
  public:
-  explicit V4l2FrameSource(V4l2Options options, V4l2Io& io = system_v4l2_io());
+  /// On the kernel's devices.
+  explicit V4l2FrameSource(V4l2Options options);
+  /// On the calls of `io`, which must outlive the source.
+  V4l2FrameSource(V4l2Options options, V4l2Io& io);
   ~V4l2FrameSource() override;
   /// Starts the capture thread. A device that is missing or refuses is reported as
   /// Connecting with the reason and tried again; only bad options throw. Callbacks run on
@@ -70,8 +74,9 @@ struct V4l2DeviceInfo {
   std::string error;                   ///< why it could not be asked, when it could not
 };
 
-/// Every video<N> node under `dev_dir`, in number order, with what it says about itself.
-std::vector<V4l2DeviceInfo> list_v4l2_devices(V4l2Io& io = system_v4l2_io(),
-                                              const std::filesystem::path& dev_dir = "/dev");
+/// Every video<N> node under /dev, in number order, with what it says about itself.
+std::vector<V4l2DeviceInfo> list_v4l2_devices();
+/// The same under `dev_dir`, asked through `io`.
+std::vector<V4l2DeviceInfo> list_v4l2_devices(V4l2Io& io, const std::filesystem::path& dev_dir);
 
 }  // namespace evar::acquisition

@@ -6,7 +6,7 @@
 #include <string>
 
 #include "evar/acquisition/carm_geometry_source.hpp"
-#include "evar/acquisition/pseudo_terminal.hpp"
+#include "evar/sim/pseudo_terminal.hpp"
 
 namespace evar::sim {
 
@@ -23,7 +23,7 @@ class SerialCArmServer {
   std::uint64_t sent() const { return sent_; }
 
  private:
-  acquisition::PseudoTerminal pty_;
+  sim::PseudoTerminal pty_;
   std::uint16_t sequence_ = 0;
   std::uint64_t sent_ = 0, dropped_ = 0;
 };

@@ -8,7 +8,7 @@
 
 #include "evar/base/unique_fd.hpp"
 
-namespace evar::acquisition {
+namespace evar::sim {
 
 class PseudoTerminal {
  public:
@@ -35,4 +35,4 @@ class PseudoTerminal {
   std::string slave_path_, link_;
 };
 
-}  // namespace evar::acquisition
+}  // namespace evar::sim

@@ -1,4 +1,4 @@
-#include "evar/acquisition/pseudo_terminal.hpp"
+#include "evar/sim/pseudo_terminal.hpp"
 
 #include <fcntl.h>
 #include <poll.h>
@@ -15,7 +15,7 @@
 
 #include "evar/base/unique_fd.hpp"
 
-namespace evar::acquisition {
+namespace evar::sim {
 
 
 PseudoTerminal::PseudoTerminal(const std::string& link) {
@@ -101,4 +101,4 @@ void PseudoTerminal::write(std::span<const std::uint8_t> bytes) {
   }
 }
 
-}  // namespace evar::acquisition
+}  // namespace evar::sim

@@ -13,17 +13,9 @@
 
 #include "evar/acquisition/carm_geometry_source.hpp"
 #include "evar/acquisition/carm_link_protocol.hpp"
+#include "evar/acquisition/carm_link_statistics.hpp"
 
 namespace evar::acquisition {
-
-struct CArmLinkStatistics {
-  carm_link::LinkStats link;
-  std::uint64_t connections = 0;   ///< times the transport came up
-  std::uint64_t disconnections = 0;
-  std::string last_error;          ///< the decoder's last error, with the byte it ended at
-  std::optional<carm_link::StatusMessage> last_status;
-  std::uint64_t statuses_not_reported = 0;  ///< warnings past CArmLinkReceiver::kMaxStatusTexts in an interval
-};
 
 class CArmLinkReceiver {
  public:
