@@ -53,6 +53,12 @@ for layer in "${!may_use[@]}"; do
              grep -oE '^[0-9]+:|evar_[a-z_]+' | awk '/:$/{n=$0; next} {print n $0}' | sed 's/: */:/' |
              grep -v ":${target[$layer]}$" || true)
 done
+# deform works on meshes and curves: no image library reaches it (geometry keeps OpenCV
+# private; the layers that handle images link it themselves).
+while IFS= read -r hit; do
+  echo "$hit: deform includes OpenCV (it works on meshes and curves; images stay in geometry, overlay and above)"
+  bad=1
+done < <(cd "$root" && grep -rnE '#include <opencv2/' deform --include='*.hpp' --include='*.cpp' || true)
 if [[ $bad != 0 ]]; then
   echo "layers.sh: a dependency against the layers' direction (docs/ARCHITECTURE.md); move the code or the include" >&2
   exit 1

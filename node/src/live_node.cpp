@@ -107,18 +107,12 @@ class LiveNode::Impl {
 };
 
 LiveNode::Impl::Impl(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks)
-    : options_(std::move(options)),
+    : options_((check_options(options), std::move(options))),
       sinks_(std::move(sinks)),
       mode_(options_.mode),
       input_(options_.input_queue),
       output_(options_.output_queue),
       timeline_(options_.timeline) {
-  if (options_.detector.cols <= 0 || options_.detector.rows <= 0 || !(options_.detector.row_spacing_mm > 0) ||
-      !(options_.detector.col_spacing_mm > 0))
-    throw std::invalid_argument("node: the detector needs a size and pixel spacings");
-  // Checks the options now rather than on a thread.
-  (void)ViewPairSelector(options_.adaptation.reconstruction.min_separation_deg, options_.pairs);
-  (void)acquisition::FrameLossMonitor(options_.frame_loss);
   deformer_ = std::make_unique<deform::SceneDeformer>(scene, options_.deform);
   initial_roadmap_ = std::make_shared<const overlay::RoadmapModel>(roadmap_model(scene, nullptr));
   auto m = std::make_shared<PublishedModel>();

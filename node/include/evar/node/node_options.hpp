@@ -1,7 +1,8 @@
 #pragma once
 // What the live node is told: the detector, the registration, how frames become
 // candidates, views become pairs and pairs become models, how the roadmap is drawn, and
-// the health limits and queue sizes. LiveNode's constructor checks them.
+// the health limits and queue sizes. Checked in one place, check_options(), which
+// LiveNode's constructor calls.
 #include <Eigen/Core>
 #include <chrono>
 #include <cstddef>
@@ -45,5 +46,11 @@ struct NodeOptions {
   /// for replays, whose source can wait; live sources cannot.
   bool backpressure = false;
 };
+
+/// std::invalid_argument "node options: <field>: <what is wrong>" for the first field that
+/// no node could run with (a detector without a size, a registration that is not rigid, a
+/// duration or queue of 0, a share outside 0..1, the pairing and frame-loss options their
+/// own checks refuse). The deformation's options are checked by the SceneDeformer.
+void check_options(const NodeOptions& options);
 
 }  // namespace evar::node
