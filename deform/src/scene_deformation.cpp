@@ -18,265 +18,26 @@
 #include "evar/base/elapsed.hpp"
 #include "evar/geometry/closest_point.hpp"
 #include "evar/base/input_error.hpp"
+#include "vessel_model.hpp"
 
+// The scene's solve, in the paper's order: the aorta first, then each iliac bound to it
+// (the carrier with the device, the others following the junction), the aortic stump the
+// carrier replaces erased, and the landmarks carried by their surfaces. What is made once
+// per vessel is in vessel_model.cpp, one vessel's solve in vessel_solve.cpp, the stump's
+// erasure in stump_erasure.cpp.
 namespace evar::deform {
 namespace {
 
 using Clock = std::chrono::steady_clock;
 using base::ms_since;
-
-}  // namespace
-
-// What is computed once per vessel, before any device is known.
-struct SceneDeformer::VesselModel {
-  const geometry::Vessel* vessel = nullptr;
-  std::optional<geometry::RayCaster> caster;
-  Skeleton skeleton;
-  RadiusProfile radius;
-  std::shared_ptr<const ArapSystem> system;  ///< surface (+ skeleton) terms, tether, ordering
-  std::vector<int> isolated;                 ///< vertices no face uses
-  bool closed = false;                       ///< the mesh has an inside (ray parity works)
-  /// Iliacs: the top vertices (foot on the centerline within bind_length of its start),
-  /// each with the closest point of the undeformed aortic surface (face, barycentric).
-  std::vector<std::pair<int, geometry::SurfacePoint>> junction;
-  Eigen::Vector3d top_centroid = Eigen::Vector3d::Zero();  ///< of the junction vertices
-  double junction_gap_mm = 0.0;  ///< the farthest junction vertex from its aortic point
-  double skeleton_ms = 0.0, weights_ms = 0.0;
-};
-
-namespace {
-
-using VesselModel = SceneDeformer::VesselModel;
+using detail::apply_erasure;
+using detail::bind_junction;
+using detail::deform_vessel;
+using detail::make_model;
+using detail::VesselModel;
 
 // Ostium landmarks are placed on the wall; 10 mm off is already a different structure.
 constexpr double kMaxLandmarkDistanceMm = 10.0;
-
-
-// Where each vertex and skeleton point lies along the vessel (the arc length of its foot on
-// the centerline) and where it is at rest: the solver's coarse space (coarse_space.hpp).
-ArapKnots vessel_knots(const geometry::Vessel& v, const Skeleton& skeleton, int vertices, int centres, double spacing_mm) {
-  ArapKnots knots;
-  if (!(spacing_mm > 0.0) || v.centerline.size() < 2) return knots;
-  knots.spacing_mm = spacing_mm;
-  const auto& V = v.mesh.mesh.V;
-  knots.rest.resize(vertices + centres, 3);
-  knots.arc_of_unknown.resize(static_cast<std::size_t>(vertices + centres));
-  const geometry::PolylineProjector onto_centerline(v.centerline);
-  int segment = -1;
-  for (int k = 0; k < vertices; ++k) {
-    knots.rest.row(k) = V.row(k);
-    knots.arc_of_unknown[static_cast<std::size_t>(k)] =
-        onto_centerline.project(V.row(k).transpose(), segment, &segment).arc_length_mm;
-  }
-  for (int k = 0; k < centres; ++k) {
-    knots.rest.row(vertices + k) = skeleton.centres[static_cast<std::size_t>(k)].transpose();
-    knots.arc_of_unknown[static_cast<std::size_t>(vertices + k)] = skeleton.arc_mm[static_cast<std::size_t>(k)];
-  }
-  return knots;
-}
-
-std::unique_ptr<VesselModel> make_model(const geometry::Vessel& v, const DeformOptions& options) {
-  auto m = std::make_unique<VesselModel>();
-  m->vessel = &v;
-  const auto& mesh = v.mesh.mesh;
-  auto t0 = Clock::now();
-  m->caster.emplace(mesh);
-  m->closed = geometry::is_closed(mesh);
-  m->skeleton = build_skeleton(*m->caster, v.centerline, options.skeleton);
-  m->skeleton_ms = ms_since(t0);
-  if (m->skeleton.centres.empty()) {
-    // Usually the two are in different units or frames (metres or cm; RAS for LPS): say
-    // where each lies, so the cause shows.
-    const auto box = [](const auto& points) {
-      Eigen::Vector3d lo = Eigen::Vector3d::Constant(std::numeric_limits<double>::infinity()), hi = -lo;
-      for (const auto& p : points) lo = lo.cwiseMin(Eigen::Vector3d(p)), hi = hi.cwiseMax(Eigen::Vector3d(p));
-      char text[160];
-      std::snprintf(text, sizeof text, "(%.1f, %.1f, %.1f) to (%.1f, %.1f, %.1f)", lo.x(), lo.y(), lo.z(), hi.x(),
-                    hi.y(), hi.z());
-      return std::string(text);
-    };
-    std::vector<Eigen::Vector3d> corners;
-    for (Eigen::Index k = 0; k < mesh.V.rows(); ++k) corners.emplace_back(mesh.V.row(k).transpose());
-    throw base::InputError(v.centerline_path.string() + ": the centerline of vessel '" + v.name +
-                               "' does not run inside its mesh " + v.mesh_path.string() +
-                               " (no slicing plane hit the wall). The mesh spans " + box(corners) +
-                               " mm, the centerline " + box(v.centerline) +
-                               " mm: both must be millimetres in patient LPS (a mesh in metres or cm, or saved in "
-                               "RAS without SPACE=RAS in its header, lies elsewhere; for the latter, declare "
-                               "\"mesh_coordinate_system\": \"RAS\" for the vessel in the scene)");
-  }
-  m->radius = radius_profile(m->skeleton);
-
-  t0 = Clock::now();
-  const int n = static_cast<int>(mesh.V.rows());
-  const int centres = options.use_skeleton ? static_cast<int>(m->skeleton.centres.size()) : 0;
-  ArapTerms terms = surface_arap_terms(mesh.V, cotangent_weights(mesh), n + centres);
-  if (centres > 0) append_skeleton_terms(terms, mesh, m->skeleton, n, options.skeleton.weight);
-  m->system = std::make_shared<const ArapSystem>(std::move(terms), options.arap,
-                                                 registration_tether(mesh, n + centres, options.tether_length_mm),
-                                                 v.kind == geometry::VesselKind::Iliac
-                                                     ? vessel_knots(v, m->skeleton, n, centres, options.coarse_knot_spacing_mm)
-                                                     : ArapKnots{});
-  // A vertex no face uses has no shape to keep: it stays where it is (otherwise it would
-  // be a part with nothing to determine it).
-  std::vector<char> used(static_cast<std::size_t>(n), 0);
-  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
-    for (int j = 0; j < 3; ++j) used[static_cast<std::size_t>(mesh.F(f, j))] = 1;
-  for (int k = 0; k < n; ++k)
-    if (!used[static_cast<std::size_t>(k)]) m->isolated.push_back(k);
-  m->weights_ms = ms_since(t0);
-  return m;
-}
-
-// The iliac's top vertices and where each sits on the aortic surface. They are bound to
-// the deformed aorta at that closest point (barycentric in its face), so neighbouring
-// top vertices move alike and the junction follows the aorta without tearing the ring
-// (a nearest-vertex binding jumps between aortic vertices that moved differently).
-// How far apart they may be (the report's junction_gap_mm) only the constructor's start
-// check bounds, and only for a closed aorta: a start outside it is at most the radius r +
-// 5 mm from its wall, and a bound vertex is within bind_length + 3r of the start (the
-// selection's reach; the top ring itself about r + bind_length), so the gap stays under
-// 4r + 5 mm + bind_length (about 2r + 5 mm + bind_length on the ring). A start inside the
-// aorta, or an open aortic mesh (no inside to test), binds to the nearest wall however far.
-void bind_junction(VesselModel& m, const geometry::TriangleMesh& aorta, double bind_length_mm) {
-  const auto& v = *m.vessel;
-  const auto& V = v.mesh.mesh.V;
-  // Only vertices near the proximal end can be within bind_length of it along the
-  // centerline (a vertex is at most a few radii from its foot): skip the rest cheaply.
-  const double reach = bind_length_mm + 3.0 * m.radius.at(0.0);
-  const geometry::PolylineProjector onto_centerline(v.centerline);
-  int segment = -1;
-  std::vector<int> top;
-  std::vector<Eigen::Vector3d> points;
-  for (Eigen::Index k = 0; k < V.rows(); ++k) {
-    const Eigen::Vector3d p = V.row(k).transpose();
-    if ((p - v.centerline.front()).squaredNorm() > reach * reach) continue;
-    const auto foot = onto_centerline.project(p, segment, &segment);
-    if (foot.arc_length_mm > bind_length_mm) continue;
-    top.push_back(static_cast<int>(k));
-    points.push_back(p);
-    m.top_centroid += p;
-  }
-  const auto on_aorta = geometry::closest_points_on_mesh(aorta, points);
-  for (std::size_t i = 0; i < top.size(); ++i) {
-    m.junction.emplace_back(top[i], on_aorta[i]);
-    m.junction_gap_mm = std::max(m.junction_gap_mm, on_aorta[i].distance_mm);
-  }
-  if (!m.junction.empty()) m.top_centroid /= static_cast<double>(m.junction.size());
-}
-
-// The deformed centerline: the mean of each skeleton plane's wall hits, evaluated on the
-// deformed surface (the centres themselves are unknowns only when the skeleton is on).
-geometry::Polyline deformed_centerline(const VesselModel& m, const geometry::Vertices& V) {
-  const auto& F = m.vessel->mesh.mesh.F;
-  std::vector<Eigen::Vector3d> sum(m.skeleton.centres.size(), Eigen::Vector3d::Zero());
-  std::vector<int> count(m.skeleton.centres.size(), 0);
-  for (const auto& s : m.skeleton.spokes) {
-    Eigen::Vector3d p = Eigen::Vector3d::Zero();
-    for (int j = 0; j < 3; ++j) p += s.barycentric[j] * V.row(F(s.face, j)).transpose();
-    sum[static_cast<std::size_t>(s.centre)] += p;
-    ++count[static_cast<std::size_t>(s.centre)];
-  }
-  geometry::Polyline out;
-  for (std::size_t k = 0; k < sum.size(); ++k) out.push_back(sum[k] / count[k]);
-  return out;
-}
-
-// Skeleton-based (or plain) ARAP for one vessel: device handles plus `fixed` vertex
-// targets (the iliac's junction; they win over handles). Without anchors the whole
-// vessel may move and sweep its wall across device points that were inside before, so
-// handles are re-selected on the deformed surface and the solve repeated (warm-started)
-// until no new handle appears or `containment_rounds` is reached.
-geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline& device,
-                                 const std::map<int, Eigen::Vector3d>& fixed, const DeformOptions& options,
-                                 const LumenTest& in_other_lumen, const geometry::Vertices* previous,
-                                 VesselReport& report) {
-  const auto& mesh = m.vessel->mesh.mesh;
-  const int n = static_cast<int>(mesh.V.rows());
-  auto t0 = Clock::now();
-  ControlPointOptions control = options.control;
-  // The device runs through an iliac from its distal end to the aorta: its sections are
-  // paired with the device in order (ordered_pairing.hpp). In the aorta it ends anywhere.
-  control.pair_in_order = options.control.pair_in_order && m.vessel->kind == geometry::VesselKind::Iliac;
-  // It enters at the junction, which moves with the aorta's surface where the iliac's top
-  // is bound to it: the bound vertices' mean shift carries the centerline's first point.
-  std::optional<Eigen::Vector3d> entry;
-  if (control.pair_in_order && !fixed.empty()) {
-    Eigen::Vector3d shift = Eigen::Vector3d::Zero();
-    for (const auto& [v, p] : fixed) shift += p - mesh.V.row(v).transpose();
-    entry = m.vessel->centerline.front() + shift / static_cast<double>(fixed.size());
-  }
-  auto handles = device.empty() ? std::vector<Handle>{}
-                                : select_control_points(mesh, *m.caster, m.vessel->centerline, m.radius, device,
-                                                        control, in_other_lumen, entry);
-  report.control_points = static_cast<int>(handles.size());
-  report.timings.control_points_ms += ms_since(t0);
-  if (handles.empty() && fixed.empty()) return mesh.V;
-
-  const int centres = m.system->num_unknowns() - n;
-  report.skeleton_points = centres > 0 ? centres + static_cast<int>(m.skeleton.spokes.size()) : 0;
-
-  std::map<int, Eigen::Vector3d> targets = handle_vertex_targets(mesh, handles);
-  for (const auto& [v, p] : fixed) targets[v] = p;
-  for (const int v : m.isolated) targets.emplace(v, mesh.V.row(v).transpose());
-  Positions X;
-  for (int round = 0;; ++round) {
-    std::vector<int> constrained;
-    Positions rows(static_cast<Eigen::Index>(targets.size()), 3);
-    for (const auto& [v, p] : targets) {
-      rows.row(static_cast<Eigen::Index>(constrained.size())) = p.transpose();
-      constrained.push_back(v);
-    }
-    const ArapSolver solver(m.system, constrained);
-    report.timings.factor_ms += solver.factor_ms();
-    if (round == 0 && previous) {
-      // Warm start from the previous frame: its surface, and skeleton centres at the
-      // middle of their wall hits there (solve() puts the new targets in).
-      X.resize(m.system->num_unknowns(), 3);
-      X.topRows(n) = *previous;
-      if (centres > 0) {
-        const auto cl = deformed_centerline(m, *previous);
-        for (int k = 0; k < centres; ++k) X.row(n + k) = cl[static_cast<std::size_t>(k)].transpose();
-      }
-    }
-    if (round > 0)  // warm start: the previous round's shape with the new targets
-      for (std::size_t c = 0; c < constrained.size(); ++c) X.row(constrained[c]) = rows.row(static_cast<Eigen::Index>(c));
-    const ArapResult r = (round > 0 || previous) ? solver.solve(rows, &X) : solver.solve(rows);
-    report.timings.iterate_ms += r.init_ms + r.iterate_ms;
-    report.iterations += r.iterations;
-    report.anderson_rejections += r.anderson_rejections;
-    report.coarse_fallbacks += r.coarse_fallbacks;
-    report.converged = r.converged;
-    report.final_energy = r.energy.empty() ? 0.0 : r.energy.back();
-    report.constrained_vertices = static_cast<int>(constrained.size());
-    report.rounds = round + 1;
-    if (!r.X.allFinite())
-      throw std::runtime_error("vessel '" + m.vessel->name + "': the ARAP solve produced non-finite positions");
-    X = r.X;
-    // Rounds need a deformed centerline: two skeleton planes at least.
-    if (device.empty() || round + 1 >= options.containment_rounds || m.skeleton.centres.size() < 2) break;
-
-    t0 = Clock::now();
-    const geometry::TriangleMesh deformed{X.topRows(n), mesh.F};
-    const geometry::RayCaster caster(deformed, geometry::RayCaster::BuildQuality::Low);
-    // The deformed centerline runs through the planes, so its arc starts at the first one:
-    // the radii are looked up by arc along it, plane by plane.
-    const geometry::Polyline moved_centerline = deformed_centerline(m, deformed.V);
-    const RadiusProfile moved_radius{geometry::arc_lengths(moved_centerline), m.skeleton.radius_mm};
-    const auto more = select_control_points(deformed, caster, moved_centerline, moved_radius, device, control,
-                                            in_other_lumen, entry);
-    std::set<int> fresh;  // vertices constrained for the first time this round
-    for (const auto& [v, p] : handle_vertex_targets(deformed, more))
-      if (targets.emplace(v, p).second) fresh.insert(v);
-    // Count only handles that constrain something new (the others were there already).
-    for (const auto& h : more)
-      if (fresh.count(mesh.F(h.face, 0)) || fresh.count(mesh.F(h.face, 1)) || fresh.count(mesh.F(h.face, 2)))
-        ++report.control_points;
-    report.timings.control_points_ms += ms_since(t0);
-    if (fresh.empty()) break;
-  }
-  return X.topRows(n);
-}
 
 // The previous frame's vertices of vessel i, when that frame solved for it.
 const geometry::Vertices* warm_start(const SceneDeformation* previous, std::size_t i) {
@@ -295,25 +56,6 @@ void check_device(const geometry::Polyline& device) {
   if (length > 1e4)
     throw base::InputError("device: the curve is " + std::to_string(length) +
                                " mm long; at most 10000 mm is plausible (a stray control point?)");
-}
-
-}  // namespace
-
-namespace {
-
-// Keeps the faces of `faces` that touch no erased vertex of `dv` (vertices keep their
-// order) and reports what went and how far the kept vertices moved from `rest`.
-void apply_erasure(DeformedVessel& dv, const geometry::Faces& faces, const geometry::Vertices& rest, VesselReport& r) {
-  geometry::Faces F(faces.rows(), 3);
-  int kept = 0;
-  for (Eigen::Index f = 0; f < faces.rows(); ++f)
-    if (!dv.erased[static_cast<std::size_t>(faces(f, 0))] && !dv.erased[static_cast<std::size_t>(faces(f, 1))] &&
-        !dv.erased[static_cast<std::size_t>(faces(f, 2))])
-      F.row(kept++) = faces.row(f);
-  dv.mesh.F = F.topRows(kept);
-  r.erased_faces = static_cast<int>(faces.rows()) - kept;
-  r.erased_vertices = static_cast<int>(std::count(dv.erased.begin(), dv.erased.end(), 1));
-  r.max_displacement_mm = (dv.mesh.V - rest).rowwise().norm().maxCoeff();
 }
 
 // The scene with a proxy in place of every mesh that needs one (null when none does); a
@@ -591,26 +333,8 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
       // way, so the erasure does not come and go from one frame of a live sequence to the next.
       V_out = deform_vessel(m, device, bound, options, in_other_lumen(i), warm_start(previous, i), r);
       r.role = "carries the device";
-      // 3. Erase the aortic vertices below the bound iliac points: distal of the plane
-      // through their centroid (normal: the iliac's initial direction) and inside the
-      // deformed iliac, i.e. the part of the aorta the iliac now represents. For an open
-      // iliac mesh (no inside) the test is the iliac's top radius around its axis.
-      const auto arc = geometry::arc_lengths(v.centerline);
-      const Eigen::Vector3d axis = geometry::tangent_at(v.centerline, arc, 0.0);
-      const double cut_radius = m.radius.at(0.0);
-      const geometry::TriangleMesh deformed_iliac{V_out, mesh.F};
-      const std::optional<geometry::RayCaster> inside =
-          m.closed ? std::optional<geometry::RayCaster>(std::in_place, deformed_iliac, geometry::RayCaster::BuildQuality::Low)
-                 : std::nullopt;
-      auto& erased = out.vessels[static_cast<std::size_t>(aorta)].erased;
-      for (Eigen::Index k = 0; k < aorta_mesh.V.rows(); ++k) {
-        const Eigen::Vector3d q = aorta_mesh.V.row(k).transpose() - m.top_centroid;
-        const double along = q.dot(axis);
-        if (along <= 0.0) continue;
-        const bool within = inside ? inside->contains(aorta_deformed.row(k).transpose())
-                                   : (q - along * axis).norm() < cut_radius;
-        if (within) erased[static_cast<std::size_t>(k)] = 1;
-      }
+      // 3. Erase the aortic stump the carrier now represents.
+      detail::mark_aortic_stump(m, V_out, aorta_mesh, aorta_deformed, out.vessels[static_cast<std::size_t>(aorta)].erased);
     } else if (junction_moved) {
       // 4. No device: the junction moves with the aorta and the rest of the iliac bends
       // after it by ARAP, held toward its registered pose by the tether as the distal
