@@ -1,10 +1,6 @@
 #include "evar/session/session_recorder.hpp"
 
-#include <fcntl.h>
-#include <unistd.h>
-
 #include <algorithm>
-#include <array>
 #include <condition_variable>
 #include <cstdio>
 #include <cstring>
@@ -18,13 +14,9 @@
 #include <vector>
 
 #include "csv_table.hpp"
-#include "evar/acquisition/clock_offset.hpp"
+#include "recording_journal.hpp"
 #include "evar/base/atomic_file.hpp"
-#include "evar/base/unique_fd.hpp"
-#include "evar/geometry/image_header.hpp"
 #include "evar/base/input_error.hpp"
-#include "evar/base/input_file.hpp"
-#include "evar/geometry/json_fields.hpp"
 #include "evar/geometry/scene.hpp"
 
 namespace evar::session {
@@ -34,18 +26,7 @@ using acquisition::CArmState;
 using acquisition::Frame;
 using acquisition::PixelFormat;
 using acquisition::StreamState;
-
-// The session's own files and their directories on the disk (fsync) before the journal that
-// could rebuild them goes: a power cut right after finishing must not leave them empty.
-// Frames are not synced one by one (an hour of them would take minutes).
-void sync_session_files(const fs::path& dir) {
-  for (const fs::path& p : {dir / "session.json", dir / "carm.csv", dir / "frames" / "index.csv",
-                            dir / "record_report.json", dir / "frames", dir}) {
-    const base::UniqueFd fd(::open(p.c_str(), O_RDONLY | O_CLOEXEC));
-    if (!fd) continue;  // a file the session does not have
-    ::fsync(fd.get());
-  }
-}
+using namespace recording;
 
 cv::Mat to_session_image(const Frame& f) {
   acquisition::check_layout(f);
@@ -64,175 +45,6 @@ cv::Mat to_session_image(const Frame& f) {
   }
   return out;
 }
-
-namespace {
-
-std::int64_t ns_of(std::chrono::steady_clock::time_point t) {
-  return std::chrono::duration_cast<std::chrono::nanoseconds>(t.time_since_epoch()).count();
-}
-
-CArmSample sample_of(const CArmState& s, std::int64_t timestamp_ns) {
-  CArmSample c;
-  c.timestamp_ns = timestamp_ns;
-  c.primary_deg = s.primary_deg;
-  c.secondary_deg = s.secondary_deg;
-  c.sid_mm = s.sid_mm;
-  c.sod_mm = s.sod_mm;
-  c.table_mm = {s.table_mm[0], s.table_mm[1], s.table_mm[2]};
-  c.fluoro_on = s.fluoro_on;
-  c.moving = s.moving;
-  return c;
-}
-
-}  // namespace
-
-std::vector<CArmSample> carm_on_host_clock(const std::vector<CArmState>& states) {
-  std::vector<acquisition::ClockPair> pairs;
-  pairs.reserve(states.size());
-  for (const CArmState& s : states) pairs.push_back({s.device_time_ns, ns_of(s.host_arrival)});
-  const std::vector<std::int64_t> host_ns = acquisition::device_times_on_host(pairs);
-  std::vector<CArmSample> out;
-  out.reserve(states.size());
-  for (std::size_t i = 0; i < states.size(); ++i) out.push_back(sample_of(states[i], host_ns[i]));
-  return out;
-}
-
-namespace {
-
-// The journal of a recording in progress (docs/SESSION_FORMAT.md): what finish() needs, on
-// disk as it arrives, so a recording that never reaches finish() can still become a session.
-constexpr const char* kJournalFormat = "evarnode-recording-journal";
-constexpr const char* kJournalFramesHeader =
-    "frame,timestamp_ns,source,file,cols,rows,device_clock,device_time_ns,host_arrival_ns";
-constexpr const char* kJournalCArmHeader =
-    "device_time_ns,host_arrival_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,fluoro_on,"
-    "moving";
-// C-arm rows and the report reach the disk at least this often (frame rows with each frame).
-constexpr auto kJournalPeriod = std::chrono::seconds(1);
-
-fs::path journal_of(const fs::path& out) { return out / "journal"; }
-
-// What the session files need besides the streams (journal/recording.json).
-struct RecordingSettings {
-  Eigen::Matrix4d ct_to_carm = Eigen::Matrix4d::Identity();
-  double device_thickness_mm = 0.0;
-  double pixel_spacing_mm = 0.0;  // at the detector, square pixels
-};
-
-// A recording's streams as they arrived, before they become a session.
-struct RecordedStreams {
-  std::vector<FrameRecord> frames;  // written, in frame order, timed live
-  // Frames timed by a device clock: (frame number, clock sample), in frame order.
-  std::vector<std::pair<std::int64_t, acquisition::ClockPair>> device_clock_frames;
-  std::vector<CArmState> states;            // valid ones, in arrival order
-  std::optional<std::pair<int, int>> size;  // the frames' (cols, rows)
-};
-
-// Frames timed by a device clock were stamped live with the offset known so far; with the
-// whole recording at hand, each gets the offset of the frames around it, later ones too.
-// `frames` is in frame-number order and stays so.
-void map_frames_offline(const std::vector<std::pair<std::int64_t, acquisition::ClockPair>>& device_clock_frames,
-                        std::vector<FrameRecord>& frames) {
-  if (device_clock_frames.empty()) return;
-  std::vector<acquisition::ClockPair> pairs;
-  pairs.reserve(device_clock_frames.size());
-  for (const auto& [frame, pair] : device_clock_frames) pairs.push_back(pair);
-  const std::vector<std::int64_t> host_ns = acquisition::device_times_on_host(pairs);
-  std::size_t k = 0;
-  std::int64_t last = std::numeric_limits<std::int64_t>::min();
-  for (FrameRecord& r : frames) {
-    while (k < device_clock_frames.size() && device_clock_frames[k].first < r.frame) ++k;
-    if (k < device_clock_frames.size() && device_clock_frames[k].first == r.frame) r.timestamp_ns = host_ns[k];
-    r.timestamp_ns = std::max(r.timestamp_ns, last);
-    last = r.timestamp_ns;
-  }
-}
-
-// The session a recording makes, the same from memory (finish) and from the journal
-// (recovery). C-arm states whose time on the host clock falls outside the format's range
-// are left out and counted in `dropped`.
-Session assemble(const fs::path& out, const RecordingSettings& settings, const RecordedStreams& streams,
-                 std::uint64_t& dropped) {
-  Session s;
-  s.directory = out;
-  s.scene = "patient/scene.json";
-  s.ct_to_carm = settings.ct_to_carm;
-  s.device_thickness_mm = settings.device_thickness_mm;
-  s.frames = streams.frames;
-  map_frames_offline(streams.device_clock_frames, s.frames);
-  for (const CArmSample& c : carm_on_host_clock(streams.states)) {
-    if (carm_sample_problem(c).empty())
-      s.carm.push_back(c);
-    else
-      ++dropped;
-  }
-  if (streams.size)
-    s.detector = {streams.size->first, streams.size->second, settings.pixel_spacing_mm, settings.pixel_spacing_mm};
-  return s;
-}
-
-std::string journal_frame_row(const FrameRecord& r, const Frame& f) {
-  return std::to_string(r.frame) + "," + std::to_string(r.timestamp_ns) + "," + r.source + "," + r.file.generic_string() +
-         "," + std::to_string(f.width) + "," + std::to_string(f.height) + "," + (f.device_clock ? "1" : "0") + "," +
-         std::to_string(f.device_time_ns) + "," + std::to_string(ns_of(f.host_arrival)) + "\n";
-}
-
-std::string journal_carm_row(const CArmState& s) {
-  using detail::exact;
-  return std::to_string(s.device_time_ns) + "," + std::to_string(ns_of(s.host_arrival)) + "," + exact(s.primary_deg) + "," +
-         exact(s.secondary_deg) + "," + exact(s.sid_mm) + "," + exact(s.sod_mm) + "," + exact(s.table_mm[0]) + "," +
-         exact(s.table_mm[1]) + "," + exact(s.table_mm[2]) + "," + (s.fluoro_on ? "1" : "0") + "," + (s.moving ? "1" : "0") +
-         "\n";
-}
-
-// Through an AtomicFile, so a recorder killed while writing leaves the last whole report.
-void write_json_file(const fs::path& file, const nlohmann::ordered_json& j) {
-  base::write_file_atomically(file, j.dump(2) + "\n");
-}
-
-RecordingSettings read_settings(const fs::path& file) {
-  using geometry::detail::bad_field;
-  using geometry::detail::member;
-  const nlohmann::json j = geometry::detail::parse_json_file(file);
-  if (!j.is_object()) bad_field(file, "top level", "expected a JSON object");
-  if (member(file, j, "format", "format") != kJournalFormat) bad_field(file, "format", std::string("expected \"") + kJournalFormat + "\"");
-  if (member(file, j, "version", "version") != 1) bad_field(file, "version", "unsupported (this build reads version 1)");
-  RecordingSettings s;
-  const auto& m = member(file, j, "registration", "registration");
-  if (!m.is_array() || m.size() != 4) bad_field(file, "registration", "expected 4 rows of 4 numbers");
-  for (int r = 0; r < 4; ++r)
-    s.ct_to_carm.row(r) =
-        geometry::detail::number_array(file, m[static_cast<std::size_t>(r)], "registration[" + std::to_string(r) + "]", 4).transpose();
-  s.device_thickness_mm =
-      geometry::detail::number_field(file, member(file, j, "device_thickness_mm", "device_thickness_mm"), "device_thickness_mm", 0.0, 15.0, "mm");
-  s.pixel_spacing_mm =
-      geometry::detail::number_field(file, member(file, j, "pixel_spacing_mm", "pixel_spacing_mm"), "pixel_spacing_mm", 1e-9, 10.0, "mm");
-  return s;
-}
-
-// Whether a frame's PNG was written whole: its header says the frame's size and it ends with
-// the IEND chunk (a recorder killed while writing leaves the file cut short).
-bool whole_png(const fs::path& file, int cols, int rows) {
-  std::ifstream in(file, std::ios::binary);
-  if (!in) return false;
-  std::string head(64, '\0');
-  in.read(head.data(), static_cast<std::streamsize>(head.size()));
-  head.resize(static_cast<std::size_t>(in.gcount()));
-  try {
-    const geometry::ImageHeader h = geometry::read_image_header(head, file.string());
-    if (h.format != "PNG" || h.width != cols || h.height != rows) return false;
-  } catch (const base::InputError&) {
-    return false;
-  }
-  static constexpr unsigned char kIend[12] = {0, 0, 0, 0, 'I', 'E', 'N', 'D', 0xAE, 0x42, 0x60, 0x82};
-  std::array<char, 12> tail{};
-  in.clear();
-  in.seekg(-12, std::ios::end);
-  in.read(tail.data(), static_cast<std::streamsize>(tail.size()));
-  return in.gcount() == 12 && std::memcmp(tail.data(), kIend, sizeof kIend) == 0;
-}
-
-}  // namespace
 
 struct SessionRecorder::Impl {
   RecorderOptions options;
@@ -563,101 +375,6 @@ Session SessionRecorder::finish() {
                              stats.carm_reason + "): " + d.options.out.string() +
                              " holds the frames without geometry; it replays, but cannot be deformed or overlaid");
   return s;
-}
-
-RecoveredRecording recover_recording(const std::filesystem::path& directory) {
-  using detail::CutLastLine;
-  using detail::fail;
-  using detail::flag;
-  using detail::for_each_row;
-  using detail::number;
-  const fs::path journal = journal_of(directory);
-  if (!fs::is_directory(journal)) {
-    if (fs::is_regular_file(directory / "session.json"))
-      throw base::InputError(directory.string() + ": a finished session (session.json and no journal/); nothing to recover");
-    throw base::InputError(journal.string() + ": no recording journal here; recover the --out directory of `evarnode record`");
-  }
-  const RecordingSettings settings = read_settings(journal / "recording.json");
-  RecoveredRecording result;
-  RecordedStreams streams;
-
-  const fs::path frames_csv = journal / "frames.csv";
-  result.cut_row_skipped |= for_each_row(frames_csv, kJournalFramesHeader, 9, CutLastLine::Skip,
-                                         [&](std::size_t line, const std::vector<std::string>& f) {
-    FrameRecord r;
-    r.frame = number<std::int64_t>(frames_csv, line, "frame", f[0]);
-    r.timestamp_ns = number<std::int64_t>(frames_csv, line, "timestamp_ns", f[1]);
-    r.source = f[2];
-    r.file = f[3];
-    const int cols = number<int>(frames_csv, line, "cols", f[4]), rows = number<int>(frames_csv, line, "rows", f[5]);
-    const bool device_clock = flag(frames_csv, line, "device_clock", f[6]);
-    const acquisition::ClockPair clock{number<std::int64_t>(frames_csv, line, "device_time_ns", f[7]),
-                                       number<std::int64_t>(frames_csv, line, "host_arrival_ns", f[8])};
-    if (const auto problem = frame_record_problem(r); !problem.empty()) fail(frames_csv, line, problem);
-    if (!streams.frames.empty() && r.frame <= streams.frames.back().frame)
-      fail(frames_csv, line, "frame: " + std::to_string(r.frame) + " does not increase");
-    ++result.frames_journaled;
-    if (device_clock) streams.device_clock_frames.push_back({r.frame, clock});  // a clock sample even if its file is lost
-    if (!streams.size) streams.size = std::make_pair(cols, rows);
-    if (*streams.size != std::make_pair(cols, rows) || !whole_png(directory / "frames" / r.file, cols, rows)) {
-      ++result.frames_lost;
-      return;
-    }
-    streams.frames.push_back(std::move(r));
-  });
-
-  const fs::path carm_csv = journal / "carm.csv";
-  result.cut_row_skipped |= for_each_row(carm_csv, kJournalCArmHeader, 11, CutLastLine::Skip,
-                                         [&](std::size_t line, const std::vector<std::string>& f) {
-    CArmState s;
-    s.device_time_ns = number<std::int64_t>(carm_csv, line, "device_time_ns", f[0]);
-    const auto host_ns = number<std::int64_t>(carm_csv, line, "host_arrival_ns", f[1]);
-    s.host_arrival = std::chrono::steady_clock::time_point(std::chrono::nanoseconds(host_ns));
-    s.primary_deg = number<double>(carm_csv, line, "primary_deg", f[2]);
-    s.secondary_deg = number<double>(carm_csv, line, "secondary_deg", f[3]);
-    s.sid_mm = number<double>(carm_csv, line, "sid_mm", f[4]);
-    s.sod_mm = number<double>(carm_csv, line, "sod_mm", f[5]);
-    for (std::size_t k = 0; k < 3; ++k)
-      s.table_mm[k] = number<double>(carm_csv, line, k == 0 ? "table_x_mm" : k == 1 ? "table_y_mm" : "table_z_mm", f[6 + k]);
-    s.fluoro_on = flag(carm_csv, line, "fluoro_on", f[9]);
-    s.moving = flag(carm_csv, line, "moving", f[10]);
-    if (const auto problem = carm_sample_problem(sample_of(s, host_ns)); !problem.empty()) fail(carm_csv, line, problem);
-    streams.states.push_back(s);
-  });
-
-  std::uint64_t dropped = 0;
-  result.session = assemble(directory, settings, streams, dropped);
-  result.carm_samples = result.session.carm.size();
-  if (result.session.frames.empty())
-    throw std::runtime_error(directory.string() + ": nothing to recover: " +
-                             (result.frames_journaled == 0 ? std::string("the journal holds no frame")
-                                                           : "none of the " + std::to_string(result.frames_journaled) +
-                                                                 " journaled frames has its PNG whole"));
-  write_session_files(directory, result.session);
-
-  // The report the recorder last wrote, said to be recovered (or a new one if it never wrote one).
-  nlohmann::ordered_json report;
-  try {
-    report = nlohmann::ordered_json::parse(base::read_input_file(directory / "record_report.json", base::kJsonLimit));
-  } catch (const std::exception&) {  // missing or cut: a new one
-  }
-  if (!report.is_object()) report = {{"format", "evarnode-record-report"}, {"version", 1}};
-  report["in_progress"] = false;
-  report["session_written"] = true;
-  report["recovered"] = {{"frames_journaled", result.frames_journaled},
-                         {"frames_lost", result.frames_lost},
-                         {"frames", result.session.frames.size()},
-                         {"carm_samples", result.carm_samples},
-                         {"carm_dropped_out_of_range", dropped},
-                         {"cut_row_skipped", result.cut_row_skipped}};
-  write_json_file(directory / "record_report.json", report);
-  sync_session_files(directory);
-  std::error_code ignored;
-  fs::remove_all(journal, ignored);
-  if (result.session.carm.empty())
-    throw std::runtime_error(std::to_string(result.session.frames.size()) + " frames were recovered but no C-arm sample: " +
-                             directory.string() + " holds the frames without geometry; it replays, but cannot be deformed or overlaid");
-  return result;
 }
 
 }  // namespace evar::session

@@ -1,0 +1,73 @@
+#include <algorithm>
+#include <limits>
+
+#include "recording_journal.hpp"
+
+namespace evar::session {
+
+namespace recording {
+
+CArmSample sample_of(const CArmState& s, std::int64_t timestamp_ns) {
+  CArmSample c;
+  c.timestamp_ns = timestamp_ns;
+  c.primary_deg = s.primary_deg;
+  c.secondary_deg = s.secondary_deg;
+  c.sid_mm = s.sid_mm;
+  c.sod_mm = s.sod_mm;
+  c.table_mm = {s.table_mm[0], s.table_mm[1], s.table_mm[2]};
+  c.fluoro_on = s.fluoro_on;
+  c.moving = s.moving;
+  return c;
+}
+
+void map_frames_offline(const std::vector<std::pair<std::int64_t, acquisition::ClockPair>>& device_clock_frames,
+                        std::vector<FrameRecord>& frames) {
+  if (device_clock_frames.empty()) return;
+  std::vector<acquisition::ClockPair> pairs;
+  pairs.reserve(device_clock_frames.size());
+  for (const auto& [frame, pair] : device_clock_frames) pairs.push_back(pair);
+  const std::vector<std::int64_t> host_ns = acquisition::device_times_on_host(pairs);
+  std::size_t k = 0;
+  std::int64_t last = std::numeric_limits<std::int64_t>::min();
+  for (FrameRecord& r : frames) {
+    while (k < device_clock_frames.size() && device_clock_frames[k].first < r.frame) ++k;
+    if (k < device_clock_frames.size() && device_clock_frames[k].first == r.frame) r.timestamp_ns = host_ns[k];
+    r.timestamp_ns = std::max(r.timestamp_ns, last);
+    last = r.timestamp_ns;
+  }
+}
+
+Session assemble(const fs::path& out, const RecordingSettings& settings, const RecordedStreams& streams,
+                 std::uint64_t& dropped) {
+  Session s;
+  s.directory = out;
+  s.scene = "patient/scene.json";
+  s.ct_to_carm = settings.ct_to_carm;
+  s.device_thickness_mm = settings.device_thickness_mm;
+  s.frames = streams.frames;
+  map_frames_offline(streams.device_clock_frames, s.frames);
+  for (const CArmSample& c : carm_on_host_clock(streams.states)) {
+    if (carm_sample_problem(c).empty())
+      s.carm.push_back(c);
+    else
+      ++dropped;
+  }
+  if (streams.size)
+    s.detector = {streams.size->first, streams.size->second, settings.pixel_spacing_mm, settings.pixel_spacing_mm};
+  return s;
+}
+
+}  // namespace recording
+
+std::vector<CArmSample> carm_on_host_clock(const std::vector<acquisition::CArmState>& states) {
+  std::vector<acquisition::ClockPair> pairs;
+  pairs.reserve(states.size());
+  for (const acquisition::CArmState& s : states) pairs.push_back({s.device_time_ns, recording::ns_of(s.host_arrival)});
+  const std::vector<std::int64_t> host_ns = acquisition::device_times_on_host(pairs);
+  std::vector<CArmSample> out;
+  out.reserve(states.size());
+  for (std::size_t i = 0; i < states.size(); ++i) out.push_back(recording::sample_of(states[i], host_ns[i]));
+  return out;
+}
+
+}  // namespace evar::session
