@@ -11,6 +11,7 @@
 #include <opencv2/core.hpp>
 
 #include "alert_board.hpp"
+#include "held_frame_policy.hpp"
 #include "evar/node/logging.hpp"
 #include "latency_window.hpp"
 #include "mailbox.hpp"
@@ -250,31 +251,13 @@ void LiveNode::Impl::compose_loop() {
   overlay::FrameCompositor compositor(options_.compositor);
   acquisition::FrameLossMonitor loss_monitor(options_.frame_loss);
   Clock::time_point last_loss_sample{};
-  auto last_frame = Clock::now();  // the last live frame shown
-  bool any_frame = false, stalled = false;
-  bool showing_fails = false;  // frames come but the last could not be composited
-  // The last frame shown, with the geometry it was shown with, kept to be shown again,
-  // marked as held, while the video is gone: the monitor must not go on showing a frozen
-  // picture as if it were live, and the window must go on answering keys.
-  struct Shown {
-    acquisition::Frame frame;
-    std::optional<acquisition::FrameGeometry> geometry;
-    std::optional<FrameView> view;
-    bool size_ok = false;
-  };
-  std::optional<Shown> last_shown;
-  Clock::time_point last_held;
+  HeldFramePolicy holding(options_.video_stall, options_.held_frame_interval);
   double last_latency_ms = 0.0;
   std::string layer_error;  // said once in the log; the frames say it themselves
   for (;;) {
-    // While stalled with a frame to hold, wake in time for the next held frame.
-    auto wait = std::chrono::milliseconds(100);
-    if (stalled && last_shown)
-      wait = std::clamp(std::chrono::duration_cast<std::chrono::milliseconds>(options_.held_frame_interval - (Clock::now() - last_held)),
-                        std::chrono::milliseconds(1), wait);
-    // Frames that come but cannot be shown leave the screen as a lost video does: the last
-    // good frame is held in their place (the next one waits in the queue meanwhile).
-    const bool hold_instead = stalled && showing_fails && last_shown && Clock::now() - last_held >= options_.held_frame_interval;
+    const auto wait = holding.wait(Clock::now(), std::chrono::milliseconds(100));
+    // Frames that come but cannot be shown leave the screen as a lost video does.
+    const bool hold_instead = holding.hold_instead_of_next(Clock::now());
     std::optional<acquisition::Frame> f = hold_instead ? std::nullopt : input_.pop(wait);
     if (Clock::now() - last_loss_sample >= std::chrono::milliseconds(250)) {
       last_loss_sample = Clock::now();
@@ -283,21 +266,19 @@ void LiveNode::Impl::compose_loop() {
     std::optional<double> held_s;  // set: f is the last frame shown again, this long after it came
     if (!f && !hold_instead && input_.closed()) break;
     // Stalled: no live frame shown for video_stall, whether none came or none could be shown.
-    if (any_frame && !stalled && Clock::now() - last_frame > options_.video_stall) {
-      stalled = true;
+    if (holding.stall_begins(Clock::now())) {
       {
         std::lock_guard lock(stats_mutex_);
         ++stats_.video_stalls;
       }
       alerts_.set("video-stall",
-                (showing_fails ? "no frame shown for " : "no video for ") + std::to_string(options_.video_stall.count()) + " ms",
+                (holding.showing_fails() ? "no frame shown for " : "no video for ") + std::to_string(options_.video_stall.count()) + " ms",
                 std::nullopt);
     }
     if (!f) {
-      if (!stalled || !last_shown || Clock::now() - last_held < options_.held_frame_interval) continue;
-      last_held = Clock::now();
-      held_s = ms_between(last_frame, last_held) / 1000.0;
-      f = last_shown->frame;
+      held_s = holding.take_held(Clock::now());
+      if (!held_s) continue;
+      f = holding.held().frame;
     }
 
     // A held frame is shown with the geometry it was first shown with, and changes no
@@ -306,9 +287,9 @@ void LiveNode::Impl::compose_loop() {
     std::optional<acquisition::FrameGeometry> g;
     std::optional<FrameView> view;
     if (held_s) {
-      size_ok = last_shown->size_ok;
-      g = last_shown->geometry;
-      view = last_shown->view;
+      size_ok = holding.held().size_ok;
+      g = holding.held().geometry;
+      view = holding.held().view;
     } else {
       size_ok = f->width == options_.detector.cols && f->height == options_.detector.rows;
       if (!size_ok)
@@ -355,7 +336,7 @@ void LiveNode::Impl::compose_loop() {
                   alerts_.current(held_s ? std::string_view() : std::string_view("video-stall"))};
     if (held_s) {
       // First and in the alert colour; its changing age is not an alert of its own (no log).
-      out.status.alerts.insert(out.status.alerts.begin(), held_frame_line(showing_fails, *held_s));
+      out.status.alerts.insert(out.status.alerts.begin(), held_frame_line(holding.showing_fails(), *held_s));
       out.held = true;
     }
     out.P_ct = view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
@@ -378,19 +359,10 @@ void LiveNode::Impl::compose_loop() {
     } catch (const std::exception& e) {
       // The text stays the same from frame to frame (a frame number would log every frame).
       alerts_.set("compose", std::string("frame not shown: ") + e.what(), options_.alert_hold);
-      if (!held_s) showing_fails = true;
+      if (!held_s) holding.live_failed();
       continue;
     }
-    if (!held_s) {
-      // A live frame on screen: the video is back, whatever kept it away.
-      showing_fails = false;
-      if (stalled) {
-        alerts_.clear("video-stall");
-        stalled = false;
-      }
-      any_frame = true;
-      last_frame = Clock::now();
-    }
+    if (!held_s && holding.live_shown(Clock::now())) alerts_.clear("video-stall");
     out.sequence = f->sequence;
     out.device_time_ns = f->device_time_ns;
     out.model = model;
@@ -412,15 +384,15 @@ void LiveNode::Impl::compose_loop() {
     // held; assigning into the kept one reuses its buffer). Handing it on before compositing
     // was tried: the segmentation then shares its core with the compositing, and neither
     // the model nor the frame came sooner (docs/BENCHMARKS.md, "The live node").
-    if (!last_shown) last_shown.emplace();
-    last_shown->geometry = g;
-    last_shown->view = view;
-    last_shown->size_ok = size_ok;
+    HeldFramePolicy::Shown& kept = holding.keep();
+    kept.geometry = g;
+    kept.view = view;
+    kept.size_ok = size_ok;
     if (analyse) {
-      last_shown->frame = *f;
+      kept.frame = *f;
       analysis_.put(Analysis{std::move(*f), *view});
     } else {
-      last_shown->frame = std::move(*f);
+      kept.frame = std::move(*f);
     }
   }
 }
