@@ -187,8 +187,8 @@ void BM_TubeTriangularSolve(benchmark::State& state, int vertices, int backend_a
   const auto& system = *tube_system(vertices, backend);
   const auto block = free_block_in_system_order(system, p.constrained);
   const deform::SparseCholesky chol(block.A_FF, block.ordering, backend);
-  const deform::SparseCholesky::Xyz B = deform::SparseCholesky::Xyz::Random(block.A_FF.rows(), 3);
-  deform::SparseCholesky::Xyz X;
+  const geometry::Vertices B = geometry::Vertices::Random(block.A_FF.rows(), 3);
+  geometry::Vertices X;
   for (auto _ : state) {
     chol.solve_xyz(B, X);
     benchmark::DoNotOptimize(X.data());

@@ -50,7 +50,7 @@ inline std::string backend_label(deform::CholeskyBackend b) { return deform::to_
 struct TubeProblem {
   geometry::TriangleMesh mesh;
   std::vector<int> constrained;  ///< fixed bottom, then moved top (mesh order)
-  deform::Positions targets;     ///< one row per constrained vertex
+  geometry::Vertices targets;     ///< one row per constrained vertex
   deform::ArapTerms terms;       ///< surface ARAP terms with cotangent weights
 };
 
@@ -117,7 +117,7 @@ inline const SceneProblem& example_scene(int aorta_vertices) {
 }
 
 /// Largest distance (mm) between corresponding rows.
-inline double max_row_distance(const deform::Positions& a, const deform::Positions& b) {
+inline double max_row_distance(const geometry::Vertices& a, const geometry::Vertices& b) {
   return (a - b).rowwise().norm().maxCoeff();
 }
 

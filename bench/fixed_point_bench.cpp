@@ -20,7 +20,7 @@ namespace {
 constexpr int kVertices = 7500;
 
 struct Reference {
-  deform::Positions X;
+  geometry::Vertices X;
   int iterations = 0;
   double last_update_mm = 0.0;
 };

@@ -40,7 +40,7 @@ struct AortaProblem {
   deform::ArapTether tether;
   std::shared_ptr<const deform::ArapSystem> system;
   std::vector<int> constrained;  ///< handle vertices of the first round
-  deform::Positions targets;     ///< their targets
+  geometry::Vertices targets;     ///< their targets
   int vertices = 0;
 };
 
@@ -155,7 +155,7 @@ void BM_VesselIteration(benchmark::State& state, int aorta_vertices) {
 
 // A deformed configuration and its rotations, as the iterations meet them.
 struct Configuration {
-  deform::Positions X;
+  geometry::Vertices X;
   std::vector<Eigen::Matrix3d> R;
 };
 Configuration configuration(const AortaProblem& p) {
@@ -170,7 +170,7 @@ void BM_VesselLocalStep(benchmark::State& state, int aorta_vertices) {
   const auto& p = aorta(aorta_vertices);
   const auto c = configuration(p);
   std::vector<Eigen::Matrix3d> R;
-  deform::Positions b;
+  geometry::Vertices b;
   for (auto _ : state) benchmark::DoNotOptimize(p.system->local_step(c.X, c.R, R, &b));
   set_common(state, p);
 }
@@ -178,7 +178,7 @@ void BM_VesselLocalStep(benchmark::State& state, int aorta_vertices) {
 void BM_VesselSolveXyz(benchmark::State& state, int aorta_vertices) {
   const auto& p = aorta(aorta_vertices);
   const auto c = configuration(p);
-  deform::Positions b;
+  geometry::Vertices b;
   p.system->right_hand_side(c.R, b);
   const Eigen::MatrixXd B = b;
   const auto* A = p.system->prefactored();

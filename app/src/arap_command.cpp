@@ -17,7 +17,7 @@ namespace {
 
 struct Constraints {
   std::vector<int> vertices;
-  deform::Positions targets;
+  geometry::Vertices targets;
 };
 
 // Reads {"fixed": [i...], "handles": [{"vertex": i, "target": [x, y, z]}]}; every error

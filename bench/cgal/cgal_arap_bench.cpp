@@ -107,8 +107,8 @@ void set_targets(Deformation& d, const CgalTube& t) {
   for (std::size_t k = 0; k < t.control.size(); ++k) d.set_target_position(t.control[k], t.targets[k]);
 }
 
-deform::Positions positions(const Mesh& m) {
-  deform::Positions X(static_cast<Eigen::Index>(m.number_of_vertices()), 3);
+geometry::Vertices positions(const Mesh& m) {
+  geometry::Vertices X(static_cast<Eigen::Index>(m.number_of_vertices()), 3);
   for (const VertexIndex v : m.vertices()) {
     const Point& q = m.point(v);
     X.row(static_cast<Eigen::Index>(static_cast<std::size_t>(v))) << q.x(), q.y(), q.z();
@@ -242,7 +242,7 @@ constexpr int kIterationSample = 20;
 void BM_CgalIteration(benchmark::State& state, int vertices, bool single) {
   const auto& t = cgal_tube(vertices);
   auto& p = prepared(vertices);
-  const deform::Positions rest = positions(t.mesh);
+  const geometry::Vertices rest = positions(t.mesh);
   double per_iter = 0, cpu = 0, moved = 0;
   for (auto _ : state) {
     p.d->reset();  // rest shape, identity rotations (and the control vertices back at rest)
@@ -292,7 +292,7 @@ struct Study {
 constexpr int kCgalIterations = 5000;
 constexpr int kPlainCap = 20000, kAndersonCap = 5000;
 
-deform::Positions our_reference(const deform::ArapTerms& terms, const bench::TubeProblem& p, double* iterations,
+geometry::Vertices our_reference(const deform::ArapTerms& terms, const bench::TubeProblem& p, double* iterations,
                                 double* last_update, double* ms) {
   deform::ArapOptions opt;
   opt.tolerance_mm = 1e-7;
@@ -363,7 +363,7 @@ Study run_study(int vertices) {
     }
 
   // Our fixed point.
-  const deform::Positions ref = our_reference(p.terms, p, &s.ref_iterations, &s.ref_last_update_mm, &s.ref_ms);
+  const geometry::Vertices ref = our_reference(p.terms, p, &s.ref_iterations, &s.ref_last_update_mm, &s.ref_ms);
   std::fprintf(stderr, "[cgal_fixed_point/%d] our reference: %g iterations, %.0f ms\n", vertices, s.ref_iterations, s.ref_ms);
 
   // CGAL, one iteration per call, to kCgalIterations.
@@ -371,11 +371,11 @@ Study run_study(int vertices) {
   auto d = make_deformation(mesh, t);
   set_targets(*d, t);
   if (!d->preprocess()) throw std::runtime_error("CGAL preprocess() failed");
-  deform::Positions prev = positions(mesh), X100, X500, X102, Xlast;
+  geometry::Vertices prev = positions(mesh), X100, X500, X102, Xlast;
   double update_4000 = 0;
   for (int k = 1; k <= kCgalIterations; ++k) {
     d->deform(1, 0.0);
-    deform::Positions X = positions(mesh);
+    geometry::Vertices X = positions(mesh);
     const double to_ours = bench::max_row_distance(X, ref);
     if (s.cgal_to_ours_005 < 0 && to_ours <= 0.05) s.cgal_to_ours_005 = k;
     if (s.cgal_to_ours_001 < 0 && to_ours <= 0.01) s.cgal_to_ours_001 = k;
@@ -425,7 +425,7 @@ Study run_study(int vertices) {
     return it->second;
   };
   {
-    const deform::Positions X = after(false, 100);
+    const geometry::Vertices X = after(false, 100);
     s.plain_100 = bench::max_row_distance(X, ref);
     // Plain local/global with the same weights is the same map as CGAL's: our k iterations
     // end on the (k + 2)-th global solve (Laplacian editing, one before the loop, k in it),
@@ -443,7 +443,7 @@ Study run_study(int vertices) {
     opt.tolerance_mm = 1e-12;
     opt.max_iterations = 1;
     const deform::ArapSolver solver(p.terms, p.constrained, opt);
-    deform::Positions X = solver.solve(p.targets).X;  // after 1 iteration
+    geometry::Vertices X = solver.solve(p.targets).X;  // after 1 iteration
     for (int k = 1; k <= kPlainCap && s.plain_001 < 0; k += 2) {
       const double dist = bench::max_row_distance(X, ref);
       if (s.plain_005 < 0 && dist <= 0.05) s.plain_005 = k;
@@ -463,7 +463,7 @@ Study run_study(int vertices) {
 
   if (s.weights_differing > 0) {
     const auto terms = deform::mesh_arap_terms(p.mesh.V, cgal_edges);
-    const deform::Positions ref_cgal_weights = our_reference(terms, p, nullptr, nullptr, nullptr);
+    const geometry::Vertices ref_cgal_weights = our_reference(terms, p, nullptr, nullptr, nullptr);
     s.ours_cgal_weights_to_ours = bench::max_row_distance(ref_cgal_weights, ref);
     s.ours_cgal_weights_to_cgal = bench::max_row_distance(ref_cgal_weights, Xlast);
   }

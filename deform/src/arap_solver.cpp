@@ -87,7 +87,7 @@ ArapSystem::ArapSystem(ArapTerms terms, ArapOptions options, ArapTether tether, 
       }
     cell_unknown_begin_.push_back(static_cast<int>(cell_unknown_.size()));
   }
-  tether_rhs_ = Positions::Zero(n, 3);
+  tether_rhs_ = geometry::Vertices::Zero(n, 3);
   if (!tether_.weight.empty())
     for (int k = 0; k < n; ++k) tether_rhs_.row(k) = tether_.weight[static_cast<std::size_t>(k)] * tether_.anchor.row(k);
   if (!knots.arc_of_unknown.empty()) coarse_.emplace(terms_, tether_.weight, knots);
@@ -109,12 +109,12 @@ const SparseCholesky* ArapSystem::prefactored() const {
   return prefactored_ ? &*prefactored_ : nullptr;
 }
 
-double ArapSystem::local_step(const Positions& X, std::vector<Eigen::Matrix3d>& R) const {
+double ArapSystem::local_step(const geometry::Vertices& X, std::vector<Eigen::Matrix3d>& R) const {
   return local_step(X, R, R, nullptr);
 }
 
-double ArapSystem::local_step(const Positions& X, const std::vector<Eigen::Matrix3d>& R_warm,
-                              std::vector<Eigen::Matrix3d>& R, Positions* b) const {
+double ArapSystem::local_step(const geometry::Vertices& X, const std::vector<Eigen::Matrix3d>& R_warm,
+                              std::vector<Eigen::Matrix3d>& R, geometry::Vertices* b) const {
   R.resize(R_warm.size());
   if (b) *b = tether_rhs_;
   double E = rest_energy_;
@@ -158,7 +158,7 @@ double ArapSystem::local_step(const Positions& X, const std::vector<Eigen::Matri
   return std::max(E, 0.0);
 }
 
-void ArapSystem::right_hand_side(const std::vector<Eigen::Matrix3d>& R, Positions& b) const {
+void ArapSystem::right_hand_side(const std::vector<Eigen::Matrix3d>& R, geometry::Vertices& b) const {
   b = tether_rhs_;
   for (int c = 0; c < terms_.num_cells; ++c) {
     const auto cu = static_cast<std::size_t>(c);
@@ -167,7 +167,7 @@ void ArapSystem::right_hand_side(const std::vector<Eigen::Matrix3d>& R, Position
   }
 }
 
-double ArapSystem::energy(const Positions& X) const {
+double ArapSystem::energy(const geometry::Vertices& X) const {
   std::vector<Eigen::Matrix3d> R(static_cast<std::size_t>(terms_.num_cells), Eigen::Matrix3d::Identity());
   return local_step(X, R);
 }
@@ -241,8 +241,8 @@ ArapSolver::ArapSolver(std::shared_ptr<const ArapSystem> system, std::vector<int
   factor_ms_ = ms_since(t1);
 }
 
-Positions ArapSolver::global_step(const Positions& b, const Positions& coupling, const Positions& X_C_full) const {
-  Positions x;
+geometry::Vertices ArapSolver::global_step(const geometry::Vertices& b, const geometry::Vertices& coupling, const geometry::Vertices& X_C_full) const {
+  geometry::Vertices x;
   if (prefactored_) {
     // x = A⁻¹(b + E μ) with Eᵀx = x_C:  S μ = x_C − Eᵀ A⁻¹ b,  x = A⁻¹b + W μ.
     // Rows F of A x = b + E μ are those of A_FF x_F + A_FC x_C = b_F.
@@ -255,7 +255,7 @@ Positions ArapSolver::global_step(const Positions& b, const Positions& coupling,
     return x;
   }
   // A_FF x_F = b_F − A_FC x_C
-  Positions rhs_F(static_cast<Eigen::Index>(free_.size()), 3), x_F;
+  geometry::Vertices rhs_F(static_cast<Eigen::Index>(free_.size()), 3), x_F;
   for (std::size_t i = 0; i < free_.size(); ++i) rhs_F.row(static_cast<Eigen::Index>(i)) = b.row(free_[i]) - coupling.row(free_[i]);
   x = X_C_full;
   if (free_.empty()) return x;
@@ -264,7 +264,7 @@ Positions ArapSolver::global_step(const Positions& b, const Positions& coupling,
   return x;
 }
 
-ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial) const {
+ArapResult ArapSolver::solve(const geometry::Vertices& targets, const geometry::Vertices* initial) const {
   const int n = system_->num_unknowns();
   const auto& options = system_->options();
   if (targets.rows() != static_cast<Eigen::Index>(constrained_.size()))
@@ -277,13 +277,13 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   ArapResult result;
   result.factor_ms = factor_ms_;
   const auto t_init = Clock::now();
-  Positions X_C_full = Positions::Zero(n, 3);
+  geometry::Vertices X_C_full = geometry::Vertices::Zero(n, 3);
   for (std::size_t c = 0; c < constrained_.size(); ++c) X_C_full.row(constrained_[c]) = targets.row(static_cast<Eigen::Index>(c));
-  const Positions coupling = prefactored_ ? Positions() : Positions(system_->matrix() * X_C_full);
-  Positions& X = result.X;
+  const geometry::Vertices coupling = prefactored_ ? geometry::Vertices() : geometry::Vertices(system_->matrix() * X_C_full);
+  geometry::Vertices& X = result.X;
   std::vector<Eigen::Matrix3d> R(static_cast<std::size_t>(system_->terms().num_cells), Eigen::Matrix3d::Identity());
-  Positions b;  // b(R) of the rotations in R, kept with them
-  Positions x(n, 3);
+  geometry::Vertices b;  // b(R) of the rotations in R, kept with them
+  geometry::Vertices x(n, 3);
   if (initial) {
     x = *initial;
     for (const int k : constrained_) x.row(k) = X_C_full.row(k);
@@ -296,8 +296,8 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   // The global step from the rotations fitted at x: with a coarse space, turned first by its
   // Gauss-Newton step (coarse_space.hpp).
   std::vector<Eigen::Matrix3d> turned;
-  Positions b_turned;
-  const auto next_global = [&]() -> Positions {
+  geometry::Vertices b_turned;
+  const auto next_global = [&]() -> geometry::Vertices {
     if (!coarse) return global_step(b, coupling, X_C_full);
     const Eigen::MatrixXd half_gradient = system_->matrix() * x - b;  // ½ ∇E at (x, R(x))
     const Eigen::VectorXd xi = -coarse_->solve(coarse->project(half_gradient, is_constrained_));
@@ -316,9 +316,9 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   AndersonMixing anderson(options.anderson ? N : 0, options.anderson_window);
 
   std::vector<Eigen::Matrix3d> R_candidate;
-  Positions b_candidate;
-  Positions f(n, 3), candidate(n, 3);
-  Positions g = next_global();
+  geometry::Vertices b_candidate;
+  geometry::Vertices f(n, 3), candidate(n, 3);
+  geometry::Vertices g = next_global();
   for (int it = 1; it <= options.max_iterations; ++it) {
     f = g - x;
     result.last_update_mm = n > 0 ? f.rowwise().norm().maxCoeff() : 0.0;
@@ -368,7 +368,7 @@ ArapResult ArapSolver::solve(const Positions& targets, const Positions* initial)
   return result;
 }
 
-ArapTerms mesh_arap_terms(const Positions& V, const std::vector<WeightedEdge>& edges) {
+ArapTerms mesh_arap_terms(const geometry::Vertices& V, const std::vector<WeightedEdge>& edges) {
   return surface_arap_terms(V, edges, static_cast<int>(V.rows()));
 }
 

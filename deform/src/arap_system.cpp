@@ -30,7 +30,7 @@ void ArapTerms::add_term(double w, const std::vector<std::pair<int, double>>& co
   append_term(*this, w, coeffs, e);
 }
 
-ArapTerms surface_arap_terms(const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& V,
+ArapTerms surface_arap_terms(const geometry::Vertices& V,
                              const std::vector<WeightedEdge>& edges, int num_unknowns) {
   const int n = static_cast<int>(V.rows());
   // One-ring adjacency in CSR, so each vertex's half-edges are contiguous.

@@ -10,7 +10,7 @@ ArapTether registration_tether(const geometry::TriangleMesh& mesh, int unknowns,
   // Barycentric vertex areas (mm²) over ℓ² (mm²): dimensionless like the cot weights.
   const auto n = mesh.V.rows();
   tether.weight.assign(static_cast<std::size_t>(unknowns), 0.0);
-  tether.anchor = Positions::Zero(unknowns, 3);
+  tether.anchor = geometry::Vertices::Zero(unknowns, 3);
   tether.anchor.topRows(n) = mesh.V;
   const double inv_l2 = 1.0 / (length_mm * length_mm);
   for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {

@@ -231,7 +231,7 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
   if (backend_ == CholeskyBackend::Cholmod) return impl_->cholmod->solve(B);
 #endif
   if (impl_->ordered && B.cols() == 3) {  // points: the three-column sweep
-    Xyz X;
+    geometry::Vertices X;
     solve_xyz(B, X);
     return X;
   }
@@ -255,7 +255,7 @@ Eigen::MatrixXd SparseCholesky::solve(const Eigen::MatrixXd& B) const {
   return impl_->ldlt.solve(B);
 }
 
-void SparseCholesky::solve_xyz(const Xyz& B, Xyz& X) const {
+void SparseCholesky::solve_xyz(const geometry::Vertices& B, geometry::Vertices& X) const {
   if (!impl_->ordered) {
     X = solve(Eigen::MatrixXd(B));
     return;

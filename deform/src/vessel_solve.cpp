@@ -72,10 +72,10 @@ geometry::Vertices deform_vessel(const VesselModel& m, const geometry::Polyline&
   std::map<int, Eigen::Vector3d> targets = handle_vertex_targets(mesh, handles);
   for (const auto& [v, p] : fixed) targets[v] = p;
   for (const int v : m.isolated) targets.emplace(v, mesh.V.row(v).transpose());
-  Positions X;
+  geometry::Vertices X;
   for (int round = 0;; ++round) {
     std::vector<int> constrained;
-    Positions rows(static_cast<Eigen::Index>(targets.size()), 3);
+    geometry::Vertices rows(static_cast<Eigen::Index>(targets.size()), 3);
     for (const auto& [v, p] : targets) {
       rows.row(static_cast<Eigen::Index>(constrained.size())) = p.transpose();
       constrained.push_back(v);

@@ -90,7 +90,7 @@ std::vector<SurfacePoint> closest_points_on_mesh(const TriangleMesh& mesh, const
   return out;
 }
 
-int nearest_vertex(const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& V,
+int nearest_vertex(const geometry::Vertices& V,
                    const Eigen::Vector3d& p) {
   int best = -1;
   double best_d2 = std::numeric_limits<double>::infinity();

@@ -9,14 +9,8 @@ namespace recording {
 
 CArmSample sample_of(const CArmState& s, std::int64_t timestamp_ns) {
   CArmSample c;
+  static_cast<acquisition::CArmPose&>(c) = s;
   c.timestamp_ns = timestamp_ns;
-  c.primary_deg = s.primary_deg;
-  c.secondary_deg = s.secondary_deg;
-  c.sid_mm = s.sid_mm;
-  c.sod_mm = s.sod_mm;
-  c.table_mm = {s.table_mm[0], s.table_mm[1], s.table_mm[2]};
-  c.fluoro_on = s.fluoro_on;
-  c.moving = s.moving;
   return c;
 }
 

@@ -131,8 +131,8 @@ std::string carm_sample_problem(const CArmSample& c) {
   if (auto p = timestamp_problem(c.timestamp_ns); !p.empty()) return p;
   const std::pair<const char*, double> values[] = {{"primary_deg", c.primary_deg}, {"secondary_deg", c.secondary_deg},
                                                    {"sid_mm", c.sid_mm},           {"sod_mm", c.sod_mm},
-                                                   {"table_x_mm", c.table_mm.x()}, {"table_y_mm", c.table_mm.y()},
-                                                   {"table_z_mm", c.table_mm.z()}};
+                                                   {"table_x_mm", c.table_mm[0]}, {"table_y_mm", c.table_mm[1]},
+                                                   {"table_z_mm", c.table_mm[2]}};
   for (const auto& [field, v] : values)
     if (!std::isfinite(v)) return std::string(field) + ": " + exact(v) + " is not finite";
   if (std::abs(c.primary_deg) > 180.0) return "primary_deg: " + exact(c.primary_deg) + " is outside -180 to 180";
@@ -214,7 +214,7 @@ Session read_session(const std::filesystem::path& directory) {
     c.sid_mm = number<double>(carm, line, "sid_mm", f[3]);
     c.sod_mm = number<double>(carm, line, "sod_mm", f[4]);
     for (int k = 0; k < 3; ++k)
-      c.table_mm(k) = number<double>(carm, line, k == 0 ? "table_x_mm" : k == 1 ? "table_y_mm" : "table_z_mm", f[5 + static_cast<std::size_t>(k)]);
+      c.table_mm[static_cast<std::size_t>(k)] = number<double>(carm, line, k == 0 ? "table_x_mm" : k == 1 ? "table_y_mm" : "table_z_mm", f[5 + static_cast<std::size_t>(k)]);
     c.fluoro_on = flag(carm, line, "fluoro_on", f[8]);
     c.moving = flag(carm, line, "moving", f[9]);
     if (const auto problem = carm_sample_problem(c); !problem.empty()) fail(carm, line, problem);
@@ -335,7 +335,7 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
   std::string carm = std::string(kCArmHeader) + "\n";
   for (const auto& c : session.carm)
     carm += std::to_string(c.timestamp_ns) + "," + exact(c.primary_deg) + "," + exact(c.secondary_deg) + "," + exact(c.sid_mm) +
-            "," + exact(c.sod_mm) + "," + exact(c.table_mm.x()) + "," + exact(c.table_mm.y()) + "," + exact(c.table_mm.z()) +
+            "," + exact(c.sod_mm) + "," + exact(c.table_mm[0]) + "," + exact(c.table_mm[1]) + "," + exact(c.table_mm[2]) +
             "," + (c.fluoro_on ? "1" : "0") + "," + (c.moving ? "1" : "0") + "\n";
   write_text(directory / "carm.csv", carm);
   const geometry::DetectorSpec& d = session.detector;
@@ -376,7 +376,7 @@ geometry::CArmView view_of(const Session& session, const CArmSample& c) {
 }
 
 Eigen::Matrix4d patient_to_carm(const Session& session, const CArmSample& c) {
-  return geometry::patient_to_carm(session.ct_to_carm, c.table_mm);
+  return geometry::patient_to_carm(session.ct_to_carm, {c.table_mm[0], c.table_mm[1], c.table_mm[2]});
 }
 
 const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns) {

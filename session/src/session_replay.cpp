@@ -53,15 +53,9 @@ acquisition::Frame to_frame(const cv::Mat& image, std::uint64_t sequence, std::i
 
 acquisition::CArmState to_carm_state(const CArmSample& c, std::int64_t offset_ns) {
   acquisition::CArmState s;
+  static_cast<acquisition::CArmPose&>(s) = c;
   s.device_time_ns = c.timestamp_ns + offset_ns;
   s.host_arrival = std::chrono::steady_clock::now();
-  s.primary_deg = c.primary_deg;
-  s.secondary_deg = c.secondary_deg;
-  s.sid_mm = c.sid_mm;
-  s.sod_mm = c.sod_mm;
-  s.table_mm = {c.table_mm.x(), c.table_mm.y(), c.table_mm.z()};
-  s.fluoro_on = c.fluoro_on;
-  s.moving = c.moving;
   return s;
 }
 

@@ -94,7 +94,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
     c.secondary_deg = p.secondary_deg;
     c.sid_mm = plan.sid_mm;
     c.sod_mm = plan.sod_mm;
-    c.table_mm = p.table_mm;
+    c.table_mm = {p.table_mm.x(), p.table_mm.y(), p.table_mm.z()};
     c.fluoro_on = fluoro;
     c.moving = moving;
     s.carm.push_back(c);

@@ -13,15 +13,15 @@
 using namespace evar;
 using deform::ArapOptions;
 using deform::ArapSolver;
-using deform::Positions;
+using geometry::Vertices;
 
 namespace {
-Positions rows_of(const Positions& X, const std::vector<int>& idx) {
-  Positions out(static_cast<Eigen::Index>(idx.size()), 3);
+geometry::Vertices rows_of(const geometry::Vertices& X, const std::vector<int>& idx) {
+  geometry::Vertices out(static_cast<Eigen::Index>(idx.size()), 3);
   for (std::size_t k = 0; k < idx.size(); ++k) out.row(static_cast<Eigen::Index>(k)) = X.row(idx[k]);
   return out;
 }
-Positions rigid(const Positions& X, const Eigen::Matrix3d& Q, const Eigen::Vector3d& t) {
+geometry::Vertices rigid(const geometry::Vertices& X, const Eigen::Matrix3d& Q, const Eigen::Vector3d& t) {
   return ((X * Q.transpose()).rowwise() + t.transpose()).eval();
 }
 }  // namespace
@@ -58,7 +58,7 @@ TEST(ArapSolver, HandlesReachTheirTargetsExactly) {
   const auto m = test::straight_tube();
   const auto fixed = test::vertices_outside_z(m, 1.0, 1e9);  // bottom ring + cap
   std::vector<int> handles = fixed;
-  Positions targets = rows_of(m.V, fixed);
+  geometry::Vertices targets = rows_of(m.V, fixed);
   // Pull the top ring 10 mm sideways.
   for (Eigen::Index i = 0; i < m.V.rows(); ++i)
     if (m.V(i, 2) > 59.0) {
@@ -87,7 +87,7 @@ TEST_P(ArapEnergy, NeverIncreasesAcrossIterations) {
       target_list.push_back((Q * m.V.row(i).transpose() + Eigen::Vector3d(0, -20, -15)).transpose());
     }
   }
-  Positions targets(static_cast<Eigen::Index>(target_list.size()), 3);
+  geometry::Vertices targets(static_cast<Eigen::Index>(target_list.size()), 3);
   for (std::size_t k = 0; k < target_list.size(); ++k) targets.row(static_cast<Eigen::Index>(k)) = target_list[k];
   ArapOptions opt;
   opt.anderson = GetParam();
@@ -104,7 +104,7 @@ INSTANTIATE_TEST_SUITE_P(PlainAndAnderson, ArapEnergy, ::testing::Values(false, 
 TEST(ArapSolver, AndersonReachesTheSameFixedPointInFewerIterations) {
   const auto m = test::straight_tube();
   std::vector<int> handles;
-  Positions targets(0, 3);
+  geometry::Vertices targets(0, 3);
   for (Eigen::Index i = 0; i < m.V.rows(); ++i)
     if (m.V(i, 2) < 1.0 || m.V(i, 2) > 59.0) {
       handles.push_back(static_cast<int>(i));
@@ -143,7 +143,7 @@ TEST(ArapSolver, RefusesAPartWithoutAnyConstraint) {
 TEST(ArapSolver, WarmStartFromTheSolutionConvergesImmediately) {
   const auto m = test::straight_tube();
   const auto handles = test::vertices_outside_z(m, 1.0, 59.0);
-  Positions targets = rows_of(m.V, handles);
+  geometry::Vertices targets = rows_of(m.V, handles);
   for (Eigen::Index k = 0; k < targets.rows(); ++k)
     if (targets(k, 2) > 30) targets(k, 0) += 8.0;
   const ArapSolver solver(test::tube_terms(m), handles);
@@ -159,7 +159,7 @@ struct TetheredPull {
   geometry::TriangleMesh mesh = test::straight_tube();
   std::shared_ptr<const deform::ArapSystem> system;
   std::vector<int> handles;
-  Positions targets;
+  geometry::Vertices targets;
   explicit TetheredPull(int count) {
     ArapOptions opt;
     opt.tolerance_mm = 1e-7;

@@ -51,7 +51,7 @@ TEST(CoarseSpace, ARigidMotionOfTheWholeShapeCostsNothingAndABendCosts) {
 struct HeldAlongOneSide {
   geometry::TriangleMesh mesh = test::straight_tube(120.0, 5.0, 24, 2.0);
   std::vector<int> held;
-  Positions targets{0, 3};
+  geometry::Vertices targets{0, 3};
   HeldAlongOneSide() {
     for (Eigen::Index i = 0; i < mesh.V.rows(); ++i) {
       const double z = mesh.V(i, 2);

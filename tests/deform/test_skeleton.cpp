@@ -57,7 +57,7 @@ double bent_tube_volume_change(bool with_skeleton) {
   const Eigen::Matrix3d Q = Eigen::AngleAxisd(M_PI / 2, Eigen::Vector3d::UnitY()).toRotationMatrix();
   const Eigen::Vector3d top_centre_target(R, 0.0, R);
   std::vector<int> handles;
-  deform::Positions targets(0, 3);
+  geometry::Vertices targets(0, 3);
   for (int i = 0; i < n; ++i) {
     const Eigen::Vector3d v = m.V.row(i).transpose();
     Eigen::Vector3d target;
@@ -103,11 +103,11 @@ TEST(Skeleton, EnergyNeverIncreasesWithSkeletonAndTetherAsDeformRunsIt) {
   deform::append_skeleton_terms(terms, m, sk, n, 1.0);
   deform::ArapTether tether;
   tether.weight.assign(static_cast<std::size_t>(n + centres), 0.0);
-  tether.anchor = deform::Positions::Zero(n + centres, 3);
+  tether.anchor = geometry::Vertices::Zero(n + centres, 3);
   tether.anchor.topRows(n) = m.V;
   for (int i = 0; i < n; ++i) tether.weight[static_cast<std::size_t>(i)] = 2.0 / (50.0 * 50.0);  // ~2 mm² per vertex
   std::vector<int> handles;
-  deform::Positions targets(0, 3);
+  geometry::Vertices targets(0, 3);
   for (int i = 0; i < n; ++i)
     if (m.V(i, 0) > 8.0 && m.V(i, 2) > 30.0 && m.V(i, 2) < 50.0) {  // one side, middle
       handles.push_back(i);

@@ -87,7 +87,7 @@ TEST_F(LiveNodeReplay, AfterALaterAdaptationFailsTheLastGoodModelStaysOnScreenAn
   for (auto& c : faulty.carm)
     if (c.timestamp_ns > last_of_second_view) {
       c.timestamp_ns += kPauseNs;
-      c.table_mm.x() += 300.0;
+      c.table_mm[0] += 300.0;
     }
   std::uint64_t first_faulty_frame = 0;
   for (auto& f : faulty.frames)

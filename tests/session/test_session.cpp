@@ -42,7 +42,7 @@ session::Session small_session(std::vector<cv::Mat>& images) {
     c.secondary_deg = -7.0 / 3.0;
     c.sid_mm = 1200.0;
     c.sod_mm = 785.5;
-    c.table_mm = Eigen::Vector3d(0.1, -0.2, 1.0 / 3.0);
+    c.table_mm = {0.1, -0.2, 1.0 / 3.0};
     c.fluoro_on = k != 0;
     c.moving = k == 3;
     s.carm.push_back(c);
@@ -358,7 +358,7 @@ TEST(Session, WritersRefuseWhatTheReaderRefuses) {
   refused([](session::Session& s) { s.carm[1].sod_mm = s.carm[1].sid_mm; }, "sid_mm, sod_mm");
   refused([](session::Session& s) { s.carm[2].primary_deg = 180.5; }, "primary_deg: 180.5 is outside -180 to 180");
   refused([](session::Session& s) { s.carm[2].secondary_deg = -91; }, "secondary_deg: -91 is outside -90 to 90");
-  refused([&](session::Session& s) { s.carm[0].table_mm.y() = nan; }, "table_y_mm: nan is not finite");
+  refused([&](session::Session& s) { s.carm[0].table_mm[1] = nan; }, "table_y_mm: nan is not finite");
   refused([](session::Session& s) { s.carm[3].timestamp_ns = s.carm[2].timestamp_ns - 1; }, "C-arm sample 3: timestamp_ns: goes back in time");
   refused([](session::Session& s) { s.frames[1].file = "f,1.png"; }, "frame 2: file: 'f,1.png' must be a relative path");
   refused([](session::Session& s) { s.frames[1].file = "f\n1.png"; }, "holds a comma or a control character");

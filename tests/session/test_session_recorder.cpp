@@ -100,7 +100,7 @@ TEST_F(Recording, AReplayedSessionRecordsBackFrameForFrameWithItsGeometry) {
   }
   for (std::size_t k = 0; k < 5; ++k) {
     EXPECT_NEAR(back.carm[k].secondary_deg, original_.carm[k].secondary_deg, 1e-9);
-    EXPECT_NEAR(back.carm[k].table_mm.x(), original_.carm[k].table_mm.x(), 1e-9);
+    EXPECT_NEAR(back.carm[k].table_mm[0], original_.carm[k].table_mm[0], 1e-9);
   }
   // Intervals survive (real-time replay; a loaded 2-core machine may delay a frame's
   // delivery by some tens of ms).

@@ -128,7 +128,7 @@ TEST(SessionGenerator, AtThePapersDifficultyTheNodeIsGivenARegistrationOffByTheR
   ASSERT_NE(c, nullptr);
   const double mm_per_px = s.detector.col_spacing_mm * c->sod_mm / c->sid_mm;
   const auto P = [&](const Eigen::Matrix4d& reg) {
-    return geometry::registered(geometry::projection_matrix(session::view_of(s, *c)), geometry::patient_to_carm(reg, c->table_mm));
+    return geometry::registered(geometry::projection_matrix(session::view_of(s, *c)), geometry::patient_to_carm(reg, {c->table_mm[0], c->table_mm[1], c->table_mm[2]}));
   };
   int checked = 0;
   for (const auto& o : s.truth->ostia) {

@@ -11,15 +11,21 @@
 
 namespace evar::acquisition {
 
-struct CArmState {
-  std::int64_t device_time_ns = 0;   ///< the C-arm's (or recording's) clock
-  std::chrono::steady_clock::time_point host_arrival;
+/// Where the C-arm stands and whether it images: the C-arm state as every layer knows it.
+/// A live state (CArmState) adds its clocks; a session's sample (session::CArmSample) its
+/// time on the host clock; the wire (carm_link::GeometryMessage) carries a CArmState.
+struct CArmPose {
   double primary_deg = 0.0;          ///< DICOM: + LAO, − RAO
   double secondary_deg = 0.0;        ///< DICOM: + CRA, − CAU
   double sid_mm = 0.0, sod_mm = 0.0;
   std::array<double, 3> table_mm{};  ///< table position (x, y, z)
   bool fluoro_on = false;
   bool moving = false;               ///< geometry not settled
+};
+
+struct CArmState : CArmPose {
+  std::int64_t device_time_ns = 0;   ///< the C-arm's (or recording's) clock
+  std::chrono::steady_clock::time_point host_arrival;
 };
 
 /// News from a link that changes no state: bad frames on a line that still delivers, a

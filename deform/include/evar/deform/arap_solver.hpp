@@ -32,7 +32,6 @@
 
 namespace evar::deform {
 
-using Positions = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;  ///< rows: points (mm)
 
 struct ArapOptions {
   int max_iterations = 500;      ///< cap on local/global iterations
@@ -51,11 +50,11 @@ struct ArapOptions {
 /// modes). Empty weight = no tether.
 struct ArapTether {
   std::vector<double> weight;  ///< per unknown (dimensionless, like the cotangent weights)
-  Positions anchor;            ///< per unknown (mm)
+  geometry::Vertices anchor;            ///< per unknown (mm)
 };
 
 struct ArapResult {
-  Positions X;                 ///< all unknowns after the solve (constrained rows = targets)
+  geometry::Vertices X;                 ///< all unknowns after the solve (constrained rows = targets)
   int iterations = 0;          ///< local/global iterations after the initial guess
   bool converged = false;      ///< largest update fell below the tolerance
   double last_update_mm = 0.0; ///< largest update of the last iteration
@@ -81,16 +80,16 @@ class ArapSystem {
   double ordering_ms() const { return ordering_ms_; }
 
   /// E(X) = min_R E(X, R): the energy of a configuration of all unknowns.
-  double energy(const Positions& X) const;
+  double energy(const geometry::Vertices& X) const;
   /// E(X, R) with R fitted in place (warm start: R's current content).
-  double local_step(const Positions& X, std::vector<Eigen::Matrix3d>& R) const;
+  double local_step(const geometry::Vertices& X, std::vector<Eigen::Matrix3d>& R) const;
   /// The same with the warm start `R_warm` and the fitted rotations written to `R` (which
   /// may be R_warm itself); with `b`, also b(R) as right_hand_side() gives it, in the same
   /// pass over the cells while each one's data is in cache.
-  double local_step(const Positions& X, const std::vector<Eigen::Matrix3d>& R_warm, std::vector<Eigen::Matrix3d>& R,
-                    Positions* b) const;
+  double local_step(const geometry::Vertices& X, const std::vector<Eigen::Matrix3d>& R_warm, std::vector<Eigen::Matrix3d>& R,
+                    geometry::Vertices* b) const;
   /// b(R) = Σ_t w_t a_t (R_c e_t)ᵀ + tether, for all unknowns (#unknowns by 3).
-  void right_hand_side(const std::vector<Eigen::Matrix3d>& R, Positions& b) const;
+  void right_hand_side(const std::vector<Eigen::Matrix3d>& R, geometry::Vertices& b) const;
 
   const Eigen::SparseMatrix<double>& matrix() const { return A_; }  ///< full symmetric A
   /// A itself factored (on first use, once): only a tether makes it positive definite, so
@@ -111,7 +110,7 @@ class ArapSystem {
   std::vector<int> cell_unknown_begin_{0};
   std::vector<int> cell_unknown_;
   std::vector<Eigen::Vector3d> cell_moment_;  ///< m_ck (mm)
-  Positions tether_rhs_;                      ///< weight_k anchor_k (zero rows without a tether)
+  geometry::Vertices tether_rhs_;                      ///< weight_k anchor_k (zero rows without a tether)
   double rest_energy_ = 0.0;  ///< Σ_t w_t |e_t|²
   double assemble_ms_ = 0.0, ordering_ms_ = 0.0;
   mutable std::once_flag prefactor_once_;
@@ -141,9 +140,9 @@ class ArapSolver {
 
   /// `targets`: one row per constrained unknown, in the order given to the constructor.
   /// `initial`: optional warm start for all unknowns (e.g. the previous frame's result).
-  ArapResult solve(const Positions& targets, const Positions* initial = nullptr) const;
+  ArapResult solve(const geometry::Vertices& targets, const geometry::Vertices* initial = nullptr) const;
 
-  double energy(const Positions& X) const { return system_->energy(X); }
+  double energy(const geometry::Vertices& X) const { return system_->energy(X); }
   const ArapSystem& system() const { return *system_; }
   const std::vector<int>& constrained() const { return constrained_; }
   double assemble_ms() const { return system_->assemble_ms() + free_block_ms_; }
@@ -158,7 +157,7 @@ class ArapSolver {
 
  private:
   /// x solving the global step for the right-hand side b = b(R).
-  Positions global_step(const Positions& b, const Positions& coupling, const Positions& X_C_full) const;
+  geometry::Vertices global_step(const geometry::Vertices& b, const geometry::Vertices& coupling, const geometry::Vertices& X_C_full) const;
 
   std::shared_ptr<const ArapSystem> system_;
   std::vector<int> constrained_;
@@ -174,6 +173,6 @@ class ArapSolver {
 };
 
 /// Plain surface ARAP on a mesh (no skeleton), used by `evarnode arap`.
-ArapTerms mesh_arap_terms(const Positions& V, const std::vector<WeightedEdge>& edges);
+ArapTerms mesh_arap_terms(const geometry::Vertices& V, const std::vector<WeightedEdge>& edges);
 
 }  // namespace evar::deform

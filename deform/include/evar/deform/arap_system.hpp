@@ -40,7 +40,7 @@ struct ArapTerms {
 /// Surface ARAP terms: one cell per vertex holding the half-edges to its one-ring,
 /// weighted by cotangent weights. `num_unknowns` may exceed #V to leave room for skeleton
 /// points appended later (their cells come after the #V vertex cells).
-ArapTerms surface_arap_terms(const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& V,
+ArapTerms surface_arap_terms(const geometry::Vertices& V,
                              const std::vector<WeightedEdge>& edges, int num_unknowns);
 
 /// A = Σ_t w_t a_t a_tᵀ (#unknowns square, symmetric positive semidefinite).

@@ -27,7 +27,7 @@ namespace evar::deform {
 /// Where the unknowns lie along the shape's axis, and where they are at rest.
 struct ArapKnots {
   std::vector<double> arc_of_unknown;  ///< mm along the axis; empty: no coarse space
-  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> rest;  ///< x̄, one row per unknown
+  geometry::Vertices rest;  ///< x̄, one row per unknown
   double spacing_mm = 20.0;            ///< between knots
 };
 

@@ -7,6 +7,8 @@
 #include <string>
 #include <vector>
 
+#include "evar/geometry/triangle_mesh.hpp"
+
 namespace evar::deform {
 
 enum class CholeskyBackend {
@@ -56,10 +58,9 @@ class SparseCholesky {
 
   /// X = A^{-1} B for an n by k right-hand side.
   Eigen::MatrixXd solve(const Eigen::MatrixXd& B) const;
-  using Xyz = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
   /// The same for points (rows x y z), as the ARAP iterations keep them: no copy to columns
   /// and back, as the factor's sweep works on interleaved coordinates anyway.
-  void solve_xyz(const Xyz& B, Xyz& X) const;
+  void solve_xyz(const geometry::Vertices& B, geometry::Vertices& X) const;
   CholeskyBackend backend() const { return backend_; }
   /// Σ_j c_j² over the columns of L (c_j its entries below the diagonal): the cost of a
   /// numeric factorization in multiply-adds. 0 when not known (CHOLMOD, or no ordering given).

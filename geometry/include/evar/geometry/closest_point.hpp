@@ -28,7 +28,7 @@ SurfacePoint closest_point_on_mesh(const TriangleMesh& mesh, const Eigen::Vector
 std::vector<SurfacePoint> closest_points_on_mesh(const TriangleMesh& mesh, const std::vector<Eigen::Vector3d>& points);
 
 /// Index of the vertex nearest to p (linear scan).
-int nearest_vertex(const Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>& V,
+int nearest_vertex(const geometry::Vertices& V,
                    const Eigen::Vector3d& p);
 
 }  // namespace evar::geometry

@@ -5,7 +5,8 @@
 
 namespace evar::geometry {
 
-/// #V by 3 vertex positions (mm), one row per vertex.
+/// Points, one row each (x y z, mm): a mesh's vertices, and every other set of points the
+/// deformation solves for (skeleton centres, targets, iterates). The one points matrix type.
 using Vertices = Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor>;
 /// #F by 3 vertex indices (0-based), one row per triangle.
 using Faces = Eigen::Matrix<int, Eigen::Dynamic, 3, Eigen::RowMajor>;

@@ -21,6 +21,7 @@
 
 #include <opencv2/core.hpp>
 
+#include "evar/acquisition/carm_geometry_source.hpp"
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/detector.hpp"
 
@@ -37,13 +38,9 @@ struct FrameRecord {
   std::filesystem::path file;     ///< relative to frames/; no ".." component, no ',' or control character
 };
 
-struct CArmSample {
+/// One row of carm.csv: the C-arm's pose at a time on the host clock.
+struct CArmSample : acquisition::CArmPose {
   std::int64_t timestamp_ns = 0;  ///< non-decreasing, 0 <= t < kMaxTimestampNs
-  double primary_deg = 0.0, secondary_deg = 0.0;  ///< DICOM conventions (+ LAO, + CRA)
-  double sid_mm = 0.0, sod_mm = 0.0;
-  Eigen::Vector3d table_mm = Eigen::Vector3d::Zero();
-  bool fluoro_on = false;         ///< the beam is on
-  bool moving = false;            ///< the C-arm is moving (geometry not settled)
 };
 
 /// The flat-panel detector every frame comes from (frames must have its size).
