@@ -4,27 +4,27 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <atomic>
 #include <cerrno>
-#include <cstdlib>
-#include <cstring>
-#include <string>
+#include <chrono>
+#include <cstdio>
+#include <stdexcept>
 #include <system_error>
-#include <vector>
 
 namespace evar::base {
 namespace {
 
 constexpr std::size_t kBufferBytes = 1 << 16;
 
-bool exists_as_non_regular(const std::filesystem::path& p) {
-  struct stat st {};
-  return ::stat(p.c_str(), &st) == 0 && !S_ISREG(st.st_mode);
-}
+std::string hint(int error) { return error == ENOSPC || error == EDQUOT ? " (disk full?)" : ""; }
 
-std::string reason(int error) {
-  std::string r = std::strerror(error);
-  if (error == ENOSPC || error == EDQUOT) r += " (disk full?)";
-  return r;
+// A name beside the target that no other writer, in this process or another, picks.
+std::string partial_name(const std::filesystem::path& target) {
+  static std::atomic<unsigned> counter{0};
+  const auto ticks = static_cast<unsigned long long>(std::chrono::steady_clock::now().time_since_epoch().count());
+  char suffix[64];
+  std::snprintf(suffix, sizeof suffix, ".partial-%d-%u-%llx", static_cast<int>(::getpid()), counter++, ticks & 0xffffffULL);
+  return target.string() + suffix;
 }
 
 }  // namespace
@@ -32,23 +32,36 @@ std::string reason(int error) {
 AtomicFile::AtomicFile(std::filesystem::path target, Durability durability)
     : target_(std::move(target)), durability_(durability) {
   if (target_.empty()) throw std::system_error(EINVAL, std::generic_category(), "cannot write a file with no name");
-  if (exists_as_non_regular(target_)) {
-    fd_.reset(::open(target_.c_str(), O_WRONLY | O_CLOEXEC | O_NOCTTY));
+  struct stat link {};
+  const bool exists = ::lstat(target_.c_str(), &link) == 0;
+  const auto in_place = [&] {
+    fd_.reset(::open(target_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOCTTY, 0666));
     if (!fd_) fail("cannot open for writing", errno);
+    buffer_.reserve(kBufferBytes);
+  };
+  if (exists && !S_ISREG(link.st_mode)) {  // a link, device or FIFO
+    in_place();
     return;
   }
-  // mkstemp wants a writable template; the partial name is unique, so two writers of the
-  // same target never write into one file, and a stale one from a crash is never reused.
-  std::string name = target_.string() + ".partial-XXXXXX";
-  std::vector<char> tmpl(name.begin(), name.end());
-  tmpl.push_back('\0');
-  fd_.reset(::mkostemp(tmpl.data(), O_CLOEXEC));
-  if (!fd_) fail("cannot create a file beside it", errno);
-  partial_ = tmpl.data();
-  // mkstemp creates 0600; an output is as readable as any file the user creates.
-  const mode_t mask = ::umask(0);
-  ::umask(mask);
-  ::fchmod(fd_.get(), 0666 & ~mask);
+  // A file we may not write is not replaced behind its back.
+  if (exists && ::access(target_.c_str(), W_OK) != 0) fail("cannot write", errno);
+  for (int attempt = 0; attempt < 16 && !fd_; ++attempt) {
+    partial_ = partial_name(target_);
+    // The kernel applies the umask to 0666, as for any file the user creates.
+    fd_.reset(::open(partial_.c_str(), O_WRONLY | O_CREAT | O_EXCL | O_CLOEXEC | O_NOCTTY, 0666));
+    if (!fd_ && errno != EEXIST) break;
+  }
+  if (!fd_) {
+    const int e = errno;
+    partial_.clear();
+    // An existing file in a folder we may not add to is still ours to write.
+    if (exists && (e == EACCES || e == EPERM || e == EROFS)) {
+      in_place();
+      return;
+    }
+    fail("cannot create a file beside it", e);
+  }
+  if (exists) ::fchmod(fd_.get(), link.st_mode & 07777);  // the old file's permissions
   buffer_.reserve(kBufferBytes);
 }
 
@@ -59,45 +72,49 @@ AtomicFile::~AtomicFile() {
 }
 
 void AtomicFile::fail(const char* what, int error) const {
-  throw std::system_error(error, std::generic_category(), target_.string() + ": " + what + ": " + reason(error));
+  throw std::system_error(error, std::generic_category(), target_.string() + ": " + what + hint(error));
 }
 
-void AtomicFile::flush() {
+void AtomicFile::write_out(std::string_view bytes) {
   std::size_t done = 0;
-  while (done < buffer_.size()) {
-    const ssize_t n = ::write(fd_.get(), buffer_.data() + done, buffer_.size() - done);
+  while (done < bytes.size()) {
+    const ssize_t n = ::write(fd_.get(), bytes.data() + done, bytes.size() - done);
     if (n < 0 && errno == EINTR) continue;
     if (n < 0) fail("cannot write", errno);
     if (n == 0) fail("cannot write", EIO);
     done += static_cast<std::size_t>(n);
   }
+}
+
+void AtomicFile::flush() {
+  write_out(buffer_);
   buffer_.clear();
 }
 
 void AtomicFile::write(std::string_view bytes) {
   if (committed_) throw std::logic_error(target_.string() + ": written after commit");
-  if (buffer_.size() + bytes.size() > kBufferBytes) flush();
-  if (bytes.size() >= kBufferBytes) {
-    buffer_.assign(bytes);
-    flush();
+  if (buffer_.size() + bytes.size() <= kBufferBytes) {
+    buffer_.append(bytes);
     return;
   }
-  buffer_.append(bytes);
+  flush();
+  if (bytes.size() >= kBufferBytes) write_out(bytes);  // large: straight from the caller's bytes
+  else buffer_.append(bytes);
 }
 
 void AtomicFile::commit() {
   if (committed_) throw std::logic_error(target_.string() + ": committed twice");
   flush();
-  if (partial_.empty()) {  // a device or FIFO: written in place, nothing to rename
-    if (::close(fd_.release()) != 0) fail("cannot write", errno);
+  if (durability_ == Durability::Synced && !partial_.empty() && ::fsync(fd_.get()) != 0) fail("cannot write", errno);
+  if (::close(fd_.release()) != 0) fail("cannot write", errno);
+  if (partial_.empty()) {  // written in place: nothing to rename
     committed_ = true;
     return;
   }
-  if (durability_ == Durability::Synced && ::fsync(fd_.get()) != 0) fail("cannot write", errno);
-  if (::close(fd_.release()) != 0) fail("cannot write", errno);
   if (::rename(partial_.c_str(), target_.c_str()) != 0) {
     const int e = errno;
     ::unlink(partial_.c_str());
+    partial_.clear();
     fail("cannot put the written file in place", e);
   }
   committed_ = true;
@@ -114,6 +131,11 @@ void write_file_atomically(const std::filesystem::path& target, std::string_view
   AtomicFile file(target, durability);
   file.write(bytes);
   file.commit();
+}
+
+bool sync_filesystem_of(const std::filesystem::path& path) {
+  const UniqueFd fd(::open(path.c_str(), O_RDONLY | O_CLOEXEC));
+  return fd && ::syncfs(fd.get()) == 0;
 }
 
 }  // namespace evar::base

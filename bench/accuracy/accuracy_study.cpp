@@ -4,12 +4,12 @@
 // record (--json FILE). Run: build/bench/evar_accuracy [--seeds N] [--json FILE]
 #include <cstdio>
 #include <cstdlib>
-#include <fstream>
 #include <string>
 #include <vector>
 
 #include <nlohmann/json.hpp>
 
+#include "evar/base/atomic_file.hpp"
 #include "evar/geometry/device_segmentation.hpp"
 #include "evar/geometry/two_view_reconstruction.hpp"
 #include "evar/sim/curve_metrics.hpp"
@@ -116,6 +116,6 @@ int main(int argc, char** argv) {
   table("### View separation (default dose, 3000 quanta per unattenuated pixel)",
         {{20, 3000}, {30, 3000}, {45, 3000}, {60, 3000}, {90, 3000}, {120, 3000}});
   table("### Dose (views 60 degrees apart)", {{60, 1000}, {60, 300}, {60, 100}, {60, 30}});
-  if (!json_path.empty()) std::ofstream(json_path) << record.dump(2) << "\n";
+  if (!json_path.empty()) evar::base::write_file_atomically(json_path, record.dump(2) + "\n");
   return 0;
 }

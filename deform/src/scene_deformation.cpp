@@ -5,7 +5,6 @@
 #include <exception>
 #include <future>
 #include <numeric>
-#include <set>
 #include <cmath>
 #include <cstdio>
 #include <limits>

@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 #include <cmath>
 #include <cstdint>
+#include <functional>
 #include <opencv2/core.hpp>
 #include <queue>
 #include <vector>

@@ -38,10 +38,10 @@ void check_options(const NodeOptions& o) {
   positive("detector.col_spacing_mm", d.col_spacing_mm, "mm");
 
   if (!o.registration.allFinite()) bad("registration", "not finite");
-  if (!o.registration.row(3).isApprox(Eigen::RowVector4d(0, 0, 0, 1), 1e-9))
-    bad("registration", "the last row must be 0 0 0 1 (a rigid CT to C-arm transform)");
+  if ((o.registration.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9)
+    bad("registration", "the last row must be 0 0 0 1 (an affine CT to C-arm transform)");
   if (!(o.registration.topLeftCorner<3, 3>().determinant() > 0.0))
-    bad("registration", "the rotation part is singular or mirrors; a registration is rigid");
+    bad("registration", "the 3 x 3 part is singular or mirrors space; a registration never does");
 
   positive("candidate.device_diameter_mm", o.candidate.device_diameter_mm, "mm");
   if (!(o.candidate.min_contrast >= 0.0)) bad("candidate.min_contrast", "must be 0 or more");

@@ -173,7 +173,8 @@ void SnapshotSink::save(const overlay::Image& image, const std::string& file, bo
   std::error_code ec;
   for (int n = 1; std::filesystem::exists(path, ec); ++n)  // an earlier run's picture of the same name
     path = directory_ / (std::filesystem::path(file).stem().string() + "-" + std::to_string(n) + ".png");
-  overlay::write_png(path, image);
+  // Not synced: the output thread must not wait for the disk.
+  overlay::write_png(path, image, base::Durability::Deferred);
   const std::uintmax_t size = std::filesystem::file_size(path, ec);
   pictures_.push_back({path, ec ? 0 : size, requested});
   bytes_ += pictures_.back().bytes;

@@ -145,10 +145,10 @@ void composite(std::span<Image* const> images, const ViewProjection& view, const
   draw_overlay(std::span<cv::Mat>(mats), view, overlay, options);
 }
 
-void write_png(const std::filesystem::path& path, const Image& image) {
+void write_png(const std::filesystem::path& path, const Image& image, base::Durability durability) {
   // PNG whatever the extension; a failure names the file and its reason, and leaves no
   // truncated picture behind.
-  geometry::write_image_file(path, detail::wrap(image), {.format = ".png", .params = {}});
+  geometry::write_image_file(path, detail::wrap(image), {.format = ".png", .params = {}, .durability = durability});
 }
 
 }  // namespace evar::overlay

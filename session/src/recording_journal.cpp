@@ -30,8 +30,8 @@ std::string journal_carm_row(const CArmState& s) {
          "\n";
 }
 
-void write_json_file(const fs::path& file, const nlohmann::ordered_json& j) {
-  base::write_file_atomically(file, j.dump(2) + "\n");
+void write_json_file(const fs::path& file, const nlohmann::ordered_json& j, base::Durability durability) {
+  base::write_file_atomically(file, j.dump(2) + "\n", durability);
 }
 
 RecordingSettings read_settings(const fs::path& file) {
@@ -75,6 +75,7 @@ bool whole_png(const fs::path& file, int cols, int rows) {
 }
 
 void sync_session_files(const fs::path& dir) {
+  if (base::sync_filesystem_of(dir)) return;  // the frames too, in one call
   for (const fs::path& p : {dir / "session.json", dir / "carm.csv", dir / "frames" / "index.csv",
                             dir / "record_report.json", dir / "frames", dir}) {
     const base::UniqueFd fd(::open(p.c_str(), O_RDONLY | O_CLOEXEC));

@@ -5,6 +5,7 @@
 // which reads it back. By file:
 //   recording_journal.cpp   the journal's rows and settings, whole-frame checks, syncing
 //   recording_assembly.cpp  streams to a session: both clocks mapped onto the host's
+//   recording_recovery.cpp  a session from the journal of a recording that never finished
 #include <Eigen/Core>
 #include <chrono>
 #include <cstdint>
@@ -16,6 +17,7 @@
 #include <vector>
 
 #include "evar/acquisition/clock_offset.hpp"
+#include "evar/base/atomic_file.hpp"
 #include "evar/acquisition/frame.hpp"
 #include "evar/session/session.hpp"
 #include "evar/session/session_recorder.hpp"
@@ -79,7 +81,8 @@ std::string journal_frame_row(const FrameRecord& r, const Frame& f);
 std::string journal_carm_row(const CArmState& s);
 
 // Through an AtomicFile, so a recorder killed while writing leaves the last whole report.
-void write_json_file(const fs::path& file, const nlohmann::ordered_json& j);
+void write_json_file(const fs::path& file, const nlohmann::ordered_json& j,
+                     base::Durability durability = base::Durability::Synced);
 
 /// journal/recording.json; InputError naming the field when it is not one.
 RecordingSettings read_settings(const fs::path& file);
@@ -88,9 +91,11 @@ RecordingSettings read_settings(const fs::path& file);
 // the IEND chunk (a recorder killed while writing leaves the file cut short).
 bool whole_png(const fs::path& file, int cols, int rows);
 
-// The session's own files and their directories on the disk (fsync) before the journal that
-// could rebuild them goes: a power cut right after finishing must not leave them empty.
-// Frames are not synced one by one (an hour of them would take minutes).
+// The session's files, its frames among them, and their directories on the disk (syncfs of
+// their filesystem; fsync of the session's own files where that fails) before the journal
+// that could rebuild them goes: a power cut right after finishing must not leave them
+// empty. Frames are not synced one by one as they are written (an hour of them would take
+// minutes).
 void sync_session_files(const fs::path& dir);
 
 }  // namespace evar::session::recording

@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <cstdio>
 #include <cmath>
-#include <fstream>
 #include <functional>
 #include <sstream>
 #include <stdexcept>

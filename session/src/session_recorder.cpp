@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <condition_variable>
 #include <cstdio>
-#include <cstring>
 #include <deque>
 #include <fstream>
 #include <limits>
@@ -13,10 +12,8 @@
 #include <thread>
 #include <vector>
 
-#include "csv_table.hpp"
 #include "recording_journal.hpp"
 #include "evar/base/atomic_file.hpp"
-#include "evar/base/input_error.hpp"
 #include "evar/geometry/scene.hpp"
 
 namespace evar::session {
@@ -236,7 +233,9 @@ struct SessionRecorder::Impl {
         {"session_written", session != nullptr}};
     if (session && !session->frames.empty())
       j["frames"]["span_s"] = 1e-9 * static_cast<double>(session->frames.back().timestamp_ns - session->frames.front().timestamp_ns);
-    write_json_file(options.out / "record_report.json", j);
+    // In progress it is rewritten every second on the writer thread, which must not wait
+    // for the disk; the last one is synced.
+    write_json_file(options.out / "record_report.json", j, in_progress ? base::Durability::Deferred : base::Durability::Synced);
   }
 
   void start_journal() {

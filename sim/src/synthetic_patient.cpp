@@ -1,7 +1,6 @@
 #include "evar/sim/synthetic_patient.hpp"
 
 #include <algorithm>
-#include <fstream>
 #include <stdexcept>
 #include <string>
 

@@ -25,8 +25,6 @@
 #include "evar/session/session.hpp"
 #include "evar/sim/example_scene.hpp"
 #include "geometry/synthetic_fluoro.hpp"
-#include "support/killed_recording.hpp"
-#include "support/ramp_frames.hpp"
 
 namespace fs = std::filesystem;
 using evar::test::Cli;

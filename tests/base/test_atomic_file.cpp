@@ -3,10 +3,12 @@
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <filesystem>
 #include <fstream>
 #include <iterator>
+#include <cstdlib>
 #include <string>
 #include <system_error>
 
@@ -110,4 +112,66 @@ TEST(AtomicFile, NothingIsWrittenAfterCommit) {
   EXPECT_THROW(file.write("b"), std::logic_error);
   EXPECT_THROW(file.commit(), std::logic_error);
   EXPECT_EQ(contents(dir.path / "a.txt"), "a");
+}
+
+TEST(AtomicFile, AReplacedFileKeepsItsPermissions) {
+  const evar::test::TempDir dir;
+  const fs::path target = dir.path / "report.json";
+  write_file_atomically(target, "old");
+  fs::permissions(target, fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+  write_file_atomically(target, "new");
+  EXPECT_EQ(contents(target), "new");
+  EXPECT_EQ(fs::status(target).permissions() & fs::perms::all,
+            fs::perms::owner_read | fs::perms::owner_write | fs::perms::group_read);
+}
+
+// A symbolic link is written through, as a plain write would: the link stays a link.
+TEST(AtomicFile, ASymbolicLinkIsWrittenThroughAndStaysALink) {
+  const evar::test::TempDir dir;
+  fs::create_directories(dir.path / "elsewhere");
+  write_file_atomically(dir.path / "elsewhere" / "mesh.stl", "old");
+  fs::create_symlink(dir.path / "elsewhere" / "mesh.stl", dir.path / "mesh.stl");
+  write_file_atomically(dir.path / "mesh.stl", "new");
+  EXPECT_TRUE(fs::is_symlink(dir.path / "mesh.stl"));
+  EXPECT_EQ(contents(dir.path / "elsewhere" / "mesh.stl"), "new");
+  EXPECT_EQ(entries(dir.path), 2u);
+}
+
+// An existing file in a folder we may not add to is still written (in place); a file we
+// may not write is not replaced. Root may write anything, so there the checks run in a
+// child that has become nobody.
+TEST(AtomicFile, PermissionsAreThoseOfAPlainWrite) {
+  const evar::test::TempDir dir;
+  const fs::path locked = dir.path / "locked";
+  fs::create_directories(locked);
+  write_file_atomically(locked / "a.json", "old");
+  const auto checks = [&]() -> int {
+    if (::geteuid() == 0) {
+      constexpr uid_t kNobody = 65534;
+      // The scratch root above the test's folder is the process's own: nobody may pass it.
+      fs::permissions(dir.path.parent_path(), fs::perms::others_exec, fs::perm_options::add);
+      if (::chown(dir.path.c_str(), kNobody, kNobody) != 0 || ::chown(locked.c_str(), kNobody, kNobody) != 0 ||
+          ::chown((locked / "a.json").c_str(), kNobody, kNobody) != 0 || ::setgid(kNobody) != 0 || ::setuid(kNobody) != 0)
+        return 10;
+    }
+    fs::permissions(locked, fs::perms::owner_read | fs::perms::owner_exec);
+    write_file_atomically(locked / "a.json", "new");  // in place
+    if (contents(locked / "a.json") != "new") return 11;
+    try {
+      write_file_atomically(locked / "b.json", "x");  // a new file needs the folder
+      return 12;
+    } catch (const std::system_error&) {
+    }
+    fs::permissions(locked, fs::perms::owner_all);
+    fs::permissions(locked / "a.json", fs::perms::owner_read);
+    try {
+      write_file_atomically(locked / "a.json", "newer");
+      return 13;
+    } catch (const std::system_error& e) {
+      if (std::string(e.what()).find("a.json: cannot write") == std::string::npos) return 14;
+    }
+    if (contents(locked / "a.json") != "new") return 15;
+    return entries(locked) == 1 ? 0 : 16;
+  };
+  EXPECT_EXIT(std::exit(checks()), testing::ExitedWithCode(0), "");
 }

@@ -46,7 +46,7 @@ TEST(NodeOptions, EachSettingNoNodeCouldRunWithIsRefusedByName) {
       {[](NodeOptions& o) { o.detector.col_spacing_mm = -0.3; }, "node options: detector.col_spacing_mm:"},
       {[](NodeOptions& o) { o.registration(0, 3) = std::nan(""); }, "node options: registration: not finite"},
       {[](NodeOptions& o) { o.registration(3, 0) = 1; }, "node options: registration: the last row must be 0 0 0 1"},
-      {[](NodeOptions& o) { o.registration(0, 0) = -1; }, "node options: registration: the rotation part is singular or mirrors"},
+      {[](NodeOptions& o) { o.registration(0, 0) = -1; }, "node options: registration: the 3 x 3 part is singular or mirrors space"},
       {[](NodeOptions& o) { o.candidate.device_diameter_mm = 0; }, "node options: candidate.device_diameter_mm:"},
       {[](NodeOptions& o) { o.candidate.min_confidence = 1.5; }, "node options: candidate.min_confidence: 1.5"},
       {[](NodeOptions& o) { o.adaptation.max_share_outside = -0.1; }, "node options: adaptation.max_share_outside:"},

@@ -1,14 +1,18 @@
 #pragma once
-// A file that appears whole or not at all. Every writer of the node's outputs (meshes,
-// pictures, reports, sessions) goes through it: the bytes go to "<name>.partial-XXXXXX"
-// beside the target, are flushed to the disk, the close is checked (NFS and quotas report
-// late), and the file is renamed over the target, then the directory is synced so the
-// rename survives a power cut. A writer killed or failing half-way leaves the old file,
-// or none, never a truncated one.
+// A file that appears whole or not at all. The node's outputs (meshes, pictures, reports,
+// session files) are written through it: the bytes go to "<name>.partial-XXXXXX" beside
+// the target, are flushed to the disk, the close is checked (NFS and quotas report late),
+// and the file is renamed over the target, then the directory is synced so the rename
+// survives a power cut. A writer killed or failing half-way leaves the old file, or none,
+// never a truncated one. The new file gets the old one's permissions (or, for a new file,
+// those the umask gives), and a file we may not write is not replaced.
 //
-// A target that exists and is not a regular file (a device such as /dev/stdout or
-// /dev/full, a FIFO) cannot be replaced: it is written in place, and never removed.
+// Written in place, as a plain write would: a target that is a symbolic link (its file
+// keeps its links and owner), one that is not a regular file (a device such as /dev/null
+// or /dev/full, a FIFO), and an existing file in a folder we may not write to. Those are
+// never removed.
 #include <filesystem>
+#include <string>
 #include <string_view>
 
 #include "evar/base/unique_fd.hpp"
@@ -17,14 +21,16 @@ namespace evar::base {
 
 /// How far a finished file is pushed before commit() returns.
 enum class Durability {
-  Synced,    ///< the file and its directory are on the disk (fsync): reports, meshes, indices
-  Deferred,  ///< renamed into place, left in the page cache; the caller syncs later (the
-             ///< frames of a recording, which one fsync each would slow to a crawl)
+  Synced,    ///< the file and its directory are on the disk (fsync): finished reports, meshes, indices
+  Deferred,  ///< renamed into place, left in the page cache: files rewritten often on a thread
+             ///< that must not wait for the disk (a recording's frames and its report in
+             ///< progress, the node's snapshots); whoever needs them on the disk syncs later
 };
 
 class AtomicFile {
  public:
-  /// Creates the partial file beside `target`; std::system_error naming it when it cannot.
+  /// Opens the partial file beside `target` (or the target itself, see above);
+  /// std::system_error naming the target when it cannot.
   explicit AtomicFile(std::filesystem::path target, Durability durability = Durability::Synced);
   /// Not committed: the partial file is removed and the target left as it was.
   ~AtomicFile();
@@ -41,6 +47,7 @@ class AtomicFile {
   const std::filesystem::path& target() const { return target_; }
 
  private:
+  void write_out(std::string_view bytes);
   void flush();
   [[noreturn]] void fail(const char* what, int error) const;
 
@@ -55,5 +62,9 @@ class AtomicFile {
 /// The whole of `bytes` as `target`, through an AtomicFile.
 void write_file_atomically(const std::filesystem::path& target, std::string_view bytes,
                            Durability durability = Durability::Synced);
+
+/// Flushes everything written to the filesystem holding `path` to the disk (syncfs): one
+/// call for the many Deferred files of a recording when it finishes. False if it could not.
+bool sync_filesystem_of(const std::filesystem::path& path);
 
 }  // namespace evar::base

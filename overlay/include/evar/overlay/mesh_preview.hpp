@@ -14,6 +14,7 @@
 #include <string>
 #include <vector>
 
+#include "evar/base/atomic_file.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/polyline.hpp"
 #include "evar/geometry/triangle_mesh.hpp"
@@ -145,7 +146,8 @@ Image render_comparison(const ComparisonPicture& picture, const PreviewOptions& 
 
 /// Writes an image as a PNG file at `path` (whatever its extension). Throws
 /// std::runtime_error naming the path (and the system's reason) when it cannot be written.
-void write_png(const std::filesystem::path& path, const Image& image);
+void write_png(const std::filesystem::path& path, const Image& image,
+               base::Durability durability = base::Durability::Synced);
 
 /// Renders the picture and writes it as a PNG file at `path` (whatever its extension).
 /// Throws std::runtime_error naming the path (and the system's reason) when the file
