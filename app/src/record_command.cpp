@@ -38,6 +38,8 @@ int run_recover(const std::filesystem::path& directory) {
     node::log().warn("{} of the {} journaled frames were left out: their PNG is missing or was cut short by the end of the recorder",
                r.frames_lost, r.frames_journaled);
   if (r.cut_row_skipped) node::log().info("a journal row cut in half by the end of the recorder was skipped");
+  if (r.partial_files_removed > 0)
+    node::log().info("{} file(s) the end of the recorder left half written were removed", r.partial_files_removed);
   node::log().info("report: {}", (directory / "record_report.json").string());
   return 0;
 }

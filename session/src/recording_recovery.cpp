@@ -70,6 +70,16 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
     streams.states.push_back(s);
   });
 
+  // Writes the kill cut short before their rename (a frame, the report) left their partial
+  // files; nothing reads them.
+  for (const fs::path& folder : {directory, directory / "frames"}) {
+    std::error_code ec;
+    for (const auto& entry : fs::directory_iterator(folder, ec))
+      if (entry.is_regular_file(ec) && entry.path().filename().string().find(".partial-") != std::string::npos &&
+          fs::remove(entry.path(), ec))
+        ++result.partial_files_removed;
+  }
+
   std::uint64_t dropped = 0;
   result.session = assemble(directory, settings, streams, dropped);
   result.carm_samples = result.session.carm.size();
@@ -94,7 +104,8 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
                          {"frames", result.session.frames.size()},
                          {"carm_samples", result.carm_samples},
                          {"carm_dropped_out_of_range", dropped},
-                         {"cut_row_skipped", result.cut_row_skipped}};
+                         {"cut_row_skipped", result.cut_row_skipped},
+                         {"partial_files_removed", result.partial_files_removed}};
   write_json_file(directory / "record_report.json", report);
   sync_session_files(directory);
   std::error_code ignored;

@@ -1,6 +1,7 @@
 #pragma once
 // What the mesh reader and writer tests share: a folder per test, the error a reader or
 // validator gives, hand-made binary files, and meshes with known corner cases.
+#include <gmock/gmock.h>
 #include <gtest/gtest.h>
 #include <unistd.h>
 
@@ -14,13 +15,23 @@
 #include "evar/base/input_error.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/triangle_mesh.hpp"
+#include "support/file_bytes.hpp"
 
 namespace evar::test::mesh_io {
 
 namespace fs = std::filesystem;
+using evar::base::InputError;
+using evar::geometry::format_for_extension;
+using evar::geometry::LoadedMesh;
+using evar::geometry::mean_edge_length;
+using evar::geometry::MeshFormat;
 using evar::geometry::read_mesh;
 using evar::geometry::TriangleMesh;
 using evar::geometry::validate_mesh;
+using evar::geometry::write_mesh;
+using evar::test::read_bytes;
+using evar::test::write_bytes;
+using testing::HasSubstr;
 
 // A fresh folder per test under the GoogleTest temp dir.
 inline fs::path test_dir() {

@@ -23,23 +23,7 @@
 #include "geometry/mesh_io_fixtures.hpp"
 #include "support/file_bytes.hpp"
 
-
-namespace fs = std::filesystem;
-using evar::geometry::format_for_extension;
-using evar::base::InputError;
-using evar::geometry::LoadedMesh;
-using evar::geometry::mean_edge_length;
-using evar::geometry::MeshFormat;
-using evar::geometry::read_mesh;
-using evar::geometry::TriangleMesh;
-using evar::geometry::validate_mesh;
-using evar::geometry::write_mesh;
-using evar::test::read_bytes;
-using evar::test::write_bytes;
-using testing::HasSubstr;
-
-using namespace evar::test::mesh_io;
-
+using namespace evar::test::mesh_io;  // its names, the readers' and writers' too
 // ---- OBJ ---------------------------------------------------------------------------
 
 TEST(ObjRead, NegativeIndicesQuadsAndSlashFormsAreRead) {

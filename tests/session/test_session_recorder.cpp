@@ -315,8 +315,12 @@ TEST_F(Recording, ARecordingKilledMidwayIsRecoveredFromItsJournal) {
   const fs::path last_png = out / "frames" / "f0000012.png";
   fs::resize_file(last_png, fs::file_size(last_png) - 5);
   std::ofstream(out / "journal" / "frames.csv", std::ios::app) << "13,2000000000,fluoro,f00000";
+  // And a frame killed before its rename leaves its partial file.
+  std::ofstream(out / "frames" / "f0000013.png.partial-4242-0-1f") << "half a PNG";
 
   const RecoveredRecording r = recover_recording(out);
+  EXPECT_EQ(r.partial_files_removed, 1u);
+  EXPECT_FALSE(fs::exists(out / "frames" / "f0000013.png.partial-4242-0-1f"));
   EXPECT_EQ(r.frames_journaled, 12u);
   EXPECT_EQ(r.frames_lost, 1u);
   EXPECT_TRUE(r.cut_row_skipped);

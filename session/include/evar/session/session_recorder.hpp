@@ -86,11 +86,13 @@ struct RecoveredRecording {
   std::uint64_t frames_lost = 0;       ///< of those, PNG missing, cut short or of another size (left out)
   std::uint64_t carm_samples = 0;      ///< in the session
   bool cut_row_skipped = false;        ///< a journal row the end of the recorder cut in half
+  std::uint64_t partial_files_removed = 0;  ///< files the kill left half written before their rename
 };
 
 /// Turns an unfinished recording (the --out of a recorder that never reached finish()) into
 /// a session from its journal: every frame whose PNG is whole, every C-arm state, timed as
-/// finish() would; the report gains a "recovered" part; the journal is removed.
+/// finish() would; the report gains a "recovered" part; the journal and the partial files
+/// of writes the kill interrupted (base/atomic_file.hpp) are removed.
 /// base::InputError naming the file and line for a directory that holds no journal or
 /// a damaged one; std::runtime_error, as finish(), when it holds no frame or no C-arm
 /// sample (the latter after writing the session).
