@@ -10,7 +10,7 @@
 
 #include "anderson_mixing.hpp"
 #include "evar/base/elapsed.hpp"
-#include "evar/deform/closest_rotation.hpp"
+#include "closest_rotation.hpp"
 
 namespace evar::deform {
 namespace {

@@ -1,4 +1,4 @@
-#include "evar/deform/closest_rotation.hpp"
+#include "closest_rotation.hpp"
 
 #include <Eigen/Geometry>
 #include <Eigen/Eigenvalues>

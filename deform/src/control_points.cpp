@@ -1,6 +1,6 @@
 #include "evar/deform/control_points.hpp"
 
-#include "evar/deform/ordered_pairing.hpp"
+#include "ordered_pairing.hpp"
 
 #include <algorithm>
 #include <cmath>

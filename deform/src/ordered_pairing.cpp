@@ -1,4 +1,4 @@
-#include "evar/deform/ordered_pairing.hpp"
+#include "ordered_pairing.hpp"
 
 #include "evar/deform/skeleton.hpp"
 

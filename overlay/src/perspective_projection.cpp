@@ -1,4 +1,4 @@
-#include "evar/overlay/perspective_projection.hpp"
+#include "perspective_projection.hpp"
 
 namespace evar::overlay {
 

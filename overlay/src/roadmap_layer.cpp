@@ -5,7 +5,7 @@
 
 #include <Eigen/Geometry>
 
-#include "evar/overlay/perspective_projection.hpp"
+#include "perspective_projection.hpp"
 
 namespace evar::overlay::detail {
 

@@ -5,7 +5,7 @@
 #include <random>
 #include <vector>
 
-#include "evar/deform/closest_rotation.hpp"
+#include "closest_rotation.hpp"
 
 using evar::deform::closest_rotation;
 using evar::deform::closest_rotation_svd;

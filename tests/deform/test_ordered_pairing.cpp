@@ -4,7 +4,7 @@
 #include <numbers>
 
 #include "evar/deform/control_points.hpp"
-#include "evar/deform/ordered_pairing.hpp"
+#include "ordered_pairing.hpp"
 #include "tube_fixture.hpp"
 
 using namespace evar;

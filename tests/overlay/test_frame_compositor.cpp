@@ -11,7 +11,7 @@
 #include <vector>
 
 #include "evar/geometry/carm_projection.hpp"
-#include "evar/overlay/perspective_projection.hpp"
+#include "perspective_projection.hpp"
 #include "evar/sim/tube_mesh.hpp"
 
 namespace {

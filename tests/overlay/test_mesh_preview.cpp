@@ -1,5 +1,5 @@
 #include "evar/overlay/mesh_preview.hpp"
-#include "evar/overlay/perspective_projection.hpp"
+#include "perspective_projection.hpp"
 
 #include <gtest/gtest.h>
 #include <unistd.h>
