@@ -32,12 +32,12 @@ std::string partial_name(const std::filesystem::path& target) {
 AtomicFile::AtomicFile(std::filesystem::path target, Durability durability)
     : target_(std::move(target)), durability_(durability) {
   if (target_.empty()) throw std::system_error(EINVAL, std::generic_category(), "cannot write a file with no name");
+  buffer_.reserve(kBufferBytes);
   struct stat link {};
   const bool exists = ::lstat(target_.c_str(), &link) == 0;
   const auto in_place = [&] {
     fd_.reset(::open(target_.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC | O_NOCTTY, 0666));
     if (!fd_) fail("cannot open for writing", errno);
-    buffer_.reserve(kBufferBytes);
   };
   if (exists && !S_ISREG(link.st_mode)) {  // a link, device or FIFO
     in_place();
@@ -62,7 +62,6 @@ AtomicFile::AtomicFile(std::filesystem::path target, Durability durability)
     fail("cannot create a file beside it", e);
   }
   if (exists) ::fchmod(fd_.get(), link.st_mode & 07777);  // the old file's permissions
-  buffer_.reserve(kBufferBytes);
 }
 
 AtomicFile::~AtomicFile() {
