@@ -29,12 +29,16 @@ int run_cli(const std::vector<std::string>& args) {
                                "Deform a scene's vessel meshes so they contain the device.\n"
                                "Writes OUT/<mesh file> per vessel (same format, vertex order and count; faces\n"
                                "of erased aortic vertices removed), OUT/landmarks.mrk.json, OUT/report.json\n"
-                               "and OUT/preview.png.");
+                               "and OUT/preview.png. Warns when the deformed vessels leave part of the device\n"
+                               "outside their walls (report.json: device_outside_length_mm, device_outside_max_depth_mm).");
   d->add_option("--scene", deform.scene, "scene.json (format evarnode-scene, version 1)")->required();
   d->add_option("--device", deform.device, "device as a 3D Slicer Curve markup (.mrk.json), tip first")->required();
   d->add_option("--out", deform.out, "output directory (created if missing)")->required();
   d->add_flag("!--no-skeleton", deform.skeleton, "plain surface ARAP, without the skeleton (for comparison)");
   d->add_flag("!--no-preview", deform.preview, "do not write preview.png");
+  d->add_flag("--strict", deform.strict,
+              "exit with code 4 (after writing every output) when the warning above is given: for scripts\n"
+              "that must not pass such a result on");
   d->add_option("--solver", deform.solver, "sparse Cholesky: default, eigen or cholmod")
       ->check(CLI::IsMember({"default", "eigen", "cholmod"}))
       ->capture_default_str();
@@ -91,7 +95,7 @@ int run_cli(const std::vector<std::string>& args) {
   // Mesh format and resolution of the synthetic scenes (example, sim patient).
   const auto add_mesh_options = [](CLI::App* c, SyntheticSceneCommand& cmd) {
     c->add_option("--format", cmd.format, "mesh format: stl, ply, obj or vtk")
-        ->check(CLI::IsMember({"stl", "ply", "obj"}))
+        ->check(CLI::IsMember({"stl", "ply", "obj", "vtk"}))
         ->capture_default_str();
     c->add_option("--aorta-vertices", cmd.aorta_vertices, "approximate aortic mesh size")
         ->check(CLI::Range(500, 2000000))

@@ -23,7 +23,12 @@ struct DeformCommand {
   bool coarse_rotations = true;
   bool ordered_pairing = true;
   double proxy_edge_mm = 1.4;
+  /// Exit kExitDeviceOutside when the deformed vessels leave the device outside by more
+  /// than the warning threshold (the outputs are written either way).
+  bool strict = false;
 };
+/// `deform --strict`: the result was written, but leaves the device outside the vessels.
+inline constexpr int kExitDeviceOutside = 4;
 int run_deform(const DeformCommand& cmd);
 
 struct ArapCommand {

@@ -50,6 +50,19 @@ nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& out
             {"total", r.timings.total_ms}}}};
 }
 
+nlohmann::json containment_json(const deform::DeviceContainment& c) {
+  nlohmann::json stretches = nlohmann::json::array();
+  for (const auto& s : c.stretches)
+    stretches.push_back({{"from_mm", s.from_mm}, {"to_mm", s.to_mm}, {"max_depth_mm", s.max_depth_mm},
+                         {"nearest_vessel", s.nearest_vessel}});
+  return {{"device_length_mm", c.device_length_mm},
+          {"outside_length_mm", c.outside_length_mm},
+          {"outside_max_depth_mm", c.outside_max_depth_mm},
+          {"unjudged_length_mm", c.unjudged_length_mm},
+          {"tolerance_mm", deform::kOutsideToleranceMm},
+          {"stretches", stretches}};
+}
+
 }  // namespace
 
 int run_deform(const DeformCommand& cmd) {
@@ -145,11 +158,22 @@ int run_deform(const DeformCommand& cmd) {
                                    {"after_lps_mm", vec(after)},
                                    {"displacement_mm", (after - before).norm()}});
   }
+  const auto& contained = result.containment;
+  report["device_outside_length_mm"] = contained.outside_length_mm;
+  report["device_outside_max_depth_mm"] = contained.outside_max_depth_mm;
+  report["device_containment"] = containment_json(contained);
+  report["containment_ms"] = result.containment_ms;
   report["total_ms"] = result.total_ms;
   write_json(cmd.out / "report.json", report);
   if (cmd.preview) write_preview(cmd.out / "preview.png", scene, result, device);
   node::log().info("done in {:.1f} ms; wrote {} mesh(es), landmarks.mrk.json, report.json{} to {}", result.total_ms,
              scene.vessels.size(), cmd.preview ? ", preview.png" : "", cmd.out.string());
+  if (deform::leaves_device_outside(contained)) {
+    node::log().warn("{}: the adapted roadmap does not contain the device there; check the scene's centerlines and "
+                     "meshes where it lies (docs/DEFORMATION.md, \"Device left outside\")",
+                     deform::describe_outside(contained));
+    if (cmd.strict) return kExitDeviceOutside;
+  }
   return 0;
 }
 

@@ -145,6 +145,21 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
                                  std::to_string(kMaxLandmarkDistanceMm) + " mm expected)");
     landmark_bindings_.push_back(std::move(lb));
   }
+  // The fine meshes' vertices past their centerline's ends (within a quarter millimetre of
+  // an end counts: a cap lies in the plane square to the centerline at its end).
+  constexpr double kAtTheEndMm = 0.25;
+  for (const auto& v : original_.vessels) {
+    const geometry::PolylineProjector onto(v.centerline);
+    const double length = geometry::arc_lengths(v.centerline).back();
+    std::vector<char> past(static_cast<std::size_t>(v.mesh.mesh.V.rows()), 0);
+    int segment = -1;
+    for (Eigen::Index k = 0; k < v.mesh.mesh.V.rows(); ++k) {
+      const auto at = onto.project(v.mesh.mesh.V.row(k).transpose(), segment, &segment);
+      past[static_cast<std::size_t>(k)] = at.beyond_start || at.beyond_end || at.arc_length_mm < kAtTheEndMm ||
+                                          at.arc_length_mm > length - kAtTheEndMm;
+    }
+    past_centerline_ends_.push_back(std::move(past));
+  }
   precompute_ms_ = proxy_ms_ + ms_since(t0);
 }
 
@@ -162,6 +177,32 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
 }
 
 SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const SceneDeformation* previous) const {
+  const auto t_total = Clock::now();
+  SceneDeformation out = deform_vessels(device, previous);
+  // 6. The device against the result, without the caps past the centerlines' ends.
+  const auto t_containment = Clock::now();
+  std::vector<geometry::TriangleMesh> walls(out.vessels.size());
+  std::vector<NamedSurface> surfaces;
+  for (std::size_t i = 0; i < out.vessels.size(); ++i) {
+    const auto& mesh = out.vessels[i].mesh;
+    const auto& past = past_centerline_ends_[i];
+    walls[i].V = mesh.V;
+    walls[i].F.resize(mesh.F.rows(), 3);
+    Eigen::Index kept = 0;
+    for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+      if (!past[static_cast<std::size_t>(mesh.F(f, 0))] && !past[static_cast<std::size_t>(mesh.F(f, 1))] &&
+          !past[static_cast<std::size_t>(mesh.F(f, 2))])
+        walls[i].F.row(kept++) = mesh.F.row(f);
+    walls[i].F.conservativeResize(kept, 3);
+    surfaces.push_back({original_.vessels[i].name, &walls[i], &original_.vessels[i].centerline});
+  }
+  out.containment = measure_device_containment(surfaces, device);
+  out.containment_ms = ms_since(t_containment);
+  out.total_ms = ms_since(t_total);
+  return out;
+}
+
+SceneDeformation SceneDeformer::deform_vessels(const geometry::Polyline& device, const SceneDeformation* previous) const {
   if (!working_) {
     SceneDeformation out = solve(device, previous);
     for (std::size_t i = 0; i < out.reports.size(); ++i) out.reports[i].proxy_refused = proxy_refusals_[i];

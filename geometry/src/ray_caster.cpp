@@ -2,6 +2,8 @@
 
 #include <embree3/rtcore.h>
 
+#include "evar/geometry/closest_point.hpp"
+
 #include <cmath>
 #include <stdexcept>
 #include <string>
@@ -173,6 +175,54 @@ bool RayCaster::contains(const Eigen::Vector3d& point) const {
   int inside_votes = 0;
   for (const auto& d : dirs) inside_votes += crossings(point, d) % 2;
   return inside_votes >= 2;
+}
+
+namespace {
+// What a point query carries to its callback: the query in double (the BVH holds floats
+// about `centre`), and the best answer so far.
+struct ClosestQuery {
+  const TriangleMesh* mesh;
+  Eigen::Vector3d point;
+  double limit_mm;
+  SurfacePoint best;  // face -1 until a face within limit_mm is found
+};
+
+// Called by Embree for each triangle whose box reaches the query's sphere: the exact
+// closest point of that triangle, in double; shrinking the radius prunes the rest.
+bool closest_on_primitive(RTCPointQueryFunctionArguments* args) {
+  auto* q = static_cast<ClosestQuery*>(args->userPtr);
+  const int f = static_cast<int>(args->primID);
+  const auto& F = q->mesh->F;
+  const auto& V = q->mesh->V;
+  const Eigen::Vector3d a = V.row(F(f, 0)).transpose(), b = V.row(F(f, 1)).transpose(), c = V.row(F(f, 2)).transpose();
+  const Eigen::Vector3d w = closest_point_on_triangle(q->point, a, b, c);
+  const Eigen::Vector3d x = w[0] * a + w[1] * b + w[2] * c;
+  const double d = (x - q->point).norm();
+  if (d > q->limit_mm || (q->best.face >= 0 && !(d < q->best.distance_mm))) return false;
+  q->best = {f, w, x, d};
+  // The sphere in floats must not cut off a face that rounding puts a hair farther away.
+  args->query->radius = std::nextafter(static_cast<float>(d), std::numeric_limits<float>::infinity()) * 1.000001f;
+  return true;
+}
+}  // namespace
+
+std::optional<SurfacePoint> RayCaster::closest_point(const Eigen::Vector3d& point, double max_distance_mm) const {
+  if (!point.allFinite() || std::isnan(max_distance_mm) || max_distance_mm < 0.0 || impl_->mesh.F.rows() == 0)
+    return std::nullopt;
+  ClosestQuery q{&impl_->mesh, point, max_distance_mm, {}};
+  const Eigen::Vector3d local = point - impl_->centre;
+  RTCPointQuery query;
+  query.x = static_cast<float>(local.x());
+  query.y = static_cast<float>(local.y());
+  query.z = static_cast<float>(local.z());
+  query.time = 0.0f;
+  query.radius = std::isfinite(max_distance_mm) ? static_cast<float>(max_distance_mm) * 1.000001f + 1e-6f
+                                                : std::numeric_limits<float>::infinity();
+  RTCPointQueryContext context;
+  rtcInitPointQueryContext(&context);
+  rtcPointQuery(impl_->scene.get(), &query, &context, closest_on_primitive, &q);
+  if (q.best.face < 0) return std::nullopt;
+  return q.best;
 }
 
 }  // namespace evar::geometry

@@ -461,17 +461,30 @@ void LiveNode::Impl::adaptation_loop() {
                                                                 shown->adapted ? &shown->adapted->deformation : nullptr));
       publish(m);
       const double ready_ms = static_cast<double>(steady_ns(Clock::now()) - pair->later.time_ns) * 1e-6;
+      const auto& contained = m->deformation.containment;
+      const bool outside = deform::leaves_device_outside(contained);
       {
         std::lock_guard lock(stats_mutex_);
         ++stats_.adaptations;
         stats_.last_failure.clear();
         adaptation_latencies_.add(ready_ms);
+        stats_.models_device_outside += outside ? 1 : 0;
+        stats_.last_device_outside_length_mm = contained.outside_length_mm;
+        stats_.last_device_outside_max_depth_mm = contained.outside_max_depth_mm;
       }
       {
         std::lock_guard lock(outcome_mutex_);
         pair_outcome_ = PairOutcome{true, pair->earlier.id()};
       }
       alerts_.clear("adaptation");
+      // Shown, since it is still closer to the anatomy than the preoperative one, but said.
+      if (outside) {
+        const std::string what = deform::describe_outside(contained);
+        log().warn("model from frames {}+{}: {}", m->frame_earlier, m->frame_later, what);
+        alerts_.set("device-outside", "adapted roadmap: " + what, std::nullopt);
+      } else {
+        alerts_.clear("device-outside");
+      }
       log().info("adapted model from frames {}+{}: device {} points, residual {:.2f} px; reconstruction {:.1f} ms, "
                  "deformation {:.1f} ms; ready {:.0f} ms after the second view arrived",
                  m->frame_earlier, m->frame_later, m->reconstruction.points.size(), m->reconstruction.mean_residual_px,

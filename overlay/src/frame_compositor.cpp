@@ -4,7 +4,9 @@
 #include <cmath>
 #include <cstring>
 #include <stdexcept>
+#include <string>
 #include <utility>
+#include <vector>
 
 #include <opencv2/imgproc.hpp>
 
@@ -39,7 +41,31 @@ inline unsigned value(const GreyFrame& f, int x, int y) {
   return static_cast<unsigned>(row[2 * x]) | (static_cast<unsigned>(row[2 * x + 1]) << 8);
 }
 
-// The status block, top left, on a darkened box so it reads on any background.
+// `text` broken at spaces into lines at most `max_px` wide in this font (a word wider
+// than that on its own stays whole: nothing is dropped).
+std::vector<std::string> wrapped(const std::string& text, int max_px, double scale, int thickness) {
+  std::vector<std::string> out;
+  std::string line;
+  std::size_t at = 0;
+  int baseline = 0;
+  while (at < text.size()) {
+    const std::size_t space = text.find(' ', at);
+    const std::string word = text.substr(at, space == std::string::npos ? std::string::npos : space - at);
+    at = space == std::string::npos ? text.size() : space + 1;
+    const std::string longer = line.empty() ? word : line + " " + word;
+    if (!line.empty() && cv::getTextSize(longer, cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).width > max_px) {
+      out.push_back(line);
+      line = "  " + word;  // a continued line is indented
+    } else {
+      line = longer;
+    }
+  }
+  if (!line.empty() || out.empty()) out.push_back(line);
+  return out;
+}
+
+// The status block, top left, on a darkened box so it reads on any background; a line
+// wider than the frame is wrapped, never cut off.
 void draw_status(Image& out, const StatusBlock& status) {
   if (status.lines.empty() && status.alerts.empty()) return;
   cv::Mat canvas = detail::wrap(out);
@@ -47,21 +73,24 @@ void draw_status(Image& out, const StatusBlock& status) {
   const int thickness = out.height >= 768 ? 2 : 1;
   int baseline = 0;
   const int line_px = cv::getTextSize("Ag", cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).height + baseline + 6;
+  const int max_px = std::max(1, out.width - 16);
+  std::vector<std::pair<std::string, Bgr>> rows;
+  for (const auto& s : status.lines)
+    for (auto& l : wrapped(s, max_px, scale, thickness)) rows.emplace_back(std::move(l), kText);
+  for (const auto& s : status.alerts)
+    for (auto& l : wrapped(s, max_px, scale, thickness)) rows.emplace_back(std::move(l), kAlert);
   int width = 0;
-  for (const auto* group : {&status.lines, &status.alerts})
-    for (const auto& s : *group)
-      width = std::max(width, cv::getTextSize(s, cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).width);
-  const int lines = static_cast<int>(status.lines.size() + status.alerts.size());
-  const cv::Rect box = cv::Rect(0, 0, width + 16, lines * line_px + 10) & cv::Rect(0, 0, out.width, out.height);
+  for (const auto& [s, c] : rows)
+    width = std::max(width, cv::getTextSize(s, cv::FONT_HERSHEY_SIMPLEX, scale, thickness, &baseline).width);
+  const cv::Rect box =
+      cv::Rect(0, 0, width + 16, static_cast<int>(rows.size()) * line_px + 10) & cv::Rect(0, 0, out.width, out.height);
   cv::Mat roi = canvas(box);
   roi.convertTo(roi, -1, 0.35);  // darken behind the text so it reads on any background
   int y = 4 + line_px - baseline - 3;
-  const auto put = [&](const std::string& s, Bgr c) {
+  for (const auto& [s, c] : rows) {
     cv::putText(canvas, s, {8, y}, cv::FONT_HERSHEY_SIMPLEX, scale, cv::Scalar(c.b, c.g, c.r), thickness, cv::LINE_AA);
     y += line_px;
-  };
-  for (const auto& s : status.lines) put(s, kText);
-  for (const auto& s : status.alerts) put(s, kAlert);
+  }
 }
 
 }  // namespace

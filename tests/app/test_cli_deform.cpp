@@ -87,6 +87,13 @@ TEST_F(Cli, DeformWritesMeshesLandmarksReportAndPreview) {
       EXPECT_TRUE(v["junction_gap_mm"].is_null());
     }
   }
+  // The example's device ends inside the adapted vessels: nothing outside, and the log
+  // gives no warning of it.
+  EXPECT_EQ(report["device_outside_length_mm"].get<double>(), 0.0);
+  EXPECT_EQ(report["device_outside_max_depth_mm"].get<double>(), 0.0);
+  EXPECT_GT(report["device_containment"]["device_length_mm"].get<double>(), 100.0);
+  EXPECT_TRUE(report["device_containment"]["stretches"].empty());
+  EXPECT_EQ(r.err.find("outside the vessels"), std::string::npos) << r.err;
   // Same vertex count and order in the output (welded STL re-read).
   const auto before = evar::geometry::read_mesh(dir_ / "iliac_right.stl").mesh;
   const auto after = evar::geometry::read_mesh(out / "iliac_right.stl").mesh;
@@ -339,4 +346,55 @@ TEST_F(Cli, ArapRefusesUnknownConstraintKeys) {
                            (dir / "c.json").string(), "--out", (dir / "o.stl").string()});
   EXPECT_EQ(r.code, 1);
   EXPECT_NE(r.err.find("unknown key \"fixd\""), std::string::npos) << r.err;
+}
+
+// A device that runs far out of the aorta's side (a reconstruction gone astray, a wrong
+// registration), farther than the deformation can follow: the vessels are written as
+// adapted, and the run says how much of the device they leave outside, where, and how deep;
+// with --strict it exits 4 after writing everything.
+TEST_F(Cli, DeformSaysWhenItLeavesTheDeviceOutsideAndStrictExitsFour) {
+  const auto scene_files = evar::geometry::load_scene(scene());
+  const auto& aorta = *std::find_if(scene_files.vessels.begin(), scene_files.vessels.end(),
+                                    [](const auto& v) { return v.name == "aorta"; });
+  auto curve = evar::geometry::read_curve(device(), 2);
+  // The device's points within 6 mm of its point nearest the middle of the aortic
+  // centerline are moved 120 mm to the patient's left.
+  const Eigen::Vector3d middle = aorta.centerline[aorta.centerline.size() / 2];
+  Eigen::Vector3d mid = curve.points.front().position_lps;
+  for (const auto& p : curve.points)
+    if ((p.position_lps - middle).norm() < (mid - middle).norm()) mid = p.position_lps;
+  int pushed = 0;
+  for (auto& p : curve.points)
+    if ((p.position_lps - mid).norm() < 6.0) p.position_lps += Eigen::Vector3d(120.0, 0.0, 0.0), ++pushed;
+  ASSERT_GE(pushed, 2);
+  const auto bent = scratch("perforating") / "device.mrk.json";
+  fs::create_directories(bent.parent_path());
+  evar::geometry::write_markups(bent, {curve});
+
+  const auto out = scratch("deform_outside");
+  const auto r = evarnode({"deform", "--scene", scene().string(), "--device", bent.string(), "--out", out.string()});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("of the device lies outside the vessels"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("beyond the wall of 'aorta'"), std::string::npos) << r.err;
+  std::ifstream in(out / "report.json");
+  const auto report = nlohmann::json::parse(in);
+  const double depth = report["device_outside_max_depth_mm"].get<double>();
+  const double length = report["device_outside_length_mm"].get<double>();
+  // The aorta follows the device part of the way (measured: 84 mm), not all of it.
+  EXPECT_GT(depth, 5.0);
+  EXPECT_LT(depth, 120.0);
+  EXPECT_GT(length, 30.0);
+  ASSERT_FALSE(report["device_containment"]["stretches"].empty());
+  EXPECT_EQ(report["device_containment"]["stretches"][0]["nearest_vessel"], "aorta");
+
+  const auto strict = scratch("deform_outside_strict");
+  const auto s = evarnode({"deform", "--scene", scene().string(), "--device", bent.string(), "--out", strict.string(),
+                           "--strict", "--no-preview"});
+  EXPECT_EQ(s.code, 4) << s.err;
+  for (const char* f : {"aorta.stl", "iliac_left.stl", "iliac_right.stl", "landmarks.mrk.json", "report.json"})
+    EXPECT_TRUE(fs::exists(strict / f)) << f;
+  // --strict with a contained device exits 0.
+  const auto fine = evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out",
+                              scratch("deform_strict_ok").string(), "--strict", "--no-preview"});
+  EXPECT_EQ(fine.code, 0) << fine.err;
 }

@@ -6,6 +6,7 @@
 #include <random>
 
 #include "evar/geometry/closest_point.hpp"
+#include "evar/geometry/ray_caster.hpp"
 
 using namespace evar;
 
@@ -72,4 +73,34 @@ TEST(ClosestPoint, PrunedSearchesAgreeWithTheBruteForceScan) {
     EXPECT_LT((w[0] * a + w[1] * b + w[2] * c - batch[i].point).norm(), 1e-9) << "point " << i;
   }
   EXPECT_TRUE(geometry::closest_points_on_mesh(mesh, {}).empty());
+}
+
+// The BVH's point query gives the scan's answer, also for a mesh a metre from the origin
+// (the BVH holds floats about the mesh's centre) and with a search radius.
+TEST(ClosestPoint, TheRayCastersPointQueryAgreesWithTheScan) {
+  for (const double offset_mm : {0.0, 1000.0}) {
+    auto mesh = wavy_sheet();
+    mesh.V.col(2).array() += offset_mm;
+    const geometry::RayCaster caster(mesh);
+    std::mt19937 rng(11);
+    std::uniform_real_distribution<double> wide(-20.0, 90.0);
+    for (int k = 0; k < 200; ++k) {
+      const Eigen::Vector3d p(wide(rng), wide(rng), offset_mm + wide(rng) - 35.0);
+      const auto truth = brute_force(mesh, p);
+      const auto found = caster.closest_point(p);
+      ASSERT_TRUE(found) << "point " << k;
+      EXPECT_NEAR(found->distance_mm, truth.distance_mm, 1e-9) << "point " << k;
+      EXPECT_LT((found->point - truth.point).norm(), 1e-6) << "point " << k;
+      // Within a radius: found exactly when the closest point lies within it.
+      const auto within = caster.closest_point(p, truth.distance_mm + 1e-6);
+      ASSERT_TRUE(within) << "point " << k;
+      EXPECT_NEAR(within->distance_mm, truth.distance_mm, 1e-9);
+      if (truth.distance_mm > 0.01) {
+        EXPECT_FALSE(caster.closest_point(p, truth.distance_mm - 0.01)) << "point " << k;
+      }
+    }
+  }
+  const geometry::RayCaster caster(wavy_sheet());
+  EXPECT_FALSE(caster.closest_point({std::nan(""), 0.0, 0.0}));
+  EXPECT_FALSE(caster.closest_point({0.0, 0.0, 0.0}, -1.0));
 }

@@ -10,7 +10,9 @@
 //   4. an iliac without the device has its top bound to the aorta in the same way and
 //      is deformed by ARAP with no other handle: the tether holds its distal part near
 //      the registered pose, so it bends after the junction instead of swinging;
-//   5. landmarks move with the surface they sit on.
+//   5. landmarks move with the surface they sit on;
+//   6. what of the device the deformed vessels still leave outside is measured
+//      (device_containment.hpp).
 #include <Eigen/Core>
 #include <memory>
 #include <optional>
@@ -19,6 +21,7 @@
 
 #include "evar/deform/arap_solver.hpp"
 #include "evar/deform/control_points.hpp"
+#include "evar/deform/device_containment.hpp"
 #include "evar/deform/landmark_binding.hpp"
 #include "evar/deform/mesh_proxy.hpp"
 #include "evar/deform/skeleton.hpp"
@@ -105,6 +108,9 @@ struct SceneDeformation {
   std::vector<std::string> landmark_vessel;
   std::vector<VesselReport> reports;
   std::string device_iliac;                       ///< empty if the device reaches no iliac
+  /// The device against the deformed vessels (the fine meshes, erased faces removed).
+  DeviceContainment containment;
+  double containment_ms = 0.0;                    ///< measuring it (part of total_ms)
   double total_ms = 0.0;
   /// Per vessel, the proxy's solved vertices (no rows for a vessel solved on its own
   /// mesh): the next frame of a live sequence starts from them.
@@ -149,7 +155,9 @@ class SceneDeformer {
   struct VesselModel;  ///< opaque per-vessel precomputation
 
  private:
-  /// The stages on the working scene (proxies in place of fine meshes).
+  /// The stages 1-5 on the fine meshes (through their proxies where they have one).
+  SceneDeformation deform_vessels(const geometry::Polyline& device, const SceneDeformation* previous) const;
+  /// The stages 1-5 on the working scene (proxies in place of fine meshes).
   SceneDeformation solve(const geometry::Polyline& device, const SceneDeformation* previous) const;
 
   const geometry::Scene& original_;
@@ -167,6 +175,10 @@ class SceneDeformer {
     std::vector<SurfaceBinding> on;  ///< per vessel
   };
   std::vector<LandmarkBinding> landmark_bindings_;
+  /// Per vessel, per fine vertex: past its centerline's ends (the caps a segmentation
+  /// closes a vessel with where it stopped following it). Faces touching one are left out
+  /// of the containment check: the lumen goes on there, the wall does not.
+  std::vector<std::vector<char>> past_centerline_ends_;
   double precompute_ms_ = 0.0;
 };
 

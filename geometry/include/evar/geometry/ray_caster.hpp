@@ -6,6 +6,7 @@
 #include <limits>
 #include <optional>
 
+#include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/triangle_mesh.hpp"
 
 namespace evar::geometry {
@@ -42,6 +43,13 @@ class RayCaster {
 
   /// Inside test for a closed mesh by ray parity, voted over three fixed directions.
   bool contains(const Eigen::Vector3d& point) const;
+
+  /// The closest point of the mesh to `point` within `max_distance_mm` (nullopt when no
+  /// face comes that close, or for a non-finite point): the same answer as
+  /// closest_point_on_mesh, found through the BVH (Embree's point query) in about
+  /// log(#F) instead of a scan of the faces.
+  std::optional<SurfacePoint> closest_point(const Eigen::Vector3d& point,
+                                            double max_distance_mm = std::numeric_limits<double>::infinity()) const;
 
  private:
   struct Impl;

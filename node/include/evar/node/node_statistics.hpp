@@ -32,6 +32,10 @@ struct NodeStatistics {
   Percentiles latency_ms;            ///< frame arrival → composited, over the last kLatencyWindow frames
   Percentiles adaptation_ms;         ///< second view's frame arrival → model ready, over the last kLatencyWindow adaptations
   std::string last_failure;          ///< the last adaptation failure ("" if none)
+  /// Models shown with part of the device left outside their vessels past the warning
+  /// threshold (deform::leaves_device_outside), and the last model's measures.
+  std::uint64_t models_device_outside = 0;
+  double last_device_outside_length_mm = 0.0, last_device_outside_max_depth_mm = 0.0;
   std::optional<std::int64_t> carm_clock_offset_ns;
 };
 

@@ -1,0 +1,62 @@
+#pragma once
+// Which side of a vessel wall a point lies on, for surfaces open at their ends (vessels cut
+// off where the segmentation stopped) as well as closed ones: the sign of (p − q)·n at the
+// closest point q, with n the angle-weighted pseudonormal of the feature holding q (face,
+// edge or vertex; Bærentzen & Aanæs, IEEE TVCG 2005), which gives the right sign on a
+// closed surface wherever q lies. At an open end the wall stops and the sign means
+// little there: where q is on the rim of an opening and p lies past the rim (p − q points
+// out of the opening, m, the direction in the wall away from it, across the rim), p is
+// beside the wall, outside, only when it is more out through the wall (along n) than out
+// past the rim (along m); otherwise it is beyond the opening, where the surface cannot
+// tell.
+#include <Eigen/Core>
+#include <limits>
+#include <optional>
+#include <vector>
+
+#include "evar/geometry/ray_caster.hpp"
+#include "evar/geometry/triangle_mesh.hpp"
+
+namespace evar::geometry {
+
+enum class Side { Inside, Outside, BeyondOpening };
+
+struct SidedPoint {
+  Side side = Side::BeyondOpening;
+  double distance_mm = 0.0;  ///< to the closest point of the surface
+  Eigen::Vector3d closest = Eigen::Vector3d::Zero();
+};
+
+class SurfaceSide {
+ public:
+  /// Faces must wind consistently with outward normals (as every vessel mesh of a scene
+  /// does; scene loading checks it). Vertices no face uses are ignored.
+  explicit SurfaceSide(const TriangleMesh& mesh, RayCaster::BuildQuality quality = RayCaster::BuildQuality::Low);
+
+  /// The side of `p` (BeyondOpening, infinitely far, for a mesh without faces).
+  /// `expected_distance_mm`: a bound the closest point is likely within (e.g. the previous
+  /// point's distance plus the step to this one), which saves most of the search when it
+  /// holds; the answer is the same either way.
+  SidedPoint classify(const Eigen::Vector3d& p,
+                      double expected_distance_mm = std::numeric_limits<double>::infinity()) const;
+
+ private:
+  // The pseudonormal at a feature, and for one on a rim the direction m out past it
+  // (zero elsewhere).
+  struct FeatureNormal {
+    Eigen::Vector3d normal = Eigen::Vector3d::Zero();
+    Eigen::Vector3d rim_out = Eigen::Vector3d::Zero();
+  };
+  FeatureNormal at_edge(int face, int i, int j) const;
+  FeatureNormal at_vertex(int v) const;
+  // m for the rim edge (i, j) of `face`: from its third corner across the edge, square to it.
+  Eigen::Vector3d rim_out(int face, int i, int j) const;
+
+  TriangleMesh mesh_;
+  std::optional<RayCaster> caster_;  // none for a mesh without faces
+  Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> face_normals_;  // unit (zero for a sliver)
+  // The faces around each vertex: faces_of_[first_face_[v] .. first_face_[v + 1]).
+  std::vector<int> first_face_, faces_of_;
+};
+
+}  // namespace evar::geometry
