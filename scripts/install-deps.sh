@@ -11,6 +11,7 @@ packages=(
   libopencv-videoio-dev libopencv-highgui-dev
   libopenigtlink-dev openigtlink-examples
   libdcmtk-dev
+  libvtk9-dev
   libplplot-dev plplot-driver-cairo
   libaravis-dev aravis-tools
   libusb-1.0-0-dev umockdev libumockdev-dev

@@ -94,8 +94,8 @@ int run_cli(const std::vector<std::string>& args) {
 
   // Mesh format and resolution of the synthetic scenes (example, sim patient).
   const auto add_mesh_options = [](CLI::App* c, SyntheticSceneCommand& cmd) {
-    c->add_option("--format", cmd.format, "mesh format: stl, ply, obj or vtk")
-        ->check(CLI::IsMember({"stl", "ply", "obj", "vtk"}))
+    c->add_option("--format", cmd.format, "mesh format: stl, ply, obj, vtk or vtp")
+        ->check(CLI::IsMember({"stl", "ply", "obj", "vtk", "vtp"}))
         ->capture_default_str();
     c->add_option("--aorta-vertices", cmd.aorta_vertices, "approximate aortic mesh size")
         ->check(CLI::Range(500, 2000000))

@@ -12,7 +12,8 @@ geometry::MeshFormat mesh_format_option(const std::string& name) {
   if (name == "obj") return geometry::MeshFormat::Obj;
   if (name == "stl") return geometry::MeshFormat::StlBinary;
   if (name == "vtk") return geometry::MeshFormat::VtkBinary;
-  throw std::invalid_argument("--format: '" + name + "' (expected stl, ply, obj or vtk)");
+  if (name == "vtp") return geometry::MeshFormat::Vtp;
+  throw std::invalid_argument("--format: '" + name + "' (expected stl, ply, obj, vtk or vtp)");
 }
 
 int run_example(const SyntheticSceneCommand& cmd) {

@@ -7,6 +7,7 @@
 
 #include "evar/base/input_file.hpp"
 #include "mesh_formats.hpp"
+#include "vtk_xml.hpp"
 
 namespace evar::geometry {
 
@@ -55,11 +56,16 @@ std::string lower_extension(const std::filesystem::path& path) {
 
 LoadedMesh read_mesh(const std::filesystem::path& path) {
   const std::string ext = lower_extension(path);
-  if (ext != ".stl" && ext != ".ply" && ext != ".obj" && ext != ".vtk") {
+  if (ext != ".stl" && ext != ".ply" && ext != ".obj" && ext != ".vtk" && ext != ".vtp") {
     detail::fail(path, "unknown mesh extension '" + path.extension().string() +
-                           "' (expected .stl, .ply, .obj or .vtk)");
+                           "' (expected .stl, .ply, .obj, .vtk or .vtp)");
   }
   const std::string bytes = base::read_input_file(path, base::kMeshLimit);
+  if (ext == ".vtp") {
+    LoadedMesh loaded = detail::read_vtp(path, bytes);
+    if (loaded.space == MeshSpace::Ras) detail::flip_lps_ras(loaded.mesh);
+    return loaded;
+  }
   LoadedMesh loaded = ext == ".stl"   ? detail::read_stl(path, bytes)
                       : ext == ".ply" ? detail::read_ply(path, bytes)
                       : ext == ".vtk" ? detail::read_vtk(path, bytes)
@@ -85,6 +91,7 @@ void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, Mes
     case MeshFormat::Obj: return detail::write_obj(path, out, tag);
     case MeshFormat::VtkBinary: return detail::write_vtk(path, out, true, tag);
     case MeshFormat::VtkAscii: return detail::write_vtk(path, out, false, tag);
+    case MeshFormat::Vtp: return detail::write_vtp(path, out, space);
   }
   throw std::invalid_argument(path.string() + ": unknown mesh format");
 }
@@ -95,8 +102,9 @@ MeshFormat format_for_extension(const std::filesystem::path& path) {
   if (ext == ".ply") return MeshFormat::PlyBinary;
   if (ext == ".obj") return MeshFormat::Obj;
   if (ext == ".vtk") return MeshFormat::VtkBinary;
+  if (ext == ".vtp") return MeshFormat::Vtp;
   detail::fail(path, "cannot choose a mesh format for extension '" + path.extension().string() +
-                         "' (expected .stl, .ply, .obj or .vtk)");
+                         "' (expected .stl, .ply, .obj, .vtk or .vtp)");
 }
 
 }  // namespace evar::geometry

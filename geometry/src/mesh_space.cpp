@@ -82,6 +82,8 @@ MeshSpace declared_space(const std::filesystem::path& path, std::string_view byt
         return true;
       });
       break;
+    case MeshFormat::Vtp:  // its field data, read by read_vtp
+      break;
     case MeshFormat::VtkAscii:
     case MeshFormat::VtkBinary: {  // the title, the second line
       const std::size_t first_end = bytes.find('\n');

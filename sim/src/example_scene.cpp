@@ -285,6 +285,8 @@ const char* mesh_extension(geometry::MeshFormat format) {
     case geometry::MeshFormat::VtkAscii:
     case geometry::MeshFormat::VtkBinary:
       return ".vtk";
+    case geometry::MeshFormat::Vtp:
+      return ".vtp";
   }
   throw std::invalid_argument("write_example_scene: unknown mesh format");
 }

@@ -275,6 +275,7 @@ TEST_F(Cli, DeformKeepsThePlyFormatOfItsInput) { expect_deform_keeps(evar::geome
 
 // 3D Slicer's default model format, VTK legacy polydata, in and out.
 TEST_F(Cli, DeformKeepsTheVtkFormatOfItsInput) { expect_deform_keeps(evar::geometry::MeshFormat::VtkBinary, ".vtk"); }
+TEST_F(Cli, DeformKeepsTheVtpFormatOfItsInput) { expect_deform_keeps(evar::geometry::MeshFormat::Vtp, ".vtp"); }
 
 // A scene whose meshes were saved from 3D Slicer in RAS (SPACE=RAS in each header; the
 // centerlines, device and landmarks stay LPS markups) deforms exactly as the LPS scene,

@@ -99,12 +99,28 @@ std::string slicer_file(MeshFormat format, const TriangleMesh& m, const std::str
       out << "POLYGONS " << m.F.rows() << ' ' << 4 * m.F.rows() << "\n";
       for (Eigen::Index f = 0; f < m.F.rows(); ++f) out << "3 " << m.F(f, 0) << ' ' << m.F(f, 1) << ' ' << m.F(f, 2) << "\n";
       return out.str();
+    case MeshFormat::Vtp: {  // vtkXMLPolyDataWriter with the field data Slicer adds (ASCII here)
+      out << "<?xml version=\"1.0\"?>\n<VTKFile type=\"PolyData\" version=\"1.0\" byte_order=\"LittleEndian\" "
+             "header_type=\"UInt64\">\n<PolyData>\n<FieldData>\n<Array type=\"String\" Name=\"SPACE\" "
+             "NumberOfTuples=\"1\" format=\"ascii\">";
+      for (const char c : space) out << static_cast<int>(c) << ' ';
+      out << "0</Array>\n</FieldData>\n<Piece NumberOfPoints=\"" << m.V.rows() << "\" NumberOfPolys=\"" << m.F.rows()
+          << "\">\n<Points><DataArray type=\"Float32\" NumberOfComponents=\"3\" format=\"ascii\">";
+      for (Eigen::Index i = 0; i < m.V.rows(); ++i) out << m.V(i, 0) << ' ' << m.V(i, 1) << ' ' << m.V(i, 2) << ' ';
+      out << "</DataArray></Points>\n<Polys><DataArray type=\"Int64\" Name=\"connectivity\" format=\"ascii\">";
+      for (Eigen::Index f = 0; f < m.F.rows(); ++f) out << m.F(f, 0) << ' ' << m.F(f, 1) << ' ' << m.F(f, 2) << ' ';
+      out << "</DataArray><DataArray type=\"Int64\" Name=\"offsets\" format=\"ascii\">";
+      for (Eigen::Index f = 0; f < m.F.rows(); ++f) out << 3 * (f + 1) << ' ';
+      out << "</DataArray></Polys>\n</Piece>\n</PolyData>\n</VTKFile>\n";
+      return out.str();
+    }
   }
   return {};
 }
 
 const char* extension(MeshFormat f) {
   if (f == MeshFormat::VtkAscii || f == MeshFormat::VtkBinary) return ".vtk";
+  if (f == MeshFormat::Vtp) return ".vtp";
   return f == MeshFormat::Obj ? ".obj" : (f == MeshFormat::PlyAscii || f == MeshFormat::PlyBinary) ? ".ply" : ".stl";
 }
 
