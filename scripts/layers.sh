@@ -19,14 +19,15 @@ declare -A may_use=(
   [acquisition]="acquisition base"
   [geometry]="geometry base"
   [deform]="deform geometry base"
+  [prepare]="prepare geometry base"
   [overlay]="overlay geometry base"
   [session]="session geometry acquisition base"
   [sim]="sim session geometry acquisition base"
   [node]="node acquisition geometry deform overlay base"
-  [app]="app node session sim acquisition geometry deform overlay base"
+  [app]="app node session sim acquisition geometry deform prepare overlay base"
 )
 # The CMake library of each layer.
-declare -A target=([base]=evar_base [acquisition]=evar_acquisition [geometry]=evar_geometry [deform]=evar_deform
+declare -A target=([base]=evar_base [acquisition]=evar_acquisition [geometry]=evar_geometry [deform]=evar_deform [prepare]=evar_prepare
   [overlay]=evar_overlay [session]=evar_session [sim]=evar_sim [node]=evar_node [app]=evar_cli)
 declare -A layer_of
 for l in "${!target[@]}"; do layer_of[${target[$l]}]=$l; done

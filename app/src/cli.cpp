@@ -70,6 +70,32 @@ int run_cli(const std::vector<std::string>& args) {
               "cast each iliac section's ray to its nearest device point (the paper's rays) instead of pairing\n"
               "sections and device points in the order both run in (for comparison; docs/DEFORMATION.md)");
 
+  SceneCommand scene_cmd;
+  auto* sc = app.add_subcommand(
+      "scene",
+      "Make a scene directory (scene.json, one mesh and centerline per vessel, landmarks) from one\n"
+      "aorto-iliac surface as a segmentation tool exports it and its centerlines: the surface is cut\n"
+      "into the aorta and both iliacs, the centerlines trimmed and run proximal to distal, the iliacs\n"
+      "told right from left, clicked ostia put on the wall. Writes OUT/scene_report.json and\n"
+      "OUT/scene.png, and loads the result as `deform` will. Example (VMTK's data):\n"
+      "  evarnode scene --surface aorta-surface.vtp --centerlines aorta-centerline.vtp --axes RSP --out S");
+  sc->add_option("--surface", scene_cmd.surface,
+                 "the surface (STL, PLY, OBJ, VTK or VTP; closed or open; one connected piece)")
+      ->required();
+  sc->add_option("--centerlines", scene_cmd.centerlines,
+                 "its centerlines: VMTK's .vtp (vmtkcenterlines paths, or vmtkbranchextractor pieces) or 3D Slicer\n"
+                 "markups curves (.mrk.json), from the aortic inlet to both iliac outlets");
+  sc->add_option("--ostia", scene_cmd.ostia, "ostia clicked in 3D Slicer (fiducials, .mrk.json): the landmarks");
+  sc->add_option("--axes", scene_cmd.axes,
+                 "the patient direction each axis of the surface file points to (x, y, z), e.g. RSP for a surface\n"
+                 "in image axes whose y runs to the head; default: the file's SPACE tag, else LPS. A file whose\n"
+                 "aorta does not run to the head is refused, never rotated silently");
+  sc->add_option("--out", scene_cmd.out, "output directory (created if missing)")->required();
+  sc->add_option("--device-thickness-mm", scene_cmd.device_thickness_mm, "the device's diameter written into scene.json")
+      ->check(CLI::Range(0.0, 10.0))
+      ->capture_default_str();
+  sc->add_flag("!--no-picture", scene_cmd.picture, "do not write scene.png");
+
   ArapCommand arap;
   auto* a = app.add_subcommand("arap",
                                "Plain surface ARAP for explicit constraints (no skeleton), to compare the\n"
@@ -403,6 +429,7 @@ int run_cli(const std::vector<std::string>& args) {
   node::set_log_level(log_level);
   try {
     if (d->parsed()) return run_deform(deform);
+    if (sc->parsed()) return run_scene(scene_cmd);
     if (a->parsed()) return run_arap(arap);
     if (e->parsed()) return run_example(example);
     if (pr->parsed()) return run_project(project);

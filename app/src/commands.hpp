@@ -31,6 +31,14 @@ struct DeformCommand {
 inline constexpr int kExitDeviceOutside = 4;
 int run_deform(const DeformCommand& cmd);
 
+struct SceneCommand {
+  std::filesystem::path surface, centerlines, ostia, out;
+  std::string axes;
+  double device_thickness_mm = 0.89;
+  bool picture = true;
+};
+int run_scene(const SceneCommand& cmd);
+
 struct ArapCommand {
   std::filesystem::path mesh, constraints, out, report;
   std::optional<int> iterations;

@@ -7,6 +7,7 @@
 #include <Eigen/Geometry>
 
 #include "evar/geometry/closest_point.hpp"
+#include "evar/base/quantity_text.hpp"
 #include "isotropic_remesh.hpp"
 #include "triangle_grid.hpp"
 
@@ -81,9 +82,9 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   // A crease is rounded by about half an edge; a fine vertex farther away than a whole edge
   // means the proxy lost part of the surface (a thin vessel shrunk along its length).
   if (proxy.largest_offset_mm > edge_mm)
-    throw std::runtime_error("mesh proxy: a vertex of the mesh lies " + std::to_string(proxy.largest_offset_mm) +
-                             " mm from the remeshed surface, more than its edge of " + std::to_string(edge_mm) +
-                             " mm (a vessel thinner than the proxy's edge?)");
+    throw std::runtime_error("mesh proxy: a vertex of the mesh lies " + base::quantity_text(proxy.largest_offset_mm, "mm") +
+                             " from the remeshed surface, more than its edge of " + base::quantity_text(edge_mm, "mm") +
+                             " (a vessel thinner than the proxy's edge?)");
   return proxy;
 }
 

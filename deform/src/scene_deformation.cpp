@@ -17,6 +17,7 @@
 #include "evar/base/elapsed.hpp"
 #include "evar/geometry/closest_point.hpp"
 #include "evar/base/input_error.hpp"
+#include "evar/base/quantity_text.hpp"
 #include "vessel_model.hpp"
 
 // The scene's solve, in the paper's order: the aorta first, then each iliac bound to it
@@ -53,8 +54,8 @@ void check_device(const geometry::Polyline& device) {
   if (length <= 0.0) throw base::InputError("device: all points coincide");
   // Guidewires are at most a few metres long; more means a stray control point.
   if (length > 1e4)
-    throw base::InputError("device: the curve is " + std::to_string(length) +
-                               " mm long; at most 10000 mm is plausible (a stray control point?)");
+    throw base::InputError("device: the curve is " + base::quantity_text(length, "mm") +
+                               " long; at most 10000 mm is plausible (a stray control point?)");
 }
 
 // The scene with a proxy in place of every mesh that needs one (null when none does); a
@@ -141,8 +142,8 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
     }
     if (nearest_mm > kMaxLandmarkDistanceMm)
       throw base::InputError(scene.landmarks_path.string() + ": landmark '" + lm.label + "' is " +
-                                 std::to_string(nearest_mm) + " mm from the nearest vessel surface (at most " +
-                                 std::to_string(kMaxLandmarkDistanceMm) + " mm expected)");
+                                 base::quantity_text(nearest_mm, "mm") + " from the nearest vessel surface (at most " +
+                                 base::quantity_text(kMaxLandmarkDistanceMm, "mm") + " expected): is it in the scene's coordinates (LPS)?");
     landmark_bindings_.push_back(std::move(lb));
   }
   // The fine meshes' vertices past their centerline's ends (within a quarter millimetre of
@@ -159,6 +160,19 @@ SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions opti
                                           at.arc_length_mm > length - kAtTheEndMm;
     }
     past_centerline_ends_.push_back(std::move(past));
+    // Which way the faces wind: the area-weighted vote of their normals against the
+    // direction away from the centerline.
+    double outward = 0.0;
+    const auto& V = v.mesh.mesh.V;
+    const auto& F = v.mesh.mesh.F;
+    segment = -1;
+    for (Eigen::Index f = 0; f < F.rows(); ++f) {
+      const Eigen::Vector3d a = V.row(F(f, 0)).transpose(), b = V.row(F(f, 1)).transpose(), c = V.row(F(f, 2)).transpose();
+      const Eigen::Vector3d centroid = (a + b + c) / 3.0;
+      const auto at = onto.project(centroid, segment, &segment);
+      outward += (b - a).cross(c - a).dot(centroid - at.point);
+    }
+    wound_inward_.push_back(outward < 0.0 ? 1 : 0);
   }
   precompute_ms_ = proxy_ms_ + ms_since(t0);
 }
@@ -192,7 +206,8 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
     for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
       if (!past[static_cast<std::size_t>(mesh.F(f, 0))] && !past[static_cast<std::size_t>(mesh.F(f, 1))] &&
           !past[static_cast<std::size_t>(mesh.F(f, 2))])
-        walls[i].F.row(kept++) = mesh.F.row(f);
+        walls[i].F.row(kept++) = wound_inward_[i] ? Eigen::RowVector3i(mesh.F(f, 0), mesh.F(f, 2), mesh.F(f, 1))
+                                                  : Eigen::RowVector3i(mesh.F.row(f));
     walls[i].F.conservativeResize(kept, 3);
     surfaces.push_back({original_.vessels[i].name, &walls[i], &original_.vessels[i].centerline});
   }
@@ -363,9 +378,13 @@ SceneDeformation SceneDeformer::solve(const geometry::Polyline& device, const Sc
     r.timings.control_points_ms = ms_since(t0);
     const bool carries = static_cast<int>(i) == device_iliac;
     if (carries && bound.empty())
-      throw base::InputError(v.mesh_path.string() + ": no vertex of iliac '" + v.name + "' lies within " +
-                                 std::to_string(options.bind_length_mm) +
-                                 " mm of its centerline's proximal end, so it cannot be bound to the aorta");
+      throw base::InputError(
+          v.mesh_path.string() + ": no vertex of iliac '" + v.name + "' lies within " +
+          base::quantity_text(options.bind_length_mm, "mm") + " (along its centerline) of the centerline's proximal end, "
+          "so its top cannot be bound to the aorta: the mesh begins " + base::quantity_text(m.mesh_begins_at_mm, "mm", 1) +
+          " along the centerline (its nearest vertex is " + base::quantity_text(m.nearest_vertex_to_start_mm, "mm", 1) +
+          " from the start). Start the centerline " + v.centerline_path.filename().string() +
+          " where the mesh begins, at the bifurcation, or let `evarnode scene` cut the surface and trim the centerlines");
     auto& V_out = out.vessels[i].mesh.V;
     if (carries) {
       // Solved once, with the handles the device gives (none where it runs inside the

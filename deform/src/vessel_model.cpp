@@ -1,5 +1,6 @@
 #include <Eigen/Geometry>
 #include <algorithm>
+#include <limits>
 #include <chrono>
 #include <cmath>
 #include <optional>
@@ -127,7 +128,19 @@ void bind_junction(VesselModel& m, const geometry::TriangleMesh& aorta, double b
     m.junction.emplace_back(top[i], on_aorta[i]);
     m.junction_gap_mm = std::max(m.junction_gap_mm, on_aorta[i].distance_mm);
   }
-  if (!m.junction.empty()) m.top_centroid /= static_cast<double>(m.junction.size());
+  if (!m.junction.empty()) {
+    m.top_centroid /= static_cast<double>(m.junction.size());
+    return;
+  }
+  // None: say where the mesh does begin, for the message that refuses it.
+  m.mesh_begins_at_mm = std::numeric_limits<double>::infinity();
+  m.nearest_vertex_to_start_mm = std::numeric_limits<double>::infinity();
+  segment = -1;
+  for (Eigen::Index k = 0; k < V.rows(); ++k) {
+    const Eigen::Vector3d p = V.row(k).transpose();
+    m.nearest_vertex_to_start_mm = std::min(m.nearest_vertex_to_start_mm, (p - v.centerline.front()).norm());
+    m.mesh_begins_at_mm = std::min(m.mesh_begins_at_mm, onto_centerline.project(p, segment, &segment).arc_length_mm);
+  }
 }
 
 }  // namespace evar::deform::detail

@@ -32,6 +32,9 @@ struct SceneDeformer::VesselModel {
   std::vector<std::pair<int, geometry::SurfacePoint>> junction;
   Eigen::Vector3d top_centroid = Eigen::Vector3d::Zero();  ///< of the junction vertices
   double junction_gap_mm = 0.0;  ///< the farthest junction vertex from its aortic point
+  /// With no junction: where along its centerline the mesh begins (its vertices' least
+  /// foot arc length) and how far its nearest vertex is from the centerline's start (mm).
+  double mesh_begins_at_mm = 0.0, nearest_vertex_to_start_mm = 0.0;
   double skeleton_ms = 0.0, weights_ms = 0.0;
 };
 

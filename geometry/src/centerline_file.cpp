@@ -13,6 +13,7 @@
 #include <string>
 
 #include "evar/base/input_file.hpp"
+#include "evar/base/quantity_text.hpp"
 #include "mesh_formats.hpp"
 #include "vtk_xml.hpp"
 
@@ -53,7 +54,7 @@ CenterlineFile read_centerline_file(const std::filesystem::path& path) {
         const double r = radius->GetTuple1(id);
         if (!std::isfinite(r) || r < 0.0)
           detail::fail(path, std::string("point array ") + kVmtkRadiusArray + ": point " + std::to_string(id) +
-                                 " has radius " + std::to_string(r) + "; a radius is a finite length >= 0");
+                                 " has radius " + base::quantity_text(r, "mm") + "; a radius is a finite length >= 0");
         curve.radius_mm.push_back(r);
       }
     }

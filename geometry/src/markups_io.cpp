@@ -163,20 +163,32 @@ std::vector<Markup> read_markups(const std::filesystem::path& path) {
 Markup read_curve(const std::filesystem::path& path, std::size_t min_points) {
   std::vector<Markup> markups = read_markups(path);
   std::string found;
+  std::vector<std::size_t> curves;
   for (std::size_t i = 0; i < markups.size(); ++i) {
-    Markup& m = markups[i];
-    if (m.type == "Curve" || m.type == "ClosedCurve") {
-      if (m.points.size() < min_points) {
-        bad(path, "markups[" + std::to_string(i) + "].controlPoints",
-            m.type + " '" + m.name + "' has " + std::to_string(m.points.size()) +
-                " control points; at least " + std::to_string(min_points) + " are needed");
-      }
-      return std::move(m);
-    }
-    found += (found.empty() ? "" : ", ") + m.type;
+    if (markups[i].type == "Curve" || markups[i].type == "ClosedCurve")
+      curves.push_back(i);
+    else
+      found += (found.empty() ? "" : ", ") + markups[i].type;
   }
-  detail::fail(path, "no markup of type \"Curve\" in the file" +
-                         (found.empty() ? std::string(" (it has no markups)") : " (found: " + found + ")"));
+  if (curves.empty())
+    detail::fail(path, "no markup of type \"Curve\" in the file" +
+                           (found.empty() ? std::string(" (it has no markups)") : " (found: " + found + ")"));
+  // One curve is asked for: taking the first of several would give every vessel the same.
+  if (curves.size() > 1) {
+    std::string names;
+    for (std::size_t k = 0; k < curves.size() && k < 6; ++k)
+      names += (k ? ", '" : "'") + markups[curves[k]].name + "'";
+    if (curves.size() > 6) names += ", ...";
+    detail::fail(path, "holds " + std::to_string(curves.size()) + " curves (" + names +
+                           ") where one is expected: save each in a file of its own (3D Slicer: one markups node per "
+                           "file), or give a whole centerline tree to `evarnode scene --centerlines`");
+  }
+  Markup& m = markups[curves.front()];
+  if (m.points.size() < min_points)
+    bad(path, "markups[" + std::to_string(curves.front()) + "].controlPoints",
+        m.type + " '" + m.name + "' has " + std::to_string(m.points.size()) + " control points; at least " +
+            std::to_string(min_points) + " are needed");
+  return std::move(m);
 }
 
 std::vector<ControlPoint> read_fiducials(const std::filesystem::path& path) {

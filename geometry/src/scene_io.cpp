@@ -13,7 +13,9 @@
 
 #include "evar/base/input_error.hpp"
 #include "evar/geometry/json_fields.hpp"
+#include "evar/base/quantity_text.hpp"
 #include "mesh_formats.hpp"
+#include "scene_checks.hpp"
 
 namespace evar::geometry {
 
@@ -181,9 +183,11 @@ Scene load_scene(const std::filesystem::path& scene_json) {
     const double length = arc_lengths(vessel.centerline).back();
     if (!(length > 0.0) || length > 1e4)
       bad(file, field + ".centerline",
-          vessel.centerline_path.string() + ": the curve's length is " + std::to_string(length) +
-              " mm; a vessel centerline needs a length between 0 and 10000 mm (a stray control point?)");
+          vessel.centerline_path.string() + ": the curve's length is " + base::quantity_text(length, "mm") +
+              "; a vessel centerline needs a length between 0 and 10000 mm (a stray control point?)");
   }
+
+  detail::check_vessels_apart(scene);
 
   if (!scene.landmarks_path.empty()) {
     scene.landmarks = loading(file, "landmarks", [&] { return read_fiducials(scene.landmarks_path); });

@@ -19,6 +19,7 @@
 
 #include "evar/base/input_error.hpp"
 #include "evar/base/input_file.hpp"
+#include "evar/base/quantity_text.hpp"
 #include "mesh_formats.hpp"
 
 namespace evar::geometry {
@@ -206,9 +207,9 @@ XaFrame read_xa_dicom(const std::filesystem::path& path, int frame) {
   else
     v.source_to_isocenter_mm = r.require(DCM_DistanceSourceToPatient, 1.0, 5000.0, "mm");
   if (!(v.source_to_isocenter_mm < v.source_to_detector_mm))
-    detail::fail(path, "the source to isocenter distance (" + std::to_string(v.source_to_isocenter_mm) +
-                           " mm) is not less than " + tag_name(DCM_DistanceSourceToDetector) + " (" +
-                           std::to_string(v.source_to_detector_mm) + " mm)");
+    detail::fail(path, "the source to isocenter distance (" + base::quantity_text(v.source_to_isocenter_mm, "mm") +
+                           ") is not less than " + tag_name(DCM_DistanceSourceToDetector) + " (" +
+                           base::quantity_text(v.source_to_detector_mm, "mm") + ")");
   v.row_spacing_mm = r.require(DCM_ImagerPixelSpacing, 1e-3, 10.0, "mm", 0);
   v.col_spacing_mm = r.require(DCM_ImagerPixelSpacing, 1e-3, 10.0, "mm", 1);
   const int rows = static_cast<int>(top.require(DCM_Rows, 1, 16384, "pixels"));

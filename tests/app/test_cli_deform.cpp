@@ -399,3 +399,65 @@ TEST_F(Cli, DeformSaysWhenItLeavesTheDeviceOutsideAndStrictExitsFour) {
                               scratch("deform_strict_ok").string(), "--strict", "--no-preview"});
   EXPECT_EQ(fine.code, 0) << fine.err;
 }
+
+// Three dangerous scenes that used to pass silently, each refused by name with the fix:
+// one surface given for every vessel, a vessel inside another, and a centerline file
+// holding a whole tree of curves. And a mesh reaching far past its centerline.
+TEST_F(Cli, ScenesWithOneSurfaceForSeveralVesselsOrACenterlineTreeInOneFileAreRefused) {
+  const auto dir = scratch("dangerous_scenes");
+  const auto scene_with = [&](const std::string& name, const std::string& right_mesh, const std::string& right_centerline) {
+    const auto path = dir / (name + ".json");
+    write_text(path, R"({"format": "evarnode-scene", "version": 1, "coordinate_system": "LPS", "units": "mm",
+      "vessels": [
+        {"name": "aorta", "kind": "aorta", "mesh": ")" + (dir_ / "aorta.stl").string() + R"(",
+         "centerline": ")" + (dir_ / "aorta.centerline.mrk.json").string() + R"("},
+        {"name": "iliac_right", "kind": "iliac", "mesh": ")" + right_mesh + R"(", "centerline": ")" + right_centerline + R"("}],
+      "device_thickness_mm": 0.9})");
+    return path;
+  };
+  const auto deform = [&](const fs::path& scene) {
+    return evarnode({"deform", "--scene", scene.string(), "--device", device().string(), "--out",
+                     (dir / "out").string(), "--no-preview"});
+  };
+  const std::string right_centerline = (dir_ / "iliac_right.centerline.mrk.json").string();
+
+  // The aorta's surface given again for the iliac.
+  const auto same = deform(scene_with("same", (dir_ / "aorta.stl").string(), right_centerline));
+  EXPECT_EQ(same.code, 1);
+  EXPECT_NE(same.err.find("vessels 'aorta' and 'iliac_right' have the same mesh (aorta.stl, aorta.stl)"), std::string::npos)
+      << same.err;
+
+  // A copy of the aorta shrunk into it, as the iliac.
+  auto shrunk = evar::geometry::read_mesh(dir_ / "aorta.stl").mesh;
+  const Eigen::RowVector3d centre = shrunk.V.colwise().mean();
+  for (Eigen::Index i = 0; i < shrunk.V.rows(); ++i) shrunk.V.row(i) = centre + 0.5 * (shrunk.V.row(i) - centre);
+  evar::geometry::write_mesh(dir / "inner.stl", shrunk, evar::geometry::MeshFormat::StlBinary);
+  const auto nested = deform(scene_with("nested", (dir / "inner.stl").string(), right_centerline));
+  EXPECT_EQ(nested.code, 1);
+  EXPECT_NE(nested.err.find("the mesh of vessel 'iliac_right' (inner.stl) lies inside or on that of 'aorta' (aorta.stl)"),
+            std::string::npos)
+      << nested.err;
+
+  // The iliac's centerline cut to its first half: its mesh reaches far past it.
+  auto curve = evar::geometry::read_curve(right_centerline, 2);
+  curve.points.resize(curve.points.size() / 2);
+  evar::geometry::write_markups(dir / "short.mrk.json", {curve});
+  const auto past = deform(scene_with("past", (dir_ / "iliac_right.stl").string(), (dir / "short.mrk.json").string()));
+  EXPECT_EQ(past.code, 1);
+  EXPECT_NE(past.err.find("the mesh of vessel 'iliac_right' (iliac_right.stl) reaches"), std::string::npos) << past.err;
+  EXPECT_NE(past.err.find("past the distal end of its centerline (short.mrk.json"), std::string::npos) << past.err;
+
+  // Every centerline in one file, as Slicer can save a whole tree.
+  std::vector<evar::geometry::Markup> tree;
+  for (const char* v : {"aorta", "iliac_left", "iliac_right"}) {
+    auto c = evar::geometry::read_curve(dir_ / (std::string(v) + ".centerline.mrk.json"), 2);
+    c.name = v;
+    tree.push_back(c);
+  }
+  evar::geometry::write_markups(dir / "tree.mrk.json", tree);
+  const auto several = deform(scene_with("tree", (dir_ / "iliac_right.stl").string(), (dir / "tree.mrk.json").string()));
+  EXPECT_EQ(several.code, 1);
+  EXPECT_NE(several.err.find("tree.mrk.json: holds 3 curves ('aorta', 'iliac_left', 'iliac_right') where one is expected"),
+            std::string::npos)
+      << several.err;
+}

@@ -102,7 +102,8 @@ TEST(FormatForExtension, ChoosesBinaryForStlAndPly) {
   EXPECT_EQ(format_for_extension("a/b.stl"), MeshFormat::StlBinary);
   EXPECT_EQ(format_for_extension("b.Ply"), MeshFormat::PlyBinary);
   EXPECT_EQ(format_for_extension("c.OBJ"), MeshFormat::Obj);
-  EXPECT_THROW(format_for_extension("d.vtp"), evar::base::InputError);
+  EXPECT_EQ(format_for_extension("d.VTP"), MeshFormat::Vtp);
+  EXPECT_THROW(format_for_extension("e.off"), evar::base::InputError);
 }
 
 TEST(WriteMesh, RefusesFaceIndicesOutsideTheVertices) {

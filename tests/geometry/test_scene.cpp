@@ -268,6 +268,13 @@ TEST(CopyScene, CarriesEveryFileUnderUniqueNamesAndNeverOverwrites) {
   j["vessels"][1]["name"] = "iliac right";
   j["vessels"].push_back(j["vessels"][1]);
   j["vessels"][2]["name"] = "iliac/right";
+  // Its own surface and centerline (two vessels may not share one), under the same file
+  // names in another folder.
+  fs::create_directories(file.parent_path() / "other");
+  write_mesh(file.parent_path() / "other" / "iliac_r.ply", tetrahedron(30), MeshFormat::PlyBinary);
+  write_markups(file.parent_path() / "other" / "iliac_r.centerline.mrk.json", {curve(30)});
+  j["vessels"][2]["mesh"] = "other/iliac_r.ply";
+  j["vessels"][2]["centerline"] = "other/iliac_r.centerline.mrk.json";
   write_json(file, j);
   const Scene original = load_scene(file);
 

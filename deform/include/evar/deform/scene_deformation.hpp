@@ -179,6 +179,9 @@ class SceneDeformer {
   /// closes a vessel with where it stopped following it). Faces touching one are left out
   /// of the containment check: the lumen goes on there, the wall does not.
   std::vector<std::vector<char>> past_centerline_ends_;
+  /// Per vessel: its faces wind inward (normals toward the centerline, as VMTK writes its
+  /// surfaces); the containment check turns them.
+  std::vector<char> wound_inward_;
   double precompute_ms_ = 0.0;
 };
 

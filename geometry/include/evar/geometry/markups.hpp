@@ -25,8 +25,9 @@ struct Markup {
 /// unknown coordinate systems or non-finite coordinates.
 std::vector<Markup> read_markups(const std::filesystem::path& path);
 
-/// The first markup of type "Curve" (or "ClosedCurve"); InputError if there is none or it
-/// has fewer than `min_points` control points.
+/// The file's one markup of type "Curve" (or "ClosedCurve"); InputError if there is none,
+/// several (naming them: the first of a whole centerline tree is no vessel's centerline),
+/// or it has fewer than `min_points` control points.
 Markup read_curve(const std::filesystem::path& path, std::size_t min_points = 2);
 
 /// All control points of all "Fiducial" markups in the file, labels kept.
