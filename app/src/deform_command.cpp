@@ -162,6 +162,11 @@ int run_deform(const DeformCommand& cmd) {
   report["device_outside_length_mm"] = contained.outside_length_mm;
   report["device_outside_max_depth_mm"] = contained.outside_max_depth_mm;
   report["device_containment"] = containment_json(contained);
+  report["timings_ms"] = {{"scene_solver", result.precompute_ms},
+                          {"of_which_proxies", result.proxy_ms},
+                          {"deform", result.total_ms - result.precompute_ms},
+                          {"of_which_containment", result.containment_ms},
+                          {"total", result.total_ms}};
   report["containment_ms"] = result.containment_ms;
   report["total_ms"] = result.total_ms;
   write_json(cmd.out / "report.json", report);

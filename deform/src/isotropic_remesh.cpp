@@ -10,7 +10,6 @@
 
 #include <Eigen/Geometry>
 
-#include "triangle_grid.hpp"
 
 namespace evar::deform::detail {
 
@@ -97,9 +96,10 @@ class Remesher {
     P_ = std::move(next);
   }
 
-  void project_onto(const TriangleGrid& surface) {
+  void project_onto(const geometry::RayCaster& surface) {
     for (std::size_t v = 0; v < P_.size(); ++v)
-      if (vertex_alive_[v] && !rim_[v]) P_[v] = surface.closest(P_[v]).point;
+      if (vertex_alive_[v] && !rim_[v])
+        if (const auto q = surface.closest_point(P_[v])) P_[v] = q->point;
   }
 
   geometry::TriangleMesh compact() const {
@@ -311,7 +311,7 @@ class Remesher {
 
 }  // namespace
 
-geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, const TriangleGrid& surface_grid,
+geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, const geometry::RayCaster& surface_bvh,
                                         double edge_mm, int iterations) {
   if (!(edge_mm > 0.0) || !std::isfinite(edge_mm))
     throw std::invalid_argument("isotropic remesh: the edge length must be positive and finite");
@@ -321,7 +321,7 @@ geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, c
     r.collapse_short_edges();
     r.equalize_valences();
     r.relax_tangentially();
-    r.project_onto(surface_grid);
+    r.project_onto(surface_bvh);
   }
   return r.compact();
 }

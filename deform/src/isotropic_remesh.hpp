@@ -11,15 +11,15 @@
 // mesh is coarsened along itself only: its vertices stay rim vertices of the input, in
 // place, and are not relaxed.
 #include "evar/geometry/triangle_mesh.hpp"
-#include "triangle_grid.hpp"
+#include "evar/geometry/ray_caster.hpp"
 
 namespace evar::deform::detail {
 
 /// The remeshed surface (a new, compact mesh). `surface` must be a valid, manifold mesh and
-/// `surface_grid` a grid over it (vertices are put back on it by closest-point queries,
-/// which start within a fraction of an edge of it). std::invalid_argument for a
+/// `surface_bvh` a ray caster built over it (vertices are put back on it by its
+/// closest-point queries). std::invalid_argument for a
 /// non-positive or non-finite edge length.
-geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, const TriangleGrid& surface_grid,
+geometry::TriangleMesh isotropic_remesh(const geometry::TriangleMesh& surface, const geometry::RayCaster& surface_bvh,
                                         double edge_mm, int iterations = 8);
 
 }  // namespace evar::deform::detail

@@ -1,5 +1,7 @@
 #include "evar/deform/mesh_proxy.hpp"
 
+#include "evar/geometry/ray_caster.hpp"
+
 #include <algorithm>
 #include <stdexcept>
 #include <string>
@@ -9,7 +11,6 @@
 #include "evar/geometry/closest_point.hpp"
 #include "evar/base/quantity_text.hpp"
 #include "isotropic_remesh.hpp"
-#include "triangle_grid.hpp"
 
 namespace evar::deform {
 
@@ -41,11 +42,10 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   if (fine.F.rows() == 0) throw std::runtime_error("mesh proxy: the mesh has no faces");
   const auto n = static_cast<std::size_t>(fine.V.rows());
   MeshProxy proxy;
-  // One grid over the fine surface, cells of three of its edges (a few dozen triangles
-  // around each query): the remesher puts its vertices back on it, and the check below
-  // looks up where each face lies.
-  const detail::TriangleGrid fine_grid(fine, 3.0 * geometry::median_edge_length(fine));
-  proxy.coarse = detail::isotropic_remesh(fine, fine_grid, edge_mm);
+  // One BVH over the fine surface: the remesher puts its vertices back on it, and the check
+  // below looks up where each face lies.
+  const geometry::RayCaster fine_bvh(fine);
+  proxy.coarse = detail::isotropic_remesh(fine, fine_bvh, edge_mm);
   try {
     geometry::validate_mesh(proxy.coarse, "the proxy");
   } catch (const std::exception& e) {
@@ -62,17 +62,20 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
       throw std::runtime_error("mesh proxy: face " + std::to_string(f) + " of the remeshed surface has no area");
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
     for (int k = 0; k < 3; ++k) centroid += proxy.coarse.V.row(proxy.coarse.F(f, k)).transpose() / 3.0;
-    if (!(normal.dot(area_normal(fine, fine_grid.closest(centroid).face)) > 0.0))
+    const auto on_fine = fine_bvh.closest_point(centroid);
+    if (!on_fine || !(normal.dot(area_normal(fine, on_fine->face)) > 0.0))
       throw std::runtime_error("mesh proxy: face " + std::to_string(f) +
                                " of the remeshed surface is turned against the mesh (a vessel thinner than the "
                                "proxy's edge?)");
   }
 
-  const detail::TriangleGrid grid(proxy.coarse, geometry::median_edge_length(proxy.coarse));
+  const geometry::RayCaster coarse_bvh(proxy.coarse, geometry::RayCaster::BuildQuality::Low);
   proxy.bindings.resize(n);
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p = fine.V.row(static_cast<Eigen::Index>(i)).transpose();
-    const geometry::SurfacePoint sp = grid.closest(p);
+    const auto found = coarse_bvh.closest_point(p);
+    if (!found) throw std::runtime_error("mesh proxy: the remeshed surface has no faces");
+    const geometry::SurfacePoint& sp = *found;
     ProxyBinding& b = proxy.bindings[i];
     b.face = sp.face;
     b.barycentric = sp.barycentric;

@@ -186,6 +186,8 @@ double SceneDeformer::lumen_radius_mm(std::size_t vessel, double arc_length_mm) 
 SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Polyline& device, const DeformOptions& options) {
   const SceneDeformer deformer(scene, options);
   SceneDeformation out = deformer.deform(device);
+  out.precompute_ms = deformer.precompute_ms();
+  out.proxy_ms = deformer.proxy_ms();
   out.total_ms += deformer.precompute_ms();
   return out;
 }

@@ -111,6 +111,9 @@ struct SceneDeformation {
   /// The device against the deformed vessels (the fine meshes, erased faces removed).
   DeviceContainment containment;
   double containment_ms = 0.0;                    ///< measuring it (part of total_ms)
+  /// deform_scene only: preparing the scene's solver (paid once per scene; proxies
+  /// included) and, of it, the proxies; the rest of total_ms is the call for this device.
+  double precompute_ms = 0.0, proxy_ms = 0.0;
   double total_ms = 0.0;
   /// Per vessel, the proxy's solved vertices (no rows for a vessel solved on its own
   /// mesh): the next frame of a live sequence starts from them.
@@ -142,6 +145,8 @@ class SceneDeformer {
   /// stopping rule's distance to it.
   SceneDeformation deform(const geometry::Polyline& device, const SceneDeformation* previous = nullptr) const;
   double precompute_ms() const { return precompute_ms_; }
+  /// Of precompute_ms: making the proxies of fine meshes.
+  double proxy_ms() const { return proxy_ms_; }
   /// The scene it deforms (as given, fine meshes).
   const geometry::Scene& scene() const { return original_; }
   /// Lumen radius of vessel `vessel` (scene order) at `arc_length_mm` along its centerline:
