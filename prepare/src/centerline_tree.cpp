@@ -155,6 +155,51 @@ BifurcationTree bifurcation_tree(const std::vector<geometry::CenterlineCurve>& a
   if (B.radius_mm.size() == B.points.size())
     tree.branch_radius_mm[1].assign(B.radius_mm.begin() + static_cast<std::ptrdiff_t>(from), B.radius_mm.end());
   if (tree.branches[1].size() < 2) refuse(source, "one iliac path ends where the paths part");
+
+  // Side branches: every other path, from where it parts from the iliac paths.
+  const geometry::PolylineProjector onto_a(A.points);
+  for (std::size_t n = 2; n < order.size(); ++n) {
+    const auto& P = all_paths[order[n]];
+    std::size_t leave = P.points.size();
+    int sa = -1, sb = -1;
+    for (std::size_t k = 0; k < P.points.size(); ++k)
+      if (onto_a.project(P.points[k], sa, &sa).distance_mm > kPartedMm &&
+          onto_b.project(P.points[k], sb, &sb).distance_mm > kPartedMm) {
+        leave = k;
+        break;
+      }
+    if (leave == 0 || leave >= P.points.size()) continue;  // not a branch of this tree
+    const Eigen::Vector3d parting = P.points[leave - 1];
+    // The parent: the trunk or the iliac branch nearest the parting point.
+    SideBranch side;
+    const geometry::Polyline* parent = &tree.trunk;
+    const std::vector<double>* parent_radius = &tree.trunk_radius_mm;
+    double nearest = geometry::project_onto(tree.trunk, parting).distance_mm;
+    for (int b = 0; b < 2; ++b) {
+      const double d = geometry::project_onto(tree.branches[static_cast<std::size_t>(b)], parting).distance_mm;
+      const bool below_fork = geometry::project_onto(tree.trunk, parting).beyond_end;
+      if (below_fork && d <= nearest + 1e-9) {
+        nearest = d, side.parent = b;
+        parent = &tree.branches[static_cast<std::size_t>(b)];
+        parent_radius = &tree.branch_radius_mm[static_cast<std::size_t>(b)];
+      }
+    }
+    side.leaves_parent = parting;
+    const auto parent_arc = geometry::arc_lengths(*parent);
+    for (std::size_t k = leave; k < P.points.size(); ++k) {
+      const auto at = geometry::project_onto(*parent, P.points[k]);
+      double r = 0.0;
+      if (parent_radius->size() == parent->size()) {
+        const auto j = static_cast<std::size_t>(std::upper_bound(parent_arc.begin(), parent_arc.end(), at.arc_length_mm) -
+                                                parent_arc.begin());
+        r = (*parent_radius)[std::min(j, parent->size()) - (j > 0 ? 1 : 0)];
+      }
+      side.leaves_parent = P.points[k];
+      if (at.distance_mm >= r) break;
+    }
+    side.outlet = P.points.back();
+    tree.side_branches.push_back(side);
+  }
   return tree;
 }
 

@@ -152,9 +152,14 @@ PreparedScene prepare_scene(const SceneInputs& in) {
     out.axes = "RAS";
   }
 
-  const BifurcationTree tree0 = bifurcation_tree(centerline_paths(curves, in.centerlines.string()), in.centerlines.string());
-  if (!tree0.note.empty()) out.notes.push_back(in.centerlines.filename().string() + ": " + tree0.note);
-  BifurcationTree tree = tree0;
+  auto paths = centerline_paths(curves, in.centerlines.string());
+  // Radii where the centerlines came without: the distance to the nearest wall.
+  bool estimated = false;
+  for (auto& p : paths)
+    if (p.radius_mm.size() != p.points.size()) p.radius_mm = radius_from_surface(surface.mesh, p.points), estimated = true;
+  if (estimated) out.notes.push_back("the centerlines carry no radius: taken from the surface (distance to the nearest wall)");
+  const BifurcationTree tree = bifurcation_tree(paths, in.centerlines.string());
+  if (!tree.note.empty()) out.notes.push_back(in.centerlines.filename().string() + ": " + tree.note);
   out.inlet = tree.trunk.front();
   out.bifurcation = tree.trunk.back();
 
@@ -180,16 +185,6 @@ PreparedScene prepare_scene(const SceneInputs& in) {
         example + "; only you can tell left from right), or export the surface in patient coordinates (3D Slicer: "
         "Segmentations > Export to files). Nothing is rotated without being asked");
   }
-
-  // Radii where the centerlines came without.
-  if (tree.trunk_radius_mm.size() != tree.trunk.size()) {
-    tree.trunk_radius_mm = radius_from_surface(surface.mesh, tree.trunk);
-    out.notes.push_back("the centerlines carry no radius: taken from the surface (distance to the nearest wall)");
-  }
-  for (int b = 0; b < 2; ++b)
-    if (tree.branch_radius_mm[static_cast<std::size_t>(b)].size() != tree.branches[static_cast<std::size_t>(b)].size())
-      tree.branch_radius_mm[static_cast<std::size_t>(b)] =
-          radius_from_surface(surface.mesh, tree.branches[static_cast<std::size_t>(b)]);
 
   const SurfacePieces pieces = split_surface(surface.mesh, tree, in.centerlines.string());
 
@@ -242,8 +237,33 @@ PreparedScene prepare_scene(const SceneInputs& in) {
     }
     out.notes.push_back(std::to_string(out.landmarks.size()) + " ostia from " + in.ostia.filename().string() +
                         ", each moved onto the nearest wall");
+  } else if (!tree.side_branches.empty()) {
+    // Side-branch stubs the centerlines reach into: their ostia, named by where they
+    // branch and point (rename them in 3D Slicer where the guess is wrong).
+    const geometry::RayCaster walls(surface.mesh, geometry::RayCaster::BuildQuality::Low);
+    std::map<std::string, int> used;
+    std::string names;
+    for (const auto& side : tree.side_branches) {
+      const Eigen::Vector3d d = side.outlet - side.leaves_parent;
+      std::string label;
+      if (side.parent >= 0) {
+        label = side.parent == right ? "internal_iliac_right" : "internal_iliac_left";
+      } else if (std::abs(d.x()) >= std::abs(d.y())) {
+        label = d.x() > 0.0 ? "renal_left" : "renal_right";  // +x is the patient's left in LPS
+      } else {
+        label = d.y() < 0.0 ? "mesenteric" : "posterior_branch";  // -y is anterior
+      }
+      if (const int n = ++used[label]; n > 1) label += "_" + std::to_string(n);
+      const auto q = walls.closest_point(side.leaves_parent);
+      if (!q) continue;
+      out.landmarks.push_back({label, q->point});
+      names += (names.empty() ? "" : ", ") + label;
+    }
+    out.notes.push_back(std::to_string(out.landmarks.size()) + " side-branch stubs found along the centerlines, their " +
+                        "ostia offered as landmarks (" + names + "; named by where they branch and point: rename "
+                        "them in 3D Slicer where that is wrong, or give your own with --ostia)");
   } else {
-    out.notes.push_back("no ostia given (--ostia) and the surface has no side-branch stubs to offer: the scene has no "
+    out.notes.push_back("no ostia given (--ostia) and the centerlines reach into no side-branch stub: the scene has no "
                         "landmarks; click them on the wall in 3D Slicer and give them with --ostia");
   }
   out.prepare_ms = base::ms_since(t0);

@@ -9,6 +9,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "evar/geometry/centerline_file.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/polyline.hpp"
@@ -147,4 +148,44 @@ TEST(CliScene, ASurfaceInImageAxesOrWithoutCenterlinesIsRefusedWithTheFix) {
                                  (data / "aorta-surface.vtp").string(), "--out", (dir.path / "c").string()});
   EXPECT_EQ(swapped.code, 1);
   EXPECT_NE(swapped.err.find("it looks like a centerline file"), std::string::npos) << swapped.err;
+}
+
+// 3D Slicer's way: the centerlines as markups curves (patient LPS, no radii), here VMTK's
+// paths turned into LPS, plus a stub path from the aorta's middle to the patient's left:
+// its ostium is offered as the landmark "renal_left", on the aortic wall.
+TEST(CliScene, MarkupsCenterlinesWorkAndAStubPathGivesItsOstiumAsALandmark) {
+  EVAR_VMTK_DATA_OR_SKIP(data);
+  const evar::test::TempDir dir;
+  const auto vmtk = evar::geometry::read_centerline_file(data / "aorta-centerline.vtp");
+  // RSP: file x to the right (-x in LPS), y to the head (+z), z to the back (+y).
+  const auto to_lps = [](const Eigen::Vector3d& p) { return Eigen::Vector3d(-p.x(), p.z(), p.y()); };
+  std::vector<evar::geometry::Markup> curves;
+  for (std::size_t c = 0; c < vmtk.curves.size(); ++c) {
+    evar::geometry::Markup m{"Curve", std::string("path").append(std::to_string(c + 1)), {}};
+    for (std::size_t i = 0; i < vmtk.curves[c].points.size(); ++i)
+      m.points.push_back({std::string("p").append(std::to_string(i)), to_lps(vmtk.curves[c].points[i])});
+    curves.push_back(m);
+  }
+  // The stub: along path 1 to its 30th point (the aorta's middle), then 25 mm to the left.
+  evar::geometry::Markup stub{"Curve", "stub", {}};
+  for (std::size_t i = 0; i <= 30; ++i) stub.points.push_back(curves[0].points[i]);
+  const Eigen::Vector3d origin = stub.points.back().position_lps;
+  for (int k = 1; k <= 50; ++k)
+    stub.points.push_back({std::string("s").append(std::to_string(k)), origin + Eigen::Vector3d(0.5 * k, 0, 0)});
+  curves.push_back(stub);
+  evar::geometry::write_markups(dir.path / "centerlines.mrk.json", curves);
+
+  const auto out = dir.path / "scene";
+  const auto made = evarnode({"scene", "--surface", (data / "aorta-surface.vtp").string(), "--centerlines",
+                              (dir.path / "centerlines.mrk.json").string(), "--axes", "RSP", "--out", out.string()});
+  ASSERT_EQ(made.code, 0) << made.err;
+  EXPECT_NE(made.err.find("the centerlines carry no radius: taken from the surface"), std::string::npos) << made.err;
+  EXPECT_NE(made.err.find("1 side-branch stubs found along the centerlines"), std::string::npos) << made.err;
+  const auto scene = evar::geometry::load_scene(out / "scene.json");
+  ASSERT_EQ(scene.landmarks.size(), 1u);
+  EXPECT_EQ(scene.landmarks[0].label, "renal_left");
+  // On the aorta's left wall, beside where the stub leaves it.
+  const auto& p = scene.landmarks[0].position_lps;
+  EXPECT_GT(p.x(), origin.x() + 3.0);
+  EXPECT_LT((p - origin).norm(), 15.0);
 }

@@ -100,3 +100,28 @@ TEST(CenterlineTree, WhatMakesNoAortoIliacTreeIsRefusedByName) {
   const auto same = segment(kInlet, kRight, 5);
   EXPECT_NE(message({same, same}).find("never part"), std::string::npos) << message({same, same});
 }
+
+// Paths into side-branch stubs (a renal artery from the trunk, an internal iliac from an
+// iliac) are side branches, each placed where it leaves its parent's lumen.
+TEST(CenterlineTree, StubPathsAreSideBranchesLeavingTheirParentsLumen) {
+  const Eigen::Vector3d renal_origin(0, 0, 80), internal_origin = kFork + 0.5 * (kRight - kFork);
+  const auto trunk_to = [&](const Eigen::Vector3d& at) { return segment(kInlet, at, 10.0); };
+  const auto right = segment(kFork, kRight, 5.0);
+  std::vector<CenterlineCurve> paths{joined(trunk_to(kFork), right), joined(trunk_to(kFork), segment(kFork, kLeft, 5.0)),
+                                     joined(trunk_to(renal_origin), segment(renal_origin, {40, 0, 78}, 3.0))};
+  // The internal iliac: along the trunk and the right iliac to its origin, then off to the back.
+  CenterlineCurve to_internal = trunk_to(kFork);
+  for (const auto& p : segment(kFork, internal_origin, 5.0).points) to_internal.points.push_back(p), to_internal.radius_mm.push_back(5.0);
+  to_internal = joined(to_internal, segment(internal_origin, internal_origin + Eigen::Vector3d(0, 25, -5), 2.5));
+  paths.push_back(to_internal);
+  const auto t = prepare::bifurcation_tree(prepare::centerline_paths(paths, "c.vtp"), "c.vtp");
+  ASSERT_EQ(t.side_branches.size(), 2u);
+  const auto& renal = t.side_branches[0].parent == -1 ? t.side_branches[0] : t.side_branches[1];
+  const auto& internal = t.side_branches[0].parent == -1 ? t.side_branches[1] : t.side_branches[0];
+  EXPECT_EQ(renal.parent, -1);
+  EXPECT_NEAR(renal.leaves_parent.x(), 10.0, 0.6);  // the trunk's wall, 10 mm out
+  EXPECT_LT((renal.outlet - Eigen::Vector3d(40, 0, 78)).norm(), 1e-9);
+  const int right_branch = (t.branches[0].back() - kRight).norm() < 1e-9 ? 0 : 1;
+  EXPECT_EQ(internal.parent, right_branch);
+  EXPECT_NEAR((internal.leaves_parent - internal_origin).norm(), 5.0, 0.6);  // the iliac's wall, 5 mm out
+}

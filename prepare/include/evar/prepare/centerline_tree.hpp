@@ -3,6 +3,7 @@
 // paths (one per outlet, each from the inlet), VMTK's branch pieces (CenterlineIds and
 // TractIds cells), or curves chained end to start (3D Slicer's centerline trees), reduced
 // to the aortic trunk and the two iliac branches.
+#include <Eigen/Core>
 #include <array>
 #include <string>
 #include <vector>
@@ -20,6 +21,17 @@ namespace evar::prepare {
 std::vector<geometry::CenterlineCurve> centerline_paths(const std::vector<geometry::CenterlineCurve>& curves,
                                                        const std::string& source);
 
+/// A path other than the two iliacs: a side branch (renal, mesenteric, internal iliac) of
+/// the trunk or of an iliac.
+struct SideBranch {
+  int parent = -1;  ///< -1: the trunk; 0 or 1: that iliac branch
+  /// Its centerline where it leaves the parent's lumen (the parent's radius from the
+  /// parent's centerline; the parting point when the parent has no radii): next to its
+  /// ostium.
+  Eigen::Vector3d leaves_parent = Eigen::Vector3d::Zero();
+  Eigen::Vector3d outlet = Eigen::Vector3d::Zero();  ///< its far end
+};
+
 struct BifurcationTree {
   /// From the inlet to the point where the iliac paths part (where they first lie more
   /// than 0.5 mm apart), and from there to each outlet; radii (mm) per point where the
@@ -28,6 +40,8 @@ struct BifurcationTree {
   std::vector<double> trunk_radius_mm;
   std::array<geometry::Polyline, 2> branches;
   std::array<std::vector<double>, 2> branch_radius_mm;
+  /// The other paths, each from where it parts from the trunk or an iliac.
+  std::vector<SideBranch> side_branches;
   /// Which paths were taken when there were more than two (the two whose outlets lie
   /// farthest from the inlet: the iliacs, not a renal or lumbar stub); "" otherwise.
   std::string note;
