@@ -11,6 +11,7 @@
 #include "evar/base/input_error.hpp"
 #include "evar/geometry/centerline_file.hpp"
 #include "evar/geometry/mesh_io.hpp"
+#include "support/error_message.hpp"
 #include "support/shared_data.hpp"
 #include "support/temp_dir.hpp"
 
@@ -31,12 +32,7 @@ geometry::TriangleMesh tetrahedron_with_a_spare_vertex() {
 void write_text(const fs::path& path, const std::string& text) { std::ofstream(path, std::ios::binary) << text; }
 
 std::string error_of(const fs::path& path) {
-  try {
-    geometry::read_mesh(path);
-  } catch (const base::InputError& e) {
-    return e.what();
-  }
-  return "";
+  return test::error_message([&] { geometry::read_mesh(path); }, "");
 }
 
 }  // namespace
