@@ -96,6 +96,20 @@ void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, Mes
   throw std::invalid_argument(path.string() + ": unknown mesh format");
 }
 
+const char* extension_for(MeshFormat format) {
+  switch (format) {
+    case MeshFormat::StlBinary:
+    case MeshFormat::StlAscii: return ".stl";
+    case MeshFormat::PlyAscii:
+    case MeshFormat::PlyBinary: return ".ply";
+    case MeshFormat::Obj: return ".obj";
+    case MeshFormat::VtkAscii:
+    case MeshFormat::VtkBinary: return ".vtk";
+    case MeshFormat::Vtp: return ".vtp";
+  }
+  throw std::invalid_argument("extension_for: unknown mesh format");
+}
+
 MeshFormat format_for_extension(const std::filesystem::path& path) {
   const std::string ext = lower_extension(path);
   if (ext == ".stl") return MeshFormat::StlBinary;

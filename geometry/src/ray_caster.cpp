@@ -167,6 +167,8 @@ int RayCaster::crossings(const Eigen::Vector3d& origin, const Eigen::Vector3d& d
   return count;
 }
 
+const TriangleMesh& RayCaster::mesh() const { return impl_->mesh; }
+
 bool RayCaster::contains(const Eigen::Vector3d& point) const {
   // Irrational-ish directions avoid grazing axis-aligned mesh features.
   static const Eigen::Vector3d dirs[3] = {Eigen::Vector3d(0.5773, 0.6137, 0.5385).normalized(),

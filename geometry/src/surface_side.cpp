@@ -13,10 +13,10 @@ int corner_of(const Faces& F, int f, int v) { return F(f, 0) == v ? 0 : (F(f, 1)
 
 }  // namespace
 
-SurfaceSide::SurfaceSide(const TriangleMesh& mesh, RayCaster::BuildQuality quality) : mesh_(mesh) {
-  if (mesh_.F.rows() > 0) caster_.emplace(mesh_, quality);
-  const auto& V = mesh_.V;
-  const auto& F = mesh_.F;
+SurfaceSide::SurfaceSide(const TriangleMesh& mesh, RayCaster::BuildQuality quality) {
+  if (mesh.F.rows() > 0) caster_.emplace(mesh, quality);
+  const auto& V = mesh.V;
+  const auto& F = mesh.F;
   const Eigen::Index nf = F.rows();
   face_normals_.setZero(nf, 3);
   for (Eigen::Index f = 0; f < nf; ++f) {
@@ -36,8 +36,8 @@ SurfaceSide::SurfaceSide(const TriangleMesh& mesh, RayCaster::BuildQuality quali
 }
 
 Eigen::Vector3d SurfaceSide::rim_out(int face, int i, int j) const {
-  const auto& V = mesh_.V;
-  const int k = mesh_.F(face, 3 - corner_of(mesh_.F, face, i) - corner_of(mesh_.F, face, j));
+  const auto& V = mesh().V;
+  const int k = mesh().F(face, 3 - corner_of(mesh().F, face, i) - corner_of(mesh().F, face, j));
   const Eigen::Vector3d a = V.row(i).transpose(), b = V.row(j).transpose();
   const Eigen::Vector3d t = (b - a).normalized();
   Eigen::Vector3d m = 0.5 * (a + b) - V.row(k).transpose();
@@ -51,7 +51,7 @@ SurfaceSide::FeatureNormal SurfaceSide::at_edge(int face, int i, int j) const {
   bool shared = false;
   for (int k = first_face_[static_cast<std::size_t>(i)]; k < first_face_[static_cast<std::size_t>(i) + 1]; ++k) {
     const int g = faces_of_[static_cast<std::size_t>(k)];
-    if (g != face && (mesh_.F(g, 0) == j || mesh_.F(g, 1) == j || mesh_.F(g, 2) == j)) {
+    if (g != face && (mesh().F(g, 0) == j || mesh().F(g, 1) == j || mesh().F(g, 2) == j)) {
       out.normal += face_normals_.row(g).transpose();
       shared = true;
     }
@@ -62,8 +62,8 @@ SurfaceSide::FeatureNormal SurfaceSide::at_edge(int face, int i, int j) const {
 
 SurfaceSide::FeatureNormal SurfaceSide::at_vertex(int v) const {
   FeatureNormal out;
-  const auto& V = mesh_.V;
-  const auto& F = mesh_.F;
+  const auto& V = mesh().V;
+  const auto& F = mesh().F;
   const int begin = first_face_[static_cast<std::size_t>(v)], end = first_face_[static_cast<std::size_t>(v) + 1];
   for (int k = begin; k < end; ++k) {
     const int f = faces_of_[static_cast<std::size_t>(k)];
@@ -112,9 +112,9 @@ SidedPoint SurfaceSide::classify(const Eigen::Vector3d& p, double expected_dista
     at.normal = face_normals_.row(f).transpose();
   } else if (zeros == 1) {
     const int k = w[0] == 0.0 ? 0 : (w[1] == 0.0 ? 1 : 2);  // the edge opposite corner k
-    at = at_edge(f, mesh_.F(f, (k + 1) % 3), mesh_.F(f, (k + 2) % 3));
+    at = at_edge(f, mesh().F(f, (k + 1) % 3), mesh().F(f, (k + 2) % 3));
   } else {
-    at = at_vertex(mesh_.F(f, w[0] != 0.0 ? 0 : (w[1] != 0.0 ? 1 : 2)));
+    at = at_vertex(mesh().F(f, w[0] != 0.0 ? 0 : (w[1] != 0.0 ? 1 : 2)));
   }
   if (!(at.normal.norm() > 0.0)) return out;  // only slivers of no area there: no direction to tell by
   const Eigen::Vector3d u = (p - q->point) / q->distance_mm;

@@ -7,6 +7,7 @@
 #include <numeric>
 
 #include "evar/base/input_error.hpp"
+#include "evar/base/quantity_text.hpp"
 
 namespace evar::prepare {
 namespace {
@@ -29,12 +30,6 @@ void append(geometry::CenterlineCurve& a, const geometry::CenterlineCurve& b) {
     a.radius_mm.insert(a.radius_mm.end(), b.radius_mm.begin() + from, b.radius_mm.end());
   else
     a.radius_mm.clear();
-}
-
-std::string mm(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.1f mm", v);
-  return text;
 }
 
 }  // namespace
@@ -89,7 +84,7 @@ std::vector<geometry::CenterlineCurve> centerline_paths(const std::vector<geomet
   if (roots.size() != 1)
     refuse(source, "its " + std::to_string(n) + " curves make " + std::to_string(roots.size()) +
                        " separate trees (each curve must start where the curve it branches from ends, within " +
-                       mm(kSamePointMm) + ", or all must start at the inlet)");
+                       base::quantity_text(kSamePointMm, "mm", 1) + ", or all must start at the inlet)");
   std::vector<geometry::CenterlineCurve> paths;
   for (std::size_t leaf = 0; leaf < n; ++leaf) {
     if (std::find(parent.begin(), parent.end(), static_cast<int>(leaf)) != parent.end()) continue;
@@ -124,7 +119,7 @@ BifurcationTree bifurcation_tree(const std::vector<geometry::CenterlineCurve>& a
                 "from the inlet (paths " + std::to_string(order[0] + 1) + " and " + std::to_string(order[1] + 1) +
                 ") are taken as the iliacs";
   if ((A.points.front() - B.points.front()).norm() > kSamePointMm)
-    refuse(source, "its iliac paths start " + mm((A.points.front() - B.points.front()).norm()) +
+    refuse(source, "its iliac paths start " + base::quantity_text((A.points.front() - B.points.front()).norm(), "mm", 1) +
                        " apart; both must start at the aortic inlet");
 
   // Where A parts from B.

@@ -11,6 +11,7 @@
 
 #include "evar/base/elapsed.hpp"
 #include "evar/base/input_error.hpp"
+#include "evar/base/quantity_text.hpp"
 #include "evar/geometry/centerline_file.hpp"
 #include "evar/geometry/ray_caster.hpp"
 #include "evar/geometry/scene.hpp"
@@ -25,12 +26,6 @@ namespace {
 const double kCosHeadward = std::cos(45.0 * M_PI / 180.0);
 // An ostium clicked farther than this from the wall is in another frame, not on it.
 constexpr double kMaxOstiumOffWallMm = 10.0;
-
-std::string mm(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.1f mm", v);
-  return text;
-}
 
 std::string lower_extension(const std::filesystem::path& p) {
   std::string e = p.extension().string();
@@ -134,6 +129,7 @@ PreparedScene prepare_scene(const SceneInputs& in) {
 
   // The frame: the file's tag, else --axes, else LPS as Slicer reads an untagged file.
   out.axes = "LPS";
+  Eigen::Matrix3d to_lps = Eigen::Matrix3d::Identity();  // file axes -> LPS (--axes)
   if (!in.axes.empty()) {
     if (surface.space != geometry::MeshSpace::Undeclared)
       throw base::InputError(in.surface.string() + ": declares SPACE=" +
@@ -142,6 +138,7 @@ PreparedScene prepare_scene(const SceneInputs& in) {
                              "leave out --axes");
     const PatientAxes axes = parse_patient_axes(in.axes);
     out.axes = axes.code;
+    to_lps = axes.to_lps;
     for (Eigen::Index i = 0; i < surface.mesh.V.rows(); ++i)
       surface.mesh.V.row(i) = (axes.to_lps * surface.mesh.V.row(i).transpose()).transpose();
     if (!centerlines_in_patient_frame)
@@ -152,11 +149,13 @@ PreparedScene prepare_scene(const SceneInputs& in) {
     out.axes = "RAS";
   }
 
+  // One BVH of the surface, in LPS, for every nearest-wall question below.
+  const geometry::RayCaster walls(surface.mesh, geometry::RayCaster::BuildQuality::Low);
   auto paths = centerline_paths(curves, in.centerlines.string());
   // Radii where the centerlines came without: the distance to the nearest wall.
   bool estimated = false;
   for (auto& p : paths)
-    if (p.radius_mm.size() != p.points.size()) p.radius_mm = radius_from_surface(surface.mesh, p.points), estimated = true;
+    if (p.radius_mm.size() != p.points.size()) p.radius_mm = radius_from_surface(walls, p.points), estimated = true;
   if (estimated) out.notes.push_back("the centerlines carry no radius: taken from the surface (distance to the nearest wall)");
   const BifurcationTree tree = bifurcation_tree(paths, in.centerlines.string());
   if (!tree.note.empty()) out.notes.push_back(in.centerlines.filename().string() + ": " + tree.note);
@@ -166,9 +165,7 @@ PreparedScene prepare_scene(const SceneInputs& in) {
   // Head to foot, from the anatomy: the inlet lies toward the head (+z in LPS).
   const Eigen::Vector3d headward = (tree.trunk.front() - tree.trunk.back()).normalized();
   if (!(headward.z() >= kCosHeadward)) {
-    const Eigen::Matrix3d back = in.axes.empty() ? Eigen::Matrix3d(Eigen::Matrix3d::Identity())
-                                                 : Eigen::Matrix3d(parse_patient_axes(in.axes).to_lps.transpose());
-    const std::string along = file_axis_name(back * headward);
+    const std::string along = file_axis_name(to_lps.transpose() * headward);
     std::string example;
     const char axis = along[1];
     const bool plus = along[0] == '+';
@@ -186,7 +183,7 @@ PreparedScene prepare_scene(const SceneInputs& in) {
         "Segmentations > Export to files). Nothing is rotated without being asked");
   }
 
-  const SurfacePieces pieces = split_surface(surface.mesh, tree, in.centerlines.string());
+  const SurfacePieces pieces = split_surface(surface.mesh, walls, tree, in.centerlines.string());
 
   // The patient's right is -x in LPS.
   const int right = tree.branches[0].back().x() < tree.branches[1].back().x() ? 0 : 1;
@@ -196,7 +193,6 @@ PreparedScene prepare_scene(const SceneInputs& in) {
   // reach the bottom of its piece.
   PreparedVessel aorta{"aorta", "aorta", pieces.aorta, tree.trunk, tree.trunk_radius_mm};
   {
-    const geometry::RayCaster walls(surface.mesh, geometry::RayCaster::BuildQuality::Low);
     const auto arc0 = geometry::arc_lengths(tree.branches[0]);
     const auto arc1 = geometry::arc_lengths(tree.branches[1]);
     const double end_r = tree.trunk_radius_mm.back();
@@ -212,7 +208,7 @@ PreparedScene prepare_scene(const SceneInputs& in) {
       extended = s;
     }
     if (extended > 0.0)
-      out.notes.push_back("the aortic centerline runs on " + mm(extended) +
+      out.notes.push_back("the aortic centerline runs on " + base::quantity_text(extended, "mm", 1) +
                           " past where the iliac paths part, between them, toward the crotch");
   }
   out.vessels.push_back(std::move(aorta));
@@ -226,12 +222,11 @@ PreparedScene prepare_scene(const SceneInputs& in) {
 
   // Ostia clicked in Slicer: onto the wall.
   if (!in.ostia.empty()) {
-    const geometry::RayCaster walls(surface.mesh, geometry::RayCaster::BuildQuality::Low);
     for (const auto& p : geometry::read_fiducials(in.ostia)) {
       const auto q = walls.closest_point(p.position_lps);
       if (!q || q->distance_mm > kMaxOstiumOffWallMm)
         throw base::InputError(in.ostia.string() + ": ostium '" + p.label + "' lies " +
-                               mm(q ? q->distance_mm : INFINITY) + " from the surface (at most " + mm(kMaxOstiumOffWallMm) +
+                               base::quantity_text(q ? q->distance_mm : INFINITY, "mm", 1) + " from the surface (at most " + base::quantity_text(kMaxOstiumOffWallMm, "mm", 1) +
                                "): is it in the surface's coordinates? Place it on the vessel wall in 3D Slicer");
       out.landmarks.push_back({p.label, q->point});
     }
@@ -240,7 +235,6 @@ PreparedScene prepare_scene(const SceneInputs& in) {
   } else if (!tree.side_branches.empty()) {
     // Side-branch stubs the centerlines reach into: their ostia, named by where they
     // branch and point (rename them in 3D Slicer where the guess is wrong).
-    const geometry::RayCaster walls(surface.mesh, geometry::RayCaster::BuildQuality::Low);
     std::map<std::string, int> used;
     std::string names;
     for (const auto& side : tree.side_branches) {
@@ -273,17 +267,7 @@ PreparedScene prepare_scene(const SceneInputs& in) {
 std::filesystem::path write_prepared_scene(const PreparedScene& scene, const std::filesystem::path& dir,
                                            double device_thickness_mm) {
   std::filesystem::create_directories(dir);
-  std::string ext;
-  switch (scene.surface_format) {
-    case geometry::MeshFormat::StlBinary:
-    case geometry::MeshFormat::StlAscii: ext = ".stl"; break;
-    case geometry::MeshFormat::PlyAscii:
-    case geometry::MeshFormat::PlyBinary: ext = ".ply"; break;
-    case geometry::MeshFormat::Obj: ext = ".obj"; break;
-    case geometry::MeshFormat::VtkAscii:
-    case geometry::MeshFormat::VtkBinary: ext = ".vtk"; break;
-    case geometry::MeshFormat::Vtp: ext = ".vtp"; break;
-  }
+  const std::string ext = geometry::extension_for(scene.surface_format);
   geometry::SceneManifest manifest;
   manifest.device_thickness_mm = device_thickness_mm;
   for (const auto& v : scene.vessels) {

@@ -3,12 +3,12 @@
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
-#include <cstdio>
 #include <queue>
 #include <unordered_map>
 #include <vector>
 
 #include "evar/base/input_error.hpp"
+#include "evar/base/quantity_text.hpp"
 #include "evar/geometry/ray_caster.hpp"
 
 namespace evar::prepare {
@@ -17,12 +17,6 @@ namespace {
 // Margin (mm) by which two lumens must have parted before a cut: the surface between
 // them (the crotch) lies above it.
 constexpr double kPartedByMm = 1.0;
-
-std::string mm(double v) {
-  char text[32];
-  std::snprintf(text, sizeof text, "%.1f mm", v);
-  return text;
-}
 
 // The faces `keep` marks, as a mesh of its own (vertices renumbered in their old order).
 geometry::TriangleMesh piece(const geometry::TriangleMesh& mesh, const std::vector<char>& keep) {
@@ -70,18 +64,18 @@ std::vector<std::vector<int>> face_neighbours(const geometry::TriangleMesh& mesh
 
 }  // namespace
 
-std::vector<double> radius_from_surface(const geometry::TriangleMesh& surface, const geometry::Polyline& centerline) {
-  const geometry::RayCaster caster(surface, geometry::RayCaster::BuildQuality::Low);
+std::vector<double> radius_from_surface(const geometry::RayCaster& surface, const geometry::Polyline& centerline) {
   std::vector<double> r;
   r.reserve(centerline.size());
   for (const auto& p : centerline) {
-    const auto q = caster.closest_point(p);
+    const auto q = surface.closest_point(p);
     r.push_back(q ? q->distance_mm : 0.0);
   }
   return r;
 }
 
-SurfacePieces split_surface(const geometry::TriangleMesh& surface, const BifurcationTree& tree, const std::string& source) {
+SurfacePieces split_surface(const geometry::TriangleMesh& surface, const geometry::RayCaster& caster,
+                            const BifurcationTree& tree, const std::string& source) {
   SurfacePieces out;
   const Eigen::Index nf = surface.F.rows();
   std::vector<Eigen::Vector3d> centroid(static_cast<std::size_t>(nf));
@@ -89,7 +83,6 @@ SurfacePieces split_surface(const geometry::TriangleMesh& surface, const Bifurca
     centroid[static_cast<std::size_t>(f)] =
         (surface.V.row(surface.F(f, 0)) + surface.V.row(surface.F(f, 1)) + surface.V.row(surface.F(f, 2))).transpose() / 3.0;
   const auto neighbours = face_neighbours(surface);
-  const geometry::RayCaster caster(surface, geometry::RayCaster::BuildQuality::Low);
   std::vector<char> taken(static_cast<std::size_t>(nf), 0);
 
   for (int b = 0; b < 2; ++b) {
@@ -116,7 +109,7 @@ SurfacePieces split_surface(const geometry::TriangleMesh& surface, const Bifurca
     }
     if (parted == branch.size())
       throw base::InputError(source + ": the lumen of iliac path " + std::to_string(b + 1) +
-                             " never parts from the other's (their walls stay within " + mm(kPartedByMm) +
+                             " never parts from the other's (their walls stay within " + base::quantity_text(kPartedByMm, "mm", 1) +
                              " of each other down to the outlet): is it one vessel?");
     const double s_cut = std::min(arc[parted] + 0.5 * r[parted], 0.5 * (arc[parted] + arc.back()));
     const Eigen::Vector3d c = geometry::point_at(branch, arc, s_cut);
@@ -153,7 +146,7 @@ SurfacePieces split_surface(const geometry::TriangleMesh& surface, const Bifurca
         }
     }
     if (count == 0 || count > static_cast<std::size_t>(0.6 * static_cast<double>(nf)))
-      throw base::InputError(source + ": cutting iliac path " + std::to_string(b + 1) + " " + mm(s_cut) +
+      throw base::InputError(source + ": cutting iliac path " + std::to_string(b + 1) + " " + base::quantity_text(s_cut, "mm", 1) +
                              " below where the paths part leaves " +
                              (count == 0 ? std::string("nothing beyond the cut") : std::string("most of the surface beyond it")) +
                              ": do the centerlines belong to this surface (same coordinates)?");

@@ -272,25 +272,6 @@ void check(const ExampleSceneParams& p) {
   require(p.aorta_vertices >= 100 && p.iliac_vertices >= 100, "vertex targets must be >= 100");
 }
 
-const char* mesh_extension(geometry::MeshFormat format) {
-  switch (format) {
-    case geometry::MeshFormat::StlBinary:
-    case geometry::MeshFormat::StlAscii:
-      return ".stl";
-    case geometry::MeshFormat::PlyAscii:
-    case geometry::MeshFormat::PlyBinary:
-      return ".ply";
-    case geometry::MeshFormat::Obj:
-      return ".obj";
-    case geometry::MeshFormat::VtkAscii:
-    case geometry::MeshFormat::VtkBinary:
-      return ".vtk";
-    case geometry::MeshFormat::Vtp:
-      return ".vtp";
-  }
-  throw std::invalid_argument("write_example_scene: unknown mesh format");
-}
-
 geometry::Markup curve_markup(const std::string& name, const Polyline& points) {
   geometry::Markup m{"Curve", name, {}};
   m.points.reserve(points.size());
@@ -369,7 +350,7 @@ ExampleScene make_example_scene(const ExampleSceneParams& params) {
 
 void write_example_scene(const ExampleScene& scene, const std::filesystem::path& dir, geometry::MeshFormat format) {
   std::filesystem::create_directories(dir);
-  const std::string ext = mesh_extension(format);
+  const std::string ext = geometry::extension_for(format);
   geometry::SceneManifest manifest;
   for (const auto& v : scene.vessels) {
     const std::string mesh_file = v.name + ext, centerline_file = v.name + ".centerline.mrk.json";

@@ -48,4 +48,7 @@ void write_mesh(const std::filesystem::path& path, const TriangleMesh& mesh, Mes
 /// InputError for an extension that is none of .stl, .ply, .obj, .vtk, .vtp.
 MeshFormat format_for_extension(const std::filesystem::path& path);
 
+/// The extension a file of `format` is written with (".stl", ".ply", ".obj", ".vtk", ".vtp").
+const char* extension_for(MeshFormat format);
+
 }  // namespace evar::geometry

@@ -41,6 +41,9 @@ class RayCaster {
   /// Number of surface crossings along the whole ray from `origin`.
   int crossings(const Eigen::Vector3d& origin, const Eigen::Vector3d& direction) const;
 
+  /// The mesh it was built over (its copy, in double).
+  const TriangleMesh& mesh() const;
+
   /// Inside test for a closed mesh by ray parity, voted over three fixed directions.
   bool contains(const Eigen::Vector3d& point) const;
 

@@ -52,8 +52,9 @@ class SurfaceSide {
   // m for the rim edge (i, j) of `face`: from its third corner across the edge, square to it.
   Eigen::Vector3d rim_out(int face, int i, int j) const;
 
-  TriangleMesh mesh_;
-  std::optional<RayCaster> caster_;  // none for a mesh without faces
+  const TriangleMesh& mesh() const { return caster_->mesh(); }
+
+  std::optional<RayCaster> caster_;  // none for a mesh without faces; holds the mesh
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> face_normals_;  // unit (zero for a sliver)
   // The faces around each vertex: faces_of_[first_face_[v] .. first_face_[v + 1]).
   std::vector<int> first_face_, faces_of_;

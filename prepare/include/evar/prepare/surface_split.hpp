@@ -7,6 +7,7 @@
 #include <array>
 #include <string>
 
+#include "evar/geometry/ray_caster.hpp"
 #include "evar/geometry/triangle_mesh.hpp"
 #include "evar/prepare/centerline_tree.hpp"
 
@@ -20,14 +21,15 @@ struct SurfacePieces {
   std::array<Eigen::Vector3d, 2> cut_normal;     ///< the branch's direction there (distal)
 };
 
-/// Lumen radius per point of `centerline` from the surface (distance to the nearest wall),
-/// for centerlines that come without one.
-std::vector<double> radius_from_surface(const geometry::TriangleMesh& surface, const geometry::Polyline& centerline);
+/// Lumen radius per point of `centerline` from the surface (its BVH: distance to the nearest
+/// wall), for centerlines that come without one.
+std::vector<double> radius_from_surface(const geometry::RayCaster& surface, const geometry::Polyline& centerline);
 
-/// Cuts `surface` (LPS, one connected surface; `tree` with radii, in the same frame).
+/// Cuts `surface` (LPS, one connected surface; `caster` built over it; `tree` with radii, in
+/// the same frame).
 /// base::InputError naming `source` when a branch's lumen never parts from the other's,
 /// or a cut does not separate the branch (the piece would take most of the surface).
-SurfacePieces split_surface(const geometry::TriangleMesh& surface, const BifurcationTree& tree,
-                            const std::string& source);
+SurfacePieces split_surface(const geometry::TriangleMesh& surface, const geometry::RayCaster& caster,
+                            const BifurcationTree& tree, const std::string& source);
 
 }  // namespace evar::prepare
