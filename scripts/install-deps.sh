@@ -12,6 +12,7 @@ packages=(
   libopenigtlink-dev openigtlink-examples
   libdcmtk-dev
   libvtk9-dev
+  libcgal-dev
   libplplot-dev plplot-driver-cairo
   libaravis-dev aravis-tools
   libusb-1.0-0-dev umockdev libumockdev-dev

@@ -74,17 +74,20 @@ int run_cli(const std::vector<std::string>& args) {
   auto* sc = app.add_subcommand(
       "scene",
       "Make a scene directory (scene.json, one mesh and centerline per vessel, landmarks) from one\n"
-      "aorto-iliac surface as a segmentation tool exports it and its centerlines: the surface is cut\n"
-      "into the aorta and both iliacs, the centerlines trimmed and run proximal to distal, the iliacs\n"
-      "told right from left, clicked ostia put on the wall. Writes OUT/scene_report.json and\n"
-      "OUT/scene.png, and loads the result as `deform` will. Example (VMTK's data):\n"
-      "  evarnode scene --surface aorta-surface.vtp --centerlines aorta-centerline.vtp --axes RSP --out S");
+      "aorto-iliac surface as a segmentation tool exports it, with or without its centerlines: the\n"
+      "surface is cut into the aorta and both iliacs, the centerlines (computed from the surface when\n"
+      "none are given) trimmed and run proximal to distal, the iliacs told right from left, clicked\n"
+      "ostia put on the wall. Writes OUT/scene_report.json and OUT/scene.png, and loads the result\n"
+      "as `deform` will. Examples (VMTK's data, a surface in image axes whose y runs to the head):\n"
+      "  evarnode scene --surface aorta-surface.vtp --centerlines aorta-centerline.vtp --axes RSP --out S\n"
+      "  evarnode scene --surface aorta-surface.stl --axes RSP --out S");
   sc->add_option("--surface", scene_cmd.surface,
                  "the surface (STL, PLY, OBJ, VTK or VTP; closed or open; one connected piece)")
       ->required();
   sc->add_option("--centerlines", scene_cmd.centerlines,
                  "its centerlines: VMTK's .vtp (vmtkcenterlines paths, or vmtkbranchextractor pieces) or 3D Slicer\n"
-                 "markups curves (.mrk.json), from the aortic inlet to both iliac outlets");
+                 "markups curves (.mrk.json), from the aortic inlet to both iliac outlets. Default: computed from\n"
+                 "the surface (its mean-curvature-flow skeleton, CGAL; seconds on a large surface)");
   sc->add_option("--ostia", scene_cmd.ostia, "ostia clicked in 3D Slicer (fiducials, .mrk.json): the landmarks");
   sc->add_option("--axes", scene_cmd.axes,
                  "the patient direction each axis of the surface file points to (x, y, z), e.g. RSP for a surface\n"

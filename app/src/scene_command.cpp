@@ -45,7 +45,9 @@ void write_scene_picture(const std::filesystem::path& png, const prepare::Prepar
 
 int run_scene(const SceneCommand& cmd) {
   node::log().info("preparing a scene from {}{}", cmd.surface.string(),
-                   cmd.centerlines.empty() ? std::string() : " with centerlines " + cmd.centerlines.string());
+                   cmd.centerlines.empty()
+                       ? " (no --centerlines: computing them from the surface's skeleton, seconds on a large surface)"
+                       : " with centerlines " + cmd.centerlines.string());
   const prepare::PreparedScene scene =
       prepare::prepare_scene({cmd.surface, cmd.centerlines, cmd.ostia, cmd.axes});
   for (const auto& note : scene.notes) node::log().info("{}", note);

@@ -17,6 +17,7 @@
 #include "evar/geometry/scene.hpp"
 #include "evar/prepare/centerline_tree.hpp"
 #include "evar/prepare/patient_axes.hpp"
+#include "evar/prepare/surface_centerlines.hpp"
 #include "evar/prepare/surface_split.hpp"
 
 namespace evar::prepare {
@@ -98,11 +99,6 @@ int weld_coincident_vertices(geometry::TriangleMesh& mesh) {
 PreparedScene prepare_scene(const SceneInputs& in) {
   const auto t0 = std::chrono::steady_clock::now();
   PreparedScene out;
-  if (in.centerlines.empty())
-    throw base::InputError(in.surface.string() + ": no centerlines given; give them with --centerlines: VMTK's "
-                                                 "(vmtkcenterlines -ifile SURFACE -ofile C.vtp, picking the aortic inlet "
-                                                 "and both iliac outlets) or 3D Slicer's (Extract Centerline module, "
-                                                 "saved as markups curves)");
   geometry::LoadedMesh surface = geometry::read_mesh(in.surface);
   // Pieces stored apart (VMTK's branch split keeps each branch's vertices of its own)
   // are one surface again once vertices at the same position are one.
@@ -125,7 +121,8 @@ PreparedScene prepare_scene(const SceneInputs& in) {
   }
   out.surface_format = surface.format;
   bool centerlines_in_patient_frame = true;
-  auto curves = read_centerline_curves(in.centerlines, centerlines_in_patient_frame);
+  std::vector<geometry::CenterlineCurve> curves;
+  if (!in.centerlines.empty()) curves = read_centerline_curves(in.centerlines, centerlines_in_patient_frame);
 
   // The frame: the file's tag, else --axes, else LPS as Slicer reads an untagged file.
   out.axes = "LPS";
@@ -151,14 +148,34 @@ PreparedScene prepare_scene(const SceneInputs& in) {
 
   // One BVH of the surface, in LPS, for every nearest-wall question below.
   const geometry::RayCaster walls(surface.mesh, geometry::RayCaster::BuildQuality::Low);
-  auto paths = centerline_paths(curves, in.centerlines.string());
+  // The centerlines given, else the surface's own.
+  const std::string centerline_source =
+      in.centerlines.empty() ? in.surface.string() + " (its centerlines, computed)" : in.centerlines.string();
+  std::vector<geometry::CenterlineCurve> paths;
+  if (in.centerlines.empty()) {
+    const SurfaceCenterlines computed = centerlines_from_surface(surface.mesh, walls, in.surface.string());
+    paths = computed.paths;
+    std::string extra;
+    if (computed.openings_closed > 0)
+      extra += "; " + std::to_string(computed.openings_closed) + " openings closed for it";
+    if (computed.spurs_dropped > 0)
+      extra += "; " + std::to_string(computed.spurs_dropped) + " ends that never left their parent's lumen dropped";
+    out.notes.push_back("no centerlines given: computed from the surface's mean-curvature-flow skeleton (CGAL; " +
+                        std::to_string(computed.skeleton_points) + " points, " + std::to_string(paths.size() + 1) +
+                        " ends, " + base::quantity_text(computed.skeleton_ms, "ms", 0) + extra +
+                        "); check them on the picture");
+  } else {
+    paths = centerline_paths(curves, in.centerlines.string());
+  }
   // Radii where the centerlines came without: the distance to the nearest wall.
   bool estimated = false;
   for (auto& p : paths)
     if (p.radius_mm.size() != p.points.size()) p.radius_mm = radius_from_surface(walls, p.points), estimated = true;
   if (estimated) out.notes.push_back("the centerlines carry no radius: taken from the surface (distance to the nearest wall)");
-  const BifurcationTree tree = bifurcation_tree(paths, in.centerlines.string());
-  if (!tree.note.empty()) out.notes.push_back(in.centerlines.filename().string() + ": " + tree.note);
+  const BifurcationTree tree = bifurcation_tree(paths, centerline_source);
+  if (!tree.note.empty())
+    out.notes.push_back((in.centerlines.empty() ? std::string("the computed centerlines")
+                                                : in.centerlines.filename().string()) + ": " + tree.note);
   out.inlet = tree.trunk.front();
   out.bifurcation = tree.trunk.back();
 
@@ -183,7 +200,7 @@ PreparedScene prepare_scene(const SceneInputs& in) {
         "Segmentations > Export to files). Nothing is rotated without being asked");
   }
 
-  const SurfacePieces pieces = split_surface(surface.mesh, walls, tree, in.centerlines.string());
+  const SurfacePieces pieces = split_surface(surface.mesh, walls, tree, centerline_source);
 
   // The patient's right is -x in LPS.
   const int right = tree.branches[0].back().x() < tree.branches[1].back().x() ? 0 : 1;

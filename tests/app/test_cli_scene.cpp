@@ -1,6 +1,7 @@
-// `evarnode scene` on real third-party data (VMTK's aorto-iliac segmentation): every form
-// VMTK gives it in is made into a scene that `deform` takes, and a wire pushed out of the
-// right iliac ends inside the deformed vessel, with no face turned over.
+// `evarnode scene` on real third-party data (VMTK's aorto-iliac segmentation) and on the
+// simulator's segmentation phantom: every form they come in is made into a scene that
+// `deform` takes, and a wire pushed out of the right iliac ends inside the deformed vessel,
+// with no face turned over.
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
@@ -16,7 +17,9 @@
 #include "evar/geometry/scene.hpp"
 #include "support/cli_fixture.hpp"
 #include "support/shared_data.hpp"
+#include "evar/sim/segmentation_phantom.hpp"
 #include "support/temp_dir.hpp"
+#include "support/untagged_stl.hpp"
 
 namespace fs = std::filesystem;
 using evar::test::evarnode;
@@ -58,10 +61,38 @@ int faces_turned_over(const evar::geometry::TriangleMesh& before, const evar::ge
   return turned;
 }
 
+// deform with the pushed wire: contained after (--strict exits 0), no face turned over.
+void deform_with_pushed_wire(const evar::geometry::Scene& scene, const fs::path& out) {
+  auto wire = pushed_wire(scene);
+  evar::geometry::Markup device{"Curve", "wire", {}};
+  for (std::size_t i = 0; i < wire.size(); ++i) device.points.push_back({"w-" + std::to_string(i + 1), wire[i]});
+  const auto device_file = out / "wire.mrk.json";
+  evar::geometry::write_markups(device_file, {device});
+  const auto deformed = out / "deformed";
+  const auto run = evarnode({"deform", "--scene", (out / "scene.json").string(), "--device", device_file.string(), "--out",
+                             deformed.string(), "--strict", "--no-preview"});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto result = read_json(deformed / "report.json");
+  EXPECT_EQ(result["device_iliac"], "iliac_right");
+  EXPECT_LT(result["device_outside_max_depth_mm"].get<double>(), 0.5);
+  double moved = 0.0;
+  for (const auto& v : result["vessels"])
+    if (v["name"] == "iliac_right") {
+      moved = v["max_displacement_mm"].get<double>();
+      EXPECT_GT(v["control_points"].get<int>(), 0);
+    }
+  EXPECT_GT(moved, 2.0);  // the wire bent it
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    const auto after = evar::geometry::read_mesh(deformed / scene.vessels[i].mesh_path.filename()).mesh;
+    EXPECT_EQ(faces_turned_over(scene.vessels[i].mesh.mesh, after), 0) << scene.vessels[i].name;
+  }
+}
+
 }  // namespace
 
 // Each form the data comes in: the surface as .vtp and as .stl, VMTK's branch-split surface
-// (its pieces stored apart), the centerline paths and VMTK's branch pieces.
+// (its pieces stored apart), the centerline paths, VMTK's branch pieces, and no centerlines
+// at all (computed from the surface).
 TEST(CliScene, EveryFormOfVmtksDataMakesASceneDeformTakesAndThePushedWireEndsInside) {
   EVAR_VMTK_DATA_OR_SKIP(data);
   const evar::test::TempDir dir;
@@ -69,15 +100,23 @@ TEST(CliScene, EveryFormOfVmtksDataMakesASceneDeformTakesAndThePushedWireEndsIns
       {"aorta-surface.vtp", "aorta-centerline.vtp"},
       {"aorta-surface.stl", "aorta-centerline.vtp"},
       {"aorta-surface.vtp", "aorta-centerline-branches.vtp"},
-      {"aorta-surface-branch-split.vtp", "aorta-centerline-branches.vtp"}};
+      {"aorta-surface-branch-split.vtp", "aorta-centerline-branches.vtp"},
+      {"aorta-surface.vtp", ""},
+      {"aorta-surface.stl", ""},
+      {"aorta-surface-branch-split.vtp", ""}};
   int k = 0;
   for (const auto& [surface, centerlines] : forms) {
-    SCOPED_TRACE(surface + " + " + centerlines);
+    SCOPED_TRACE(surface + " + " + (centerlines.empty() ? "no centerlines" : centerlines));
     const auto out = dir.path / ("scene" + std::to_string(++k));
     // The data is in the image's axes, its aorta running to +y: said with --axes.
-    const auto made = evarnode({"scene", "--surface", (data / surface).string(), "--centerlines",
-                                (data / centerlines).string(), "--axes", "RSP", "--out", out.string()});
+    std::vector<std::string> args{"scene", "--surface", (data / surface).string(), "--axes", "RSP", "--out", out.string()};
+    if (!centerlines.empty()) args.insert(args.end(), {"--centerlines", (data / centerlines).string()});
+    const auto made = evarnode(args);
     ASSERT_EQ(made.code, 0) << made.err;
+    if (centerlines.empty()) {
+      EXPECT_NE(made.err.find("no centerlines given: computed from the surface's mean-curvature-flow skeleton"),
+                std::string::npos) << made.err;
+    }
     for (const char* f : {"scene.json", "scene_report.json", "scene.png", "aorta.centerline.mrk.json",
                           "iliac_right.centerline.mrk.json", "iliac_left.centerline.mrk.json"})
       EXPECT_TRUE(fs::exists(out / f)) << f;
@@ -97,37 +136,14 @@ TEST(CliScene, EveryFormOfVmtksDataMakesASceneDeformTakesAndThePushedWireEndsIns
     for (const auto& v : scene.vessels) faces += v.mesh.mesh.F.rows();
     EXPECT_EQ(faces, whole.F.rows());
 
-    // deform with the pushed wire: contained after, no face turned over.
-    auto wire = pushed_wire(scene);
-    evar::geometry::Markup device{"Curve", "wire", {}};
-    for (std::size_t i = 0; i < wire.size(); ++i) device.points.push_back({"w-" + std::to_string(i + 1), wire[i]});
-    const auto device_file = out / "wire.mrk.json";
-    evar::geometry::write_markups(device_file, {device});
-    const auto deformed = out / "deformed";
-    const auto run = evarnode({"deform", "--scene", (out / "scene.json").string(), "--device", device_file.string(), "--out",
-                               deformed.string(), "--strict", "--no-preview"});
-    ASSERT_EQ(run.code, 0) << run.err;
-    const auto result = read_json(deformed / "report.json");
-    EXPECT_EQ(result["device_iliac"], "iliac_right");
-    EXPECT_LT(result["device_outside_max_depth_mm"].get<double>(), 0.5);
-    double moved = 0.0;
-    for (const auto& v : result["vessels"])
-      if (v["name"] == "iliac_right") {
-        moved = v["max_displacement_mm"].get<double>();
-        EXPECT_GT(v["control_points"].get<int>(), 0);
-      }
-    EXPECT_GT(moved, 2.0);  // the wire bent it
-    for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
-      const auto after = evar::geometry::read_mesh(deformed / scene.vessels[i].mesh_path.filename()).mesh;
-      EXPECT_EQ(faces_turned_over(scene.vessels[i].mesh.mesh, after), 0) << scene.vessels[i].name;
-    }
+    deform_with_pushed_wire(scene, out);
   }
 }
 
 // Read as LPS (it declares nothing), the data's aorta runs along +y, not to the head: refused,
-// saying which axis and how to say what it is. Without centerlines: refused, saying where
-// to get them.
-TEST(CliScene, ASurfaceInImageAxesOrWithoutCenterlinesIsRefusedWithTheFix) {
+// saying which axis and how to say what it is, with its centerlines or without (the computed
+// ones run the same way).
+TEST(CliScene, ASurfaceInImageAxesIsRefusedWithTheFix) {
   EVAR_VMTK_DATA_OR_SKIP(data);
   const evar::test::TempDir dir;
   const auto axes = evarnode({"scene", "--surface", (data / "aorta-surface.vtp").string(), "--centerlines",
@@ -141,7 +157,9 @@ TEST(CliScene, ASurfaceInImageAxesOrWithoutCenterlinesIsRefusedWithTheFix) {
 
   const auto none = evarnode({"scene", "--surface", (data / "aorta-surface.vtp").string(), "--out", (dir.path / "b").string()});
   EXPECT_EQ(none.code, 1);
-  EXPECT_NE(none.err.find("no centerlines given; give them with --centerlines"), std::string::npos) << none.err;
+  EXPECT_NE(none.err.find("along the file's +y axis"), std::string::npos) << none.err;
+  EXPECT_NE(none.err.find("--axes RSP"), std::string::npos) << none.err;
+  EXPECT_FALSE(fs::exists(dir.path / "b" / "scene.json"));
 
   // The centerlines given as the surface, and the surface as the centerlines.
   const auto swapped = evarnode({"scene", "--surface", (data / "aorta-centerline.vtp").string(), "--centerlines",
@@ -188,4 +206,27 @@ TEST(CliScene, MarkupsCenterlinesWorkAndAStubPathGivesItsOstiumAsALandmark) {
   const auto& p = scene.landmarks[0].position_lps;
   EXPECT_GT(p.x(), origin.x() + 3.0);
   EXPECT_LT((p - origin).norm(), 15.0);
+}
+
+// The project's own segmentation-like surface (marching cubes of a label volume, staircase
+// and slivers, side-branch stubs), in its image's axes with no tag and no centerlines: the
+// scene is made (centerlines computed, the four stubs' ostia offered), deform takes it and
+// the pushed wire ends inside. Needs no shared data.
+TEST(CliScene, ASegmentationPhantomInImageAxesMakesASceneAndThePushedWireEndsInside) {
+  const evar::test::TempDir dir;
+  const auto phantom = evar::sim::make_segmentation_phantom({.frame = evar::sim::PhantomFrame::Image});
+  const auto surface = dir.path / "segmentation.stl";
+  evar::test::write_untagged_stl(surface, phantom.surface);
+  const auto out = dir.path / "scene";
+  const auto made = evarnode({"scene", "--surface", surface.string(), "--axes", "LIP", "--out", out.string()});
+  ASSERT_EQ(made.code, 0) << made.err;
+  EXPECT_NE(made.err.find("computed from the surface's mean-curvature-flow skeleton"), std::string::npos) << made.err;
+  EXPECT_NE(made.err.find("4 side-branch stubs found"), std::string::npos) << made.err;
+  const auto report = read_json(out / "scene_report.json");
+  EXPECT_EQ(report["axes"], "LIP");
+  const auto scene = evar::geometry::load_scene(out / "scene.json");
+  ASSERT_EQ(scene.vessels.size(), 3u);
+  EXPECT_EQ(scene.landmarks.size(), 4u);
+  EXPECT_TRUE(fs::exists(out / "scene.png"));
+  deform_with_pushed_wire(scene, out);
 }

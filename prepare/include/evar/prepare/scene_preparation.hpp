@@ -17,7 +17,9 @@ namespace evar::prepare {
 
 struct SceneInputs {
   std::filesystem::path surface;      ///< STL, PLY, OBJ, VTK or VTP
-  std::filesystem::path centerlines;  ///< VMTK .vtp (paths or branches) or 3D Slicer markups curves (.mrk.json)
+  /// VMTK .vtp (paths or branches) or 3D Slicer markups curves (.mrk.json); empty: computed
+  /// from the surface (surface_centerlines.hpp)
+  std::filesystem::path centerlines;
   std::filesystem::path ostia;        ///< optional: 3D Slicer fiducials (.mrk.json), clicked on the wall
   std::string axes;                   ///< optional: the surface file's axes (patient_axes.hpp); "" = its tag, else LPS
 };
@@ -45,7 +47,7 @@ struct PreparedScene {
 int weld_coincident_vertices(geometry::TriangleMesh& mesh);
 
 /// Reads and prepares. base::InputError naming the file (or option) and saying how to fix
-/// it for: no centerlines, centerlines that make no aorto-iliac tree, a surface whose
+/// it for: a surface whose centerlines cannot be computed (when none are given), centerlines that make no aorto-iliac tree, a surface whose
 /// aorta does not run toward the head in LPS (with the axis it runs along and the --axes
 /// code that would say so), a cut that does not separate an iliac, an ostium far from
 /// the wall.

@@ -1,0 +1,59 @@
+#include "mcf_skeleton.hpp"
+
+#include <CGAL/Mean_curvature_flow_skeletonization.h>
+#include <CGAL/Polygon_mesh_processing/border.h>
+#include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
+#include <CGAL/Simple_cartesian.h>
+#include <CGAL/Surface_mesh.h>
+
+#include <stdexcept>
+
+namespace evar::prepare {
+namespace {
+using Kernel = CGAL::Simple_cartesian<double>;
+using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
+using Skeletonization = CGAL::Mean_curvature_flow_skeletonization<SurfaceMesh>;
+}  // namespace
+
+SkeletonGraph mean_curvature_flow_skeleton(const geometry::TriangleMesh& mesh) {
+  SurfaceMesh surface;
+  std::vector<SurfaceMesh::Vertex_index> vertex(static_cast<std::size_t>(mesh.V.rows()));
+  for (Eigen::Index i = 0; i < mesh.V.rows(); ++i)
+    vertex[static_cast<std::size_t>(i)] = surface.add_vertex({mesh.V(i, 0), mesh.V(i, 1), mesh.V(i, 2)});
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    const auto face = surface.add_face(vertex[static_cast<std::size_t>(mesh.F(f, 0))],
+                                       vertex[static_cast<std::size_t>(mesh.F(f, 1))],
+                                       vertex[static_cast<std::size_t>(mesh.F(f, 2))]);
+    if (face == SurfaceMesh::null_face())
+      throw std::invalid_argument("face " + std::to_string(f) + " breaks the surface's manifoldness or winding");
+  }
+  SkeletonGraph graph;
+  if (!CGAL::is_closed(surface)) {
+    std::vector<SurfaceMesh::Halfedge_index> rims;
+    CGAL::Polygon_mesh_processing::extract_boundary_cycles(surface, std::back_inserter(rims));
+    for (const auto rim : rims) {
+      std::vector<SurfaceMesh::Face_index> patch;
+      CGAL::Polygon_mesh_processing::triangulate_hole(surface, rim, std::back_inserter(patch));
+      if (patch.empty()) throw std::invalid_argument("an opening of the surface could not be closed by triangles");
+      ++graph.holes_closed;
+    }
+  }
+
+  Skeletonization::Skeleton skeleton;
+  Skeletonization flow(surface);
+  flow(skeleton);
+
+  const auto n = boost::num_vertices(skeleton);
+  graph.points.resize(n);
+  graph.mesh_vertices.resize(n);
+  for (const auto v : CGAL::make_range(boost::vertices(skeleton))) {
+    const auto& p = skeleton[v].point;
+    graph.points[v] = {p.x(), p.y(), p.z()};
+    for (const auto mv : skeleton[v].vertices) graph.mesh_vertices[v].push_back(static_cast<int>(mv.idx()));
+  }
+  for (const auto e : CGAL::make_range(boost::edges(skeleton)))
+    graph.edges.emplace_back(static_cast<int>(boost::source(e, skeleton)), static_cast<int>(boost::target(e, skeleton)));
+  return graph;
+}
+
+}  // namespace evar::prepare

@@ -1,0 +1,251 @@
+#include "evar/prepare/surface_centerlines.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <optional>
+#include <queue>
+#include <stdexcept>
+
+#include <Eigen/Geometry>
+
+#include "evar/base/elapsed.hpp"
+#include "evar/base/input_error.hpp"
+#include "evar/prepare/surface_split.hpp"
+#include "mcf_skeleton.hpp"
+
+namespace evar::prepare {
+namespace {
+
+constexpr double kEndStepMm = 1.0;      // spacing of the points an end is run on by
+constexpr double kShortOfWallMm = 0.5;  // an end stops this far short of the cap or opening
+constexpr int kSmoothingPasses = 3;     // of the skeleton's chains, each (1/4, 1/2, 1/4)
+// A skeleton end whose wall lies no farther than its junction's lumen radius plus this
+// from the junction is a spur of the flow (a bump of the wall), not a vessel.
+constexpr double kSpurMarginMm = 2.0;
+
+struct Skeleton {
+  std::vector<Eigen::Vector3d> point;
+  std::vector<std::vector<int>> next;
+  std::vector<std::vector<int>> mesh_vertices;
+  std::vector<double> radius_mm;
+};
+
+double median(std::vector<double> v) {
+  if (v.empty()) return 0.0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+// From an end through the chain of two-neighbour points to the first point that is not
+// one (included): the end's own vessel, up to where it joins others.
+std::vector<int> chain_from(const Skeleton& s, int end) {
+  std::vector<int> chain{end};
+  int previous = -1, at = end;
+  while (chain.size() <= s.point.size()) {
+    int step = -1;
+    for (const int n : s.next[static_cast<std::size_t>(at)])
+      if (n != previous) step = n;
+    if (step < 0) break;
+    chain.push_back(step);
+    if (s.next[static_cast<std::size_t>(step)].size() != 2) break;
+    previous = at, at = step;
+  }
+  return chain;
+}
+
+// How far the surface goes on from `origin` along the unit direction `t`: to the wall the
+// ray meets (a cap), or, out through an opening, to its rim: the farthest along `t` of the
+// mesh vertices that collapsed onto the skeleton points `tail`.
+double room_past(const Skeleton& s, const std::vector<int>& tail, const Eigen::Vector3d& origin, const Eigen::Vector3d& t,
+                 const geometry::RayCaster& walls) {
+  if (const auto hit = walls.first_hit(origin, t)) return hit->t_mm;
+  double room = 0.0;
+  const auto& V = walls.mesh().V;
+  for (const int k : tail)
+    for (const int v : s.mesh_vertices[static_cast<std::size_t>(k)])
+      room = std::max(room, (V.row(v).transpose() - origin).dot(t));
+  return room;
+}
+
+// The centre of the lumen's cross-section through `q` square to the unit direction `t`:
+// the mean of the chords' midpoints along four directions 45 degrees apart, each the
+// projection of the centre onto its chord, so twice their mean offset is the centre's (exact
+// for a circle). Nothing where a chord finds no wall (out past an opening). `half_chord_mm`:
+// the chords' mean half length (the lumen's radius there).
+std::optional<Eigen::Vector3d> cross_section_centre(const Eigen::Vector3d& q, const Eigen::Vector3d& t,
+                                                    const geometry::RayCaster& walls, double& half_chord_mm) {
+  const Eigen::Vector3d u = t.unitOrthogonal(), v = t.cross(u);
+  Eigen::Vector3d offset = Eigen::Vector3d::Zero();
+  half_chord_mm = 0.0;
+  for (int k = 0; k < 4; ++k) {
+    const double angle = M_PI / 4.0 * k;
+    const Eigen::Vector3d d = std::cos(angle) * u + std::sin(angle) * v;
+    const auto ahead = walls.first_hit(q, d), behind = walls.first_hit(q, -d);
+    if (!ahead || !behind) return std::nullopt;
+    offset += 0.5 * (ahead->t_mm - behind->t_mm) * d;
+    half_chord_mm += 0.125 * (ahead->t_mm + behind->t_mm);
+  }
+  return q + 2.0 * offset / 4.0;
+}
+
+// The end of `path` (skeleton indices, ending at a skeleton end), made to run to the cap or
+// opening along the lumen's centre: the flow's last stretch within a lumen radius of its end
+// is dropped from `path` (there it may curl toward a rim or a corner of a flat cap); the
+// points returned run on from what is left, in the direction of its last two radii, each
+// moved to the centre of the lumen's cross-section, and within half a radius of the cap
+// (where the chords would reach the cap) by the last such move.
+geometry::Polyline run_on(const Skeleton& s, std::vector<int>& path, const geometry::RayCaster& walls) {
+  const auto at = [&](std::size_t k) { return s.point[static_cast<std::size_t>(path[k])]; };
+  const auto radius = [&](std::size_t k) { return s.radius_mm[static_cast<std::size_t>(path[k])]; };
+  std::size_t last = path.size() - 1;
+  while (last > 1 && (at(last) - at(path.size() - 1)).norm() < radius(last)) --last;
+  std::size_t from = last;
+  while (from > 0 && (at(from) - at(last)).norm() < std::max(2.0, 2.0 * radius(last))) --from;
+  const std::vector<int> tail(path.begin() + static_cast<std::ptrdiff_t>(from), path.end());
+  const Eigen::Vector3d end = at(last), direction = end - at(from);
+  path.resize(last + 1);
+  geometry::Polyline more;
+  if (direction.norm() < 1e-9) return more;
+  const Eigen::Vector3d t = direction.normalized();
+  const double room = room_past(s, tail, end, t, walls) - kShortOfWallMm;
+  Eigen::Vector3d shift = Eigen::Vector3d::Zero();
+  const auto centred = [&](double d) {
+    const Eigen::Vector3d q = end + d * t;
+    double half_chord = 0.0;
+    if (const auto c = cross_section_centre(q, t, walls, half_chord); c && room - d >= 0.5 * half_chord) shift = *c - q;
+    return Eigen::Vector3d(q + shift);
+  };
+  for (double d = kEndStepMm; d < room; d += kEndStepMm) more.push_back(centred(d));
+  if (room > 0.0) more.push_back(centred(room));
+  return more;
+}
+
+}  // namespace
+
+SurfaceCenterlines centerlines_from_surface(const geometry::TriangleMesh& surface, const geometry::RayCaster& walls,
+                                            const std::string& source) {
+  const auto t0 = std::chrono::steady_clock::now();
+  SurfaceCenterlines out;
+  SkeletonGraph graph;
+  try {
+    graph = mean_curvature_flow_skeleton(surface);
+  } catch (const std::invalid_argument& e) {
+    throw base::InputError(source + ": its centerlines cannot be computed from the surface (" + e.what() +
+                           "); repair the surface (3D Slicer: Segment Editor's Smoothing, then export again) or give "
+                           "its centerlines with --centerlines");
+  }
+  out.openings_closed = graph.holes_closed;
+  out.skeleton_points = static_cast<int>(graph.points.size());
+
+  Skeleton s;
+  const std::size_t n = graph.points.size();
+  s.point = graph.points;
+  s.mesh_vertices = std::move(graph.mesh_vertices);
+  s.next.resize(n);
+  for (const auto& [a, b] : graph.edges)
+    if (a != b) s.next[static_cast<std::size_t>(a)].push_back(b), s.next[static_cast<std::size_t>(b)].push_back(a);
+  // The flow leaves its chains a little jagged on a staircase surface: smooth them, ends
+  // and junctions held.
+  for (int pass = 0; pass < kSmoothingPasses; ++pass) {
+    auto smoothed = s.point;
+    for (std::size_t i = 0; i < n; ++i)
+      if (s.next[i].size() == 2)
+        smoothed[i] = 0.5 * s.point[i] +
+                      0.25 * (s.point[static_cast<std::size_t>(s.next[i][0])] + s.point[static_cast<std::size_t>(s.next[i][1])]);
+    s.point = std::move(smoothed);
+  }
+  s.radius_mm = radius_from_surface(walls, s.point);
+
+  // The ends, spurs dropped until none is left (a flat cap's skeleton may fork into two
+  // spurs, whose junction is then the end); the aortic inlet is the end of the widest vessel.
+  std::vector<char> dropped(n, 0);
+  for (bool pruned = true; pruned;) {
+    pruned = false;
+    for (std::size_t i = 0; i < n; ++i) {
+      if (dropped[i] || s.next[i].size() != 1) continue;
+      const auto chain = chain_from(s, static_cast<int>(i));
+      const auto junction = static_cast<std::size_t>(chain.back());
+      if (s.next[junction].size() < 3) continue;
+      // A spur: the end lies inside the lumen round its junction (the flow's leftovers, often
+      // a point or two), or the wall is no farther than that beyond it.
+      const double reach = (s.point[i] - s.point[junction]).norm();
+      const bool spur = reach < s.radius_mm[junction] ||
+                        reach + room_past(s, chain, s.point[i], (s.point[i] - s.point[junction]).normalized(), walls) <=
+                            s.radius_mm[junction] + kSpurMarginMm;
+      if (!spur) continue;
+      for (std::size_t k = 0; k + 1 < chain.size(); ++k) dropped[static_cast<std::size_t>(chain[k])] = 1;
+      ++out.spurs_dropped;
+      pruned = true;
+    }
+    // Their junctions become points of the chain they sat on (or an end).
+    for (std::size_t i = 0; i < n; ++i)
+      std::erase_if(s.next[i], [&](int m) { return dropped[static_cast<std::size_t>(m)] != 0; });
+  }
+  std::vector<int> ends;
+  for (std::size_t i = 0; i < n; ++i)
+    if (!dropped[i] && s.next[i].size() == 1) ends.push_back(static_cast<int>(i));
+  if (ends.size() < 3)
+    throw base::InputError(source + ": no centerlines given, and the surface's skeleton has " + std::to_string(ends.size()) +
+                           (ends.size() == 1 ? " end" : " ends") +
+                           " where an aorto-iliac bifurcation has three or more (the aortic inlet, both iliac outlets, "
+                           "any side-branch stubs): is the surface the aorta and both iliacs in one connected piece? "
+                           "Otherwise give its centerlines with --centerlines");
+  int inlet = ends.front();
+  double widest = -1.0;
+  for (const int e : ends) {
+    std::vector<double> r;
+    for (const int k : chain_from(s, e)) r.push_back(s.radius_mm[static_cast<std::size_t>(k)]);
+    if (const double m = median(r); m > widest) widest = m, inlet = e;
+  }
+
+  // Shortest paths from the inlet along the skeleton (a surface with a handle gives a
+  // skeleton with a loop; the shorter way round is taken).
+  std::vector<double> dist(n, std::numeric_limits<double>::infinity());
+  std::vector<int> parent(n, -1);
+  using Item = std::pair<double, int>;
+  std::priority_queue<Item, std::vector<Item>, std::greater<>> queue;
+  dist[static_cast<std::size_t>(inlet)] = 0.0;
+  queue.push({0.0, inlet});
+  while (!queue.empty()) {
+    const auto [d, at] = queue.top();
+    queue.pop();
+    if (d > dist[static_cast<std::size_t>(at)]) continue;
+    for (const int m : s.next[static_cast<std::size_t>(at)]) {
+      if (dropped[static_cast<std::size_t>(m)]) continue;
+      const double via = d + (s.point[static_cast<std::size_t>(m)] - s.point[static_cast<std::size_t>(at)]).norm();
+      if (via < dist[static_cast<std::size_t>(m)]) {
+        dist[static_cast<std::size_t>(m)] = via, parent[static_cast<std::size_t>(m)] = at;
+        queue.push({via, m});
+      }
+    }
+  }
+
+  // The inlet's end is made once, shared by every path.
+  auto toward_inlet = chain_from(s, inlet);
+  std::reverse(toward_inlet.begin(), toward_inlet.end());
+  const std::size_t inlet_chain = toward_inlet.size();
+  geometry::Polyline inlet_run = run_on(s, toward_inlet, walls);
+  std::reverse(inlet_run.begin(), inlet_run.end());
+  const std::size_t inlet_dropped = inlet_chain - toward_inlet.size();
+  for (const int e : ends) {
+    if (e == inlet || parent[static_cast<std::size_t>(e)] < 0) continue;
+    std::vector<int> path;
+    for (int k = e; k >= 0; k = parent[static_cast<std::size_t>(k)]) path.push_back(k);
+    std::reverse(path.begin(), path.end());
+    path.erase(path.begin(), path.begin() + static_cast<std::ptrdiff_t>(std::min(inlet_dropped, path.size() - 2)));
+    const geometry::Polyline outlet_run = run_on(s, path, walls);
+    geometry::CenterlineCurve curve;
+    curve.points = inlet_run;
+    for (const int k : path) curve.points.push_back(s.point[static_cast<std::size_t>(k)]);
+    curve.points.insert(curve.points.end(), outlet_run.begin(), outlet_run.end());
+    curve.radius_mm = radius_from_surface(walls, curve.points);
+    out.paths.push_back(std::move(curve));
+  }
+  out.skeleton_ms = base::ms_since(t0);
+  return out;
+}
+
+}  // namespace evar::prepare

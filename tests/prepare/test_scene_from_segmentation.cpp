@@ -1,0 +1,179 @@
+// Scenes from segmentation-like surfaces the project makes itself (sim's segmentation
+// phantom: a label volume through VTK's marching cubes, staircase and slivers included),
+// in LPS, RAS and image axes, without centerlines: every step checked against the
+// phantom's truth, and the image-axes surface refused until its axes are said.
+#include <gtest/gtest.h>
+
+#include <Eigen/Geometry>
+#include <algorithm>
+#include <cmath>
+#include <map>
+
+#include "evar/base/input_error.hpp"
+#include "evar/geometry/mesh_io.hpp"
+#include "evar/geometry/polyline.hpp"
+#include "evar/prepare/scene_preparation.hpp"
+#include "evar/sim/segmentation_phantom.hpp"
+#include "support/error_message.hpp"
+#include "support/temp_dir.hpp"
+#include "support/untagged_stl.hpp"
+
+using namespace evar;
+
+namespace {
+
+// Distance from `p` to the nearest of `paths`, each run on 5 mm straight past both ends
+// (the phantom's flat caps lie up to a voxel past its axes' ends).
+double distance_to(const std::vector<geometry::Polyline>& paths, const Eigen::Vector3d& p) {
+  double d = INFINITY;
+  for (auto path : paths) {
+    const Eigen::Vector3d before = path[0] + 5.0 * (path[0] - path[1]).normalized();
+    const Eigen::Vector3d after = path.back() + 5.0 * (path.back() - path[path.size() - 2]).normalized();
+    path.insert(path.begin(), before);
+    path.push_back(after);
+    d = std::min(d, geometry::project_onto(path, p).distance_mm);
+  }
+  return d;
+}
+
+// Near the bifurcation (within the aortic bottom's reach) or a stub's ostium.
+bool near_a_junction(const sim::SegmentationPhantom& phantom, const Eigen::Vector3d& p) {
+  if ((p - phantom.bifurcation).norm() < 25.0) return true;
+  for (const auto& o : phantom.ostia)
+    if ((p - o.position_lps).norm() < 8.0) return true;
+  return false;
+}
+
+// The smallest angle of each face, in degrees.
+std::vector<double> smallest_angles_deg(const geometry::TriangleMesh& m) {
+  std::vector<double> out;
+  for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+    double smallest = 180.0;
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d a = m.V.row(m.F(f, k)).transpose(), b = m.V.row(m.F(f, (k + 1) % 3)).transpose(),
+                            c = m.V.row(m.F(f, (k + 2) % 3)).transpose();
+      const double cosine = (b - a).normalized().dot((c - a).normalized());
+      smallest = std::min(smallest, std::acos(std::clamp(cosine, -1.0, 1.0)) * 180.0 / M_PI);
+    }
+    out.push_back(smallest);
+  }
+  return out;
+}
+
+}  // namespace
+
+// What the phantom is: one closed surface, the voxel spacing's edges, and the slivers and
+// staircase an unsmoothed segmentation export has.
+TEST(SegmentationPhantom, IsOneClosedSurfaceWithTheSliversOfAnUnsmoothedExport) {
+  const auto phantom = sim::make_segmentation_phantom();
+  ASSERT_NO_THROW(geometry::validate_mesh(phantom.surface, "phantom"));
+  EXPECT_TRUE(geometry::is_closed(phantom.surface));
+  const double edge = geometry::median_edge_length(phantom.surface);
+  EXPECT_GT(edge, 0.3);
+  EXPECT_LT(edge, 1.5);
+  const auto angles = smallest_angles_deg(phantom.surface);
+  const auto slivers = std::count_if(angles.begin(), angles.end(), [](double a) { return a < 5.0; });
+  EXPECT_GT(slivers, 20) << "an intensity threshold's marching cubes leaves slivers";
+  EXPECT_EQ(phantom.ostia.size(), 4u);
+  EXPECT_EQ(phantom.paths.size(), 6u);
+}
+
+// The surface alone, in each frame a segmentation tool writes and in several formats: the
+// computed centerlines follow the truth, the pieces are the whole surface, the iliacs are
+// told apart, and the four side-branch stubs become the four ostia with their right names.
+TEST(SceneFromSegmentation, TheSurfaceAloneInEachFrameMakesTheSceneOfItsTruth) {
+  const test::TempDir dir;
+  struct Case {
+    sim::PhantomFrame frame;
+    std::string file;
+    bool tagged;       // written by evarnode's writer, declaring its space; else an untagged STL
+    geometry::MeshSpace tag;
+    std::string axes;  // --axes
+  };
+  const std::vector<Case> cases{
+      {sim::PhantomFrame::Lps, "lps.stl", true, geometry::MeshSpace::Lps, ""},
+      {sim::PhantomFrame::Lps, "ras-tagged.vtk", true, geometry::MeshSpace::Ras, ""},  // RAS coordinates, SPACE=RAS
+      {sim::PhantomFrame::Ras, "ras.stl", false, {}, "RAS"},
+      {sim::PhantomFrame::Image, "image.stl", false, {}, "LIP"}};
+  for (const auto& c : cases) {
+    SCOPED_TRACE(c.file);
+    const auto phantom = sim::make_segmentation_phantom({.frame = c.frame});
+    const auto path = dir.path / c.file;
+    if (c.tagged)
+      geometry::write_mesh(path, phantom.surface, geometry::format_for_extension(path), c.tag);
+    else
+      test::write_untagged_stl(path, phantom.surface);
+    const auto scene = prepare::prepare_scene({path, {}, {}, c.axes});
+
+    ASSERT_EQ(scene.vessels.size(), 3u);
+    EXPECT_EQ(scene.axes, c.tag == geometry::MeshSpace::Ras ? "RAS" : phantom.axes);
+    // Every centerline point on the truth's axes (the skeleton of a voxel staircase of
+    // 0.8 x 0.8 x 1.5 mm: within a voxel's diagonal, 1.9 mm, and mostly well within), the
+    // aorta from its inlet down, each iliac to its outlet; but for the junctions, where the
+    // phantom's axes (a branch's start inside its parent) are not its medial axis.
+    std::vector<double> off;
+    std::string worst;
+    for (const auto& v : scene.vessels)
+      for (std::size_t i = 0; i < v.centerline.size(); ++i) {
+        const Eigen::Vector3d& p = v.centerline[i];
+        if (near_a_junction(phantom, p)) continue;
+        off.push_back(distance_to(phantom.paths, p));
+        if (off.back() >= *std::max_element(off.begin(), off.end()))
+          worst = v.name + " point " + std::to_string(i) + " of " + std::to_string(v.centerline.size());
+      }
+    std::sort(off.begin(), off.end());
+    EXPECT_LT(off[off.size() / 2], 0.6);
+    EXPECT_LT(off.back(), 1.9) << worst;
+    const auto& aorta = scene.vessels[0].centerline;
+    EXPECT_NEAR(aorta.front().z(), 133.0 - 3.0, 3.0);  // the inlet's flat cap is at 130 to 131.5 mm
+    EXPECT_LT(scene.vessels[1].centerline.back().x(), -25.0);  // iliac_right to the patient's right
+    EXPECT_GT(scene.vessels[2].centerline.back().x(), 25.0);
+    EXPECT_LT(scene.vessels[1].centerline.back().z(), -85.0);  // down to the outlet
+    // The pieces are the surface, cut where the iliacs leave the aorta.
+    Eigen::Index faces = 0;
+    for (const auto& v : scene.vessels) faces += v.mesh.F.rows();
+    EXPECT_GT(faces, phantom.surface.F.rows() * 9 / 10);
+    // The ostia: the stubs', named as they branch and point, each on the wall within a
+    // stub's radius and a voxel of the truth.
+    std::map<std::string, Eigen::Vector3d> found;
+    for (const auto& lm : scene.landmarks) found[lm.label] = lm.position_lps;
+    ASSERT_EQ(found.size(), 4u);
+    for (const auto& truth : phantom.ostia) {
+      ASSERT_TRUE(found.count(truth.label)) << truth.label;
+      EXPECT_LT((found[truth.label] - truth.position_lps).norm(), 3.0 + 1.5) << truth.label;
+    }
+  }
+}
+
+// In its image's axes (LIP: the aorta runs to the file's -y) and read as LPS, the surface is
+// refused, saying the axis and the option; nothing is rotated.
+TEST(SceneFromSegmentation, ASurfaceInImageAxesIsRefusedUntilItsAxesAreSaid) {
+  const test::TempDir dir;
+  const auto phantom = sim::make_segmentation_phantom({.frame = sim::PhantomFrame::Image, .side_branches = false});
+  const auto path = dir.path / "image.stl";
+  test::write_untagged_stl(path, phantom.surface);
+  const std::string message = test::error_message<base::InputError>([&] { prepare::prepare_scene({path, {}, {}, ""}); });
+  EXPECT_NE(message.find("along the file's -y axis"), std::string::npos) << message;
+  EXPECT_NE(message.find("--axes"), std::string::npos) << message;
+  EXPECT_NE(message.find("Nothing is rotated without being asked"), std::string::npos) << message;
+}
+
+// Coarser and finer voxels than a CT's usual: the same seven skeleton ends (inlet, two
+// outlets, four stubs), so the same four ostia.
+TEST(SceneFromSegmentation, OtherVoxelSpacingsGiveTheSameFourOstia) {
+  const test::TempDir dir;
+  for (const Eigen::Vector3d& spacing : {Eigen::Vector3d(1.0, 1.0, 2.0), Eigen::Vector3d(1.2, 1.2, 2.5)}) {
+    SCOPED_TRACE(spacing.transpose());
+    const auto phantom = sim::make_segmentation_phantom({.spacing_mm = spacing});
+    const auto path = dir.path / "surface.stl";
+    test::write_untagged_stl(path, phantom.surface);
+    const auto scene = prepare::prepare_scene({path, {}, {}, ""});
+    std::map<std::string, Eigen::Vector3d> found;
+    for (const auto& lm : scene.landmarks) found[lm.label] = lm.position_lps;
+    ASSERT_EQ(found.size(), 4u);
+    for (const auto& truth : phantom.ostia) {
+      ASSERT_TRUE(found.count(truth.label)) << truth.label;
+      EXPECT_LT((found[truth.label] - truth.position_lps).norm(), 3.0 + spacing.maxCoeff()) << truth.label;
+    }
+  }
+}
