@@ -3,6 +3,7 @@
 #include "evar/geometry/ray_caster.hpp"
 
 #include <algorithm>
+#include <cmath>
 #include <stdexcept>
 #include <string>
 
@@ -31,6 +32,32 @@ Eigen::Vector3d area_normal(const geometry::TriangleMesh& m, Eigen::Index f) {
   return (m.V.row(m.F(f, 1)).transpose() - a).cross(m.V.row(m.F(f, 2)).transpose() - a);
 }
 
+// The surface's normal direction at each vertex at about the scale of `scale_mm`: the
+// area-weighted face normals round it, then averaged with the neighbours' until the
+// averaging has reached that far (a segmentation's voxel staircase has facets turned far
+// from the surface it approximates, some against it).
+std::vector<Eigen::Vector3d> smoothed_vertex_normals(const geometry::TriangleMesh& m, double scale_mm) {
+  const auto n = static_cast<std::size_t>(m.V.rows());
+  std::vector<Eigen::Vector3d> normal(n, Eigen::Vector3d::Zero());
+  std::vector<std::vector<int>> next(n);
+  for (Eigen::Index f = 0; f < m.F.rows(); ++f) {
+    const Eigen::Vector3d a = area_normal(m, f);
+    for (int k = 0; k < 3; ++k) {
+      normal[static_cast<std::size_t>(m.F(f, k))] += a;
+      next[static_cast<std::size_t>(m.F(f, k))].push_back(m.F(f, (k + 1) % 3));
+    }
+  }
+  const double edge = std::max(geometry::median_edge_length(m), 1e-6);
+  const int passes = std::clamp(static_cast<int>(std::ceil(scale_mm / edge)), 1, 8);
+  for (int pass = 0; pass < passes; ++pass) {
+    std::vector<Eigen::Vector3d> averaged = normal;
+    for (std::size_t i = 0; i < n; ++i)
+      for (const int j : next[i]) averaged[i] += normal[static_cast<std::size_t>(j)];
+    normal = std::move(averaged);
+  }
+  return normal;
+}
+
 }  // namespace
 
 bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm) {
@@ -54,8 +81,9 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   if (geometry::is_closed(fine) && !geometry::is_closed(proxy.coarse))
     throw std::runtime_error("mesh proxy: the remeshed surface is not closed");
   // The same surface, face by face: each has area and faces the way the fine surface does
-  // where it lies (a vessel thinner than about an edge can fold or shrink under the
-  // collapses; then the fine mesh is solved as it is).
+  // where it lies, at the scale of a proxy edge (a vessel thinner than about an edge can
+  // fold or shrink under the collapses; then the fine mesh is solved as it is).
+  const auto fine_normal = smoothed_vertex_normals(fine, edge_mm);
   for (Eigen::Index f = 0; f < proxy.coarse.F.rows(); ++f) {
     const Eigen::Vector3d normal = area_normal(proxy.coarse, f);
     if (!(0.5 * normal.norm() > 1e-3 * edge_mm * edge_mm))
@@ -63,10 +91,15 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
     Eigen::Vector3d centroid = Eigen::Vector3d::Zero();
     for (int k = 0; k < 3; ++k) centroid += proxy.coarse.V.row(proxy.coarse.F(f, k)).transpose() / 3.0;
     const auto on_fine = fine_bvh.closest_point(centroid);
-    if (!on_fine || !(normal.dot(area_normal(fine, on_fine->face)) > 0.0))
-      throw std::runtime_error("mesh proxy: face " + std::to_string(f) +
-                               " of the remeshed surface is turned against the mesh (a vessel thinner than the "
-                               "proxy's edge?)");
+    Eigen::Vector3d there = Eigen::Vector3d::Zero();
+    if (on_fine)
+      for (int k = 0; k < 3; ++k)
+        there += on_fine->barycentric[k] * fine_normal[static_cast<std::size_t>(fine.F(on_fine->face, k))];
+    if (!on_fine || !(normal.dot(there) > 0.0))
+      throw std::runtime_error("mesh proxy: face " + std::to_string(f) + " of the remeshed surface, at (" +
+                               base::quantity_text(centroid.x(), "", 1) + ", " + base::quantity_text(centroid.y(), "", 1) +
+                               ", " + base::quantity_text(centroid.z(), "", 1) +
+                               ") mm, is turned against the mesh (a vessel thinner than the proxy's edge?)");
   }
 
   const geometry::RayCaster coarse_bvh(proxy.coarse, geometry::RayCaster::BuildQuality::Low);

@@ -12,6 +12,7 @@
 
 #include "evar/base/elapsed.hpp"
 #include "evar/base/input_error.hpp"
+#include "evar/base/quantity_text.hpp"
 #include "evar/prepare/surface_split.hpp"
 #include "mcf_skeleton.hpp"
 
@@ -21,6 +22,9 @@ namespace {
 constexpr double kEndStepMm = 1.0;      // spacing of the points an end is run on by
 constexpr double kShortOfWallMm = 0.5;  // an end stops this far short of the cap or opening
 constexpr int kSmoothingPasses = 3;     // of the skeleton's chains, each (1/4, 1/2, 1/4)
+// The aortic inlet's end is at least this much wider than any other end (the aorta's lumen
+// is about twice an iliac's across; an aneurysmal iliac can come close).
+constexpr double kInletWiderBy = 1.25;
 // A skeleton end whose wall lies no farther than its junction's lumen radius plus this
 // from the junction is a spur of the flow (a bump of the wall), not a vessel.
 constexpr double kSpurMarginMm = 2.0;
@@ -193,13 +197,37 @@ SurfaceCenterlines centerlines_from_surface(const geometry::TriangleMesh& surfac
                            " where an aorto-iliac bifurcation has three or more (the aortic inlet, both iliac outlets, "
                            "any side-branch stubs): is the surface the aorta and both iliacs in one connected piece? "
                            "Otherwise give its centerlines with --centerlines");
-  int inlet = ends.front();
-  double widest = -1.0;
+  // Width across the vessel (the cross-section's half chords, square to the chain), not
+  // the distance to the nearest wall, which near a cap is the cap's: a segmentation cropped
+  // just above the renal arteries leaves the aorta's own chain a few millimetres long.
+  std::vector<std::pair<double, int>> widths;  // (width, end), widest first
   for (const int e : ends) {
+    const auto chain = chain_from(s, e);
     std::vector<double> r;
-    for (const int k : chain_from(s, e)) r.push_back(s.radius_mm[static_cast<std::size_t>(k)]);
-    if (const double m = median(r); m > widest) widest = m, inlet = e;
+    for (std::size_t k = 0; k < chain.size(); ++k) {
+      const Eigen::Vector3d along = s.point[static_cast<std::size_t>(chain[std::min(k + 1, chain.size() - 1)])] -
+                                    s.point[static_cast<std::size_t>(chain[k > 0 ? k - 1 : 0])];
+      double half_chord = 0.0;
+      if (along.norm() > 1e-9 &&
+          cross_section_centre(s.point[static_cast<std::size_t>(chain[k])], along.normalized(), walls, half_chord))
+        r.push_back(half_chord);
+    }
+    widths.emplace_back(median(r), e);
   }
+  std::sort(widths.begin(), widths.end(), std::greater<>());
+  // The aorta is the widest vessel by far at its end; an end no wider than the next is no
+  // inlet to trust (the aorta's end collapsed into a branch point: cropped just above the
+  // renal arteries; or an iliac as wide as the aorta).
+  if (!(widths[0].first >= kInletWiderBy * widths[1].first)) {
+    throw base::InputError(
+        source + ": no centerlines given, and the surface's skeleton has no end clearly wider than the others to be "
+                 "the aortic inlet (the two widest ends are " + base::quantity_text(2.0 * widths[0].first, "mm", 0) +
+        " and " + base::quantity_text(2.0 * widths[1].first, "mm", 0) +
+        " across): the segmentation may stop within a few millimetres above the renal arteries (segment the aorta on for at least "
+        "its diameter above its highest branch), or an iliac is as wide as the aorta. Give its centerlines with "
+        "--centerlines (VMTK's vmtkcenterlines, or 3D Slicer's Extract Centerline)");
+  }
+  const int inlet = widths[0].second;
 
   // Shortest paths from the inlet along the skeleton (a surface with a handle gives a
   // skeleton with a loop; the shorter way round is taken).

@@ -80,6 +80,10 @@ Tube straight(const Eigen::Vector3d& from, const Eigen::Vector3d& to, double rad
 SegmentationPhantom make_segmentation_phantom(const SegmentationPhantomOptions& options) {
   if (!(options.spacing_mm.minCoeff() > 0.1 && options.spacing_mm.maxCoeff() <= 5.0))
     throw std::invalid_argument("segmentation phantom: voxel spacing must lie in (0.1, 5] mm");
+  if (!(options.lowest_z_mm >= -100.0 && options.highest_z_mm <= 133.0 && options.lowest_z_mm < 0.0 &&
+        options.highest_z_mm > 100.0))
+    throw std::invalid_argument("segmentation phantom: its extent must keep the renal arteries and the bifurcation "
+                                "(lowest_z_mm in [-100, 0), highest_z_mm in (100, 133])");
   SegmentationPhantom out;
 
   // The aorta, an aneurysm of 28 mm across below the renal arteries, bowing forward a little.
@@ -148,7 +152,7 @@ SegmentationPhantom make_segmentation_phantom(const SegmentationPhantomOptions& 
   }
 
   // The label volume, two voxels of background round the vessels.
-  const Eigen::Vector3d lo(-50.0, -25.0, -100.0), hi(50.0, 35.0, 133.0);
+  const Eigen::Vector3d lo(-50.0, -25.0, options.lowest_z_mm), hi(50.0, 35.0, options.highest_z_mm);
   const Eigen::Vector3d& h = options.spacing_mm;
   Eigen::Vector3i dims;
   for (int a = 0; a < 3; ++a) dims[a] = static_cast<int>(std::ceil((hi[a] - lo[a]) / h[a])) + 1;

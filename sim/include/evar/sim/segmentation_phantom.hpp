@@ -25,6 +25,9 @@ struct SegmentationPhantomOptions {
   Eigen::Vector3d spacing_mm{0.8, 0.8, 1.5};  ///< voxel size along LPS x, y, z
   PhantomFrame frame = PhantomFrame::Lps;
   bool side_branches = true;  ///< renal and internal iliac stubs
+  /// The label volume's extent from foot to head (LPS z, mm): the whole phantom by default;
+  /// less crops it as a segmentation cropped to its region of interest is (flat caps there).
+  double lowest_z_mm = -100.0, highest_z_mm = 133.0;
 };
 
 struct SegmentationPhantom {
