@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <memory>
 
+#include "bulged_wire.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/ray_caster.hpp"
@@ -42,12 +43,7 @@ const PhantomScene& phantom_scene() {
                                evar::geometry::MeshSpace::Lps);
     const auto prepared = evar::prepare::prepare_scene({out / "surface.ply", {}, {}, ""});
     s->scene = evar::geometry::load_scene(evar::prepare::write_prepared_scene(prepared, out / "scene", 0.89));
-    const auto& aorta = s->scene.vessels[0].centerline;
-    const auto& right = s->scene.vessels[1].centerline;
-    for (std::size_t i = 0; i + 20 < aorta.size(); ++i) s->wire.push_back(aorta[i]);
-    const auto arc = evar::geometry::arc_lengths(right);
-    for (std::size_t i = 0; i < right.size(); ++i)
-      s->wire.push_back(right[i] + Eigen::Vector3d(-8.0 * std::sin(M_PI * arc[i] / arc.back()), 0, 0));
+    s->wire = evar::bench::bulged_wire(s->scene);
     return s;
   }();
   return *made;

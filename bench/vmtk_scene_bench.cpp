@@ -9,6 +9,7 @@
 #include <memory>
 #include <optional>
 
+#include "bulged_wire.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/scene.hpp"
 #include "evar/prepare/scene_preparation.hpp"
@@ -41,12 +42,7 @@ const VmtkScene* vmtk_scene() {
     fs::remove_all(out);
     auto s = std::make_unique<VmtkScene>();
     s->scene = evar::geometry::load_scene(evar::prepare::write_prepared_scene(prepared, out, 0.89));
-    const auto& aorta = s->scene.vessels[0].centerline;
-    const auto& right = s->scene.vessels[1].centerline;
-    for (std::size_t i = 0; i + 20 < aorta.size(); ++i) s->wire.push_back(aorta[i]);
-    const auto arc = evar::geometry::arc_lengths(right);
-    for (std::size_t i = 0; i < right.size(); ++i)
-      s->wire.push_back(right[i] + Eigen::Vector3d(-8.0 * std::sin(M_PI * arc[i] / arc.back()), 0, 0));
+    s->wire = evar::bench::bulged_wire(s->scene);
     return s;
   }();
   return made.get();

@@ -65,6 +65,12 @@ double off_plane_mm(const std::vector<Eigen::Vector3d>& points) {
   return worst;
 }
 
+// Why prepare_scene refuses `phantom`'s surface written as an untagged STL, read as LPS.
+std::string refusal_of(const sim::SegmentationPhantom& phantom, const std::filesystem::path& path) {
+  test::write_untagged_stl(path, phantom.surface);
+  return test::error_message<base::InputError>([&] { prepare::prepare_scene({path, {}, {}, ""}); });
+}
+
 // Near the bifurcation (within the aortic bottom's reach) or a stub's ostium.
 bool near_a_junction(const sim::SegmentationPhantom& phantom, const Eigen::Vector3d& p) {
   if ((p - phantom.bifurcation).norm() < 25.0) return true;
@@ -184,10 +190,8 @@ TEST(SceneFromSegmentation, TheSurfaceAloneInEachFrameMakesTheSceneOfItsTruth) {
 // refused, saying the axis and the option; nothing is rotated.
 TEST(SceneFromSegmentation, ASurfaceInImageAxesIsRefusedUntilItsAxesAreSaid) {
   const test::TempDir dir;
-  const auto phantom = sim::make_segmentation_phantom({.frame = sim::PhantomFrame::Image, .side_branches = false});
-  const auto path = dir.path / "image.stl";
-  test::write_untagged_stl(path, phantom.surface);
-  const std::string message = test::error_message<base::InputError>([&] { prepare::prepare_scene({path, {}, {}, ""}); });
+  const std::string message = refusal_of(
+      sim::make_segmentation_phantom({.frame = sim::PhantomFrame::Image, .side_branches = false}), dir.path / "image.stl");
   EXPECT_NE(message.find("along the file's -y axis"), std::string::npos) << message;
   EXPECT_NE(message.find("--axes"), std::string::npos) << message;
   EXPECT_NE(message.find("Nothing is rotated without being asked"), std::string::npos) << message;
@@ -218,10 +222,8 @@ TEST(SceneFromSegmentation, OtherVoxelSpacingsGiveTheSameFourOstia) {
 // surface is refused saying why and what to do, not read with an iliac as the inlet.
 TEST(SceneFromSegmentation, AnAortaCroppedJustAboveItsRenalArteriesIsRefusedWithTheFix) {
   const test::TempDir dir;
-  const auto phantom = sim::make_segmentation_phantom({.lowest_z_mm = -55.0, .highest_z_mm = 105.0});
-  const auto path = dir.path / "cropped.stl";
-  test::write_untagged_stl(path, phantom.surface);
-  const std::string message = test::error_message<base::InputError>([&] { prepare::prepare_scene({path, {}, {}, ""}); });
+  const std::string message =
+      refusal_of(sim::make_segmentation_phantom({.lowest_z_mm = -55.0, .highest_z_mm = 105.0}), dir.path / "cropped.stl");
   EXPECT_NE(message.find("no end clearly wider than the others to be the aortic inlet"), std::string::npos) << message;
   EXPECT_NE(message.find("segment the aorta on for at least its diameter above its highest branch"), std::string::npos) << message;
   EXPECT_NE(message.find("--centerlines"), std::string::npos) << message;
