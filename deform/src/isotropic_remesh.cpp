@@ -18,6 +18,21 @@ namespace {
 using Vec = Eigen::Vector3d;
 using Face = std::array<int, 3>;
 
+// The faces on one edge: two inside a surface, one on its rim; more only where the input is
+// not a manifold (then the count is right and the first four are kept).
+struct EdgeFaces {
+  std::array<int, 4> face{};
+  std::size_t count = 0;
+  void push_back(int f) {
+    if (count < face.size()) face[count] = f;
+    ++count;
+  }
+  std::size_t size() const { return count; }
+  int operator[](std::size_t k) const { return face[k]; }
+  const int* begin() const { return face.data(); }
+  const int* end() const { return face.data() + std::min(count, face.size()); }
+};
+
 // The mesh being remeshed: faces and vertices are killed, never reused, and compacted at
 // the end; vf holds each vertex's live faces.
 class Remesher {
@@ -49,7 +64,7 @@ class Remesher {
   void split_long_edges() {
     for (const auto& [u, v] : edges()) {
       if (!((P_[idx(u)] - P_[idx(v)]).norm() > hi_)) continue;
-      const std::vector<int> faces = edge_faces(u, v);
+      const EdgeFaces faces = edge_faces(u, v);
       // Two faces with the same third vertex (a two-sided triangle) would give the new
       // vertex the same edge to it twice.
       if (faces.size() != 2 || opposite(faces[0], u, v) == opposite(faces[1], u, v)) continue;
@@ -128,14 +143,21 @@ class Remesher {
   static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
   static std::pair<int, int> ordered(int a, int b) { return a < b ? std::pair{a, b} : std::pair{b, a}; }
 
+  // Every edge once, as (smaller, larger) vertex, in lexicographic order: per vertex, its
+  // larger neighbours (found through its faces), sorted.
   std::vector<std::pair<int, int>> edges() const {
     std::vector<std::pair<int, int>> e;
-    e.reserve(3 * F_.size());
-    for (std::size_t f = 0; f < F_.size(); ++f)
-      if (face_alive_[f])
-        for (int k = 0; k < 3; ++k) e.push_back(ordered(F_[f][static_cast<std::size_t>(k)], F_[f][static_cast<std::size_t>((k + 1) % 3)]));
-    std::sort(e.begin(), e.end());
-    e.erase(std::unique(e.begin(), e.end()), e.end());
+    e.reserve(3 * P_.size());
+    std::vector<int>& larger = scratch_edges_;
+    for (std::size_t a = 0; a < P_.size(); ++a) {
+      larger.clear();
+      for (const int f : vf_[a])
+        for (const int b : F_[idx(f)])
+          if (static_cast<std::size_t>(b) > a) larger.push_back(b);
+      std::sort(larger.begin(), larger.end());
+      larger.erase(std::unique(larger.begin(), larger.end()), larger.end());
+      for (const int b : larger) e.emplace_back(static_cast<int>(a), b);
+    }
     return e;
   }
 
@@ -148,8 +170,8 @@ class Remesher {
     const Face& t = F_[idx(f)];
     return t[0] == v || t[1] == v || t[2] == v;
   }
-  std::vector<int> edge_faces(int u, int v) const {
-    std::vector<int> out;
+  EdgeFaces edge_faces(int u, int v) const {
+    EdgeFaces out;
     for (const int f : vf_[idx(u)])
       if (has(f, v)) out.push_back(f);
     return out;
@@ -227,12 +249,15 @@ class Remesher {
   // rim's vertices stay rim vertices of the input.
   bool try_collapse(int u, int v) {
     if (rim_[idx(u)] && !rim_[idx(v)]) std::swap(u, v);
-    const std::vector<int> shared = edge_faces(u, v);
+    const EdgeFaces shared = edge_faces(u, v);
     const bool along_rim = rim_[idx(u)];
     if (along_rim ? shared.size() != 1 : shared.size() != 2) return false;
-    std::vector<int> nu, nv, common;
+    std::vector<int>& nu = scratch_u_;
+    std::vector<int>& nv = scratch_v_;
+    std::vector<int>& common = scratch_common_;
     neighbours(u, nu);
     neighbours(v, nv);
+    common.clear();
     // A rim vertex where more than one rim passes (two open ends touching) stays.
     if (along_rim && (rim_edges(u, nu) != 2 || rim_edges(v, nv) != 2)) return false;
     std::set_intersection(nu.begin(), nu.end(), nv.begin(), nv.end(), std::back_inserter(common));
@@ -270,7 +295,7 @@ class Remesher {
   }
 
   bool try_flip(int u, int v) {
-    const std::vector<int> shared = edge_faces(u, v);
+    const EdgeFaces shared = edge_faces(u, v);
     if (shared.size() != 2) return false;
     Face t1{}, t2{};
     int f1 = shared[0], f2 = shared[1];
@@ -303,6 +328,9 @@ class Remesher {
   }
 
   double lo_, hi_;
+  // try_collapse's neighbour lists, kept between calls so that they are not reallocated.
+  std::vector<int> scratch_u_, scratch_v_, scratch_common_;
+  mutable std::vector<int> scratch_edges_;
   std::vector<Vec> P_;
   std::vector<Face> F_;
   std::vector<char> face_alive_, vertex_alive_, rim_;

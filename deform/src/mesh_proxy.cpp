@@ -104,6 +104,7 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
 
   const geometry::RayCaster coarse_bvh(proxy.coarse, geometry::RayCaster::BuildQuality::Low);
   proxy.bindings.resize(n);
+  Eigen::Vector3d farthest = Eigen::Vector3d::Zero();
   for (std::size_t i = 0; i < n; ++i) {
     const Eigen::Vector3d p = fine.V.row(static_cast<Eigen::Index>(i)).transpose();
     const auto found = coarse_bvh.closest_point(p);
@@ -113,12 +114,14 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
     b.face = sp.face;
     b.barycentric = sp.barycentric;
     b.offset_in_face = face_frame(proxy.coarse.F, proxy.coarse.V, sp.face).transpose() * (p - sp.point);
-    proxy.largest_offset_mm = std::max(proxy.largest_offset_mm, sp.distance_mm);
+    if (sp.distance_mm > proxy.largest_offset_mm) proxy.largest_offset_mm = sp.distance_mm, farthest = p;
   }
   // A crease is rounded by about half an edge; a fine vertex farther away than a whole edge
   // means the proxy lost part of the surface (a thin vessel shrunk along its length).
   if (proxy.largest_offset_mm > edge_mm)
-    throw std::runtime_error("mesh proxy: a vertex of the mesh lies " + base::quantity_text(proxy.largest_offset_mm, "mm") +
+    throw std::runtime_error("mesh proxy: a vertex of the mesh, at (" + base::quantity_text(farthest.x(), "", 1) + ", " +
+                             base::quantity_text(farthest.y(), "", 1) + ", " + base::quantity_text(farthest.z(), "", 1) +
+                             ") mm, lies " + base::quantity_text(proxy.largest_offset_mm, "mm") +
                              " from the remeshed surface, more than its edge of " + base::quantity_text(edge_mm, "mm") +
                              " (a vessel thinner than the proxy's edge?)");
   return proxy;
