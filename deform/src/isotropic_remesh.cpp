@@ -92,16 +92,17 @@ class Remesher {
   }
 
   // Each free vertex moves to its neighbours' centroid within its tangent plane (Jacobi).
+  // Off the rim each neighbour shares two of the vertex's faces, so the faces' other corners
+  // count every neighbour twice: their mean is the neighbours'.
   void relax_tangentially() {
     std::vector<Vec> next = P_;
-    std::vector<int> nb;
     for (std::size_t v = 0; v < P_.size(); ++v) {
-      if (!vertex_alive_[v] || rim_[v]) continue;
-      neighbours(static_cast<int>(v), nb);
-      if (nb.empty()) continue;
+      if (!vertex_alive_[v] || rim_[v] || vf_[v].empty()) continue;
       Vec c = Vec::Zero();
-      for (const int w : nb) c += P_[idx(w)];
-      c /= static_cast<double>(nb.size());
+      for (const int f : vf_[v])
+        for (const int w : F_[idx(f)])
+          if (idx(w) != v) c += P_[idx(w)];
+      c /= static_cast<double>(2 * vf_[v].size());
       Vec n = Vec::Zero();
       for (const int f : vf_[v]) n += face_normal(f);
       if (!(n.norm() > 0.0)) continue;
