@@ -17,6 +17,9 @@ namespace evar::deform {
 
 namespace {
 
+// How far (in proxy edges) a fine vertex may lie from the proxy.
+constexpr double kLargestOffsetInEdges = 1.5;
+
 // A face's frame: its first edge, the normal × edge, the normal (columns).
 Eigen::Matrix3d face_frame(const geometry::Faces& F, const geometry::Vertices& V, int f) {
   const Eigen::Vector3d a = V.row(F(f, 0)).transpose(), b = V.row(F(f, 1)).transpose(), c = V.row(F(f, 2)).transpose();
@@ -116,13 +119,15 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
     b.offset_in_face = face_frame(proxy.coarse.F, proxy.coarse.V, sp.face).transpose() * (p - sp.point);
     if (sp.distance_mm > proxy.largest_offset_mm) proxy.largest_offset_mm = sp.distance_mm, farthest = p;
   }
-  // A crease is rounded by about half an edge; a fine vertex farther away than a whole edge
-  // means the proxy lost part of the surface (a thin vessel shrunk along its length).
-  if (proxy.largest_offset_mm > edge_mm)
+  // A convex crease (a flat cap's rim) is rounded by about half an edge; a sharp concave one
+  // (a segmentation's crotch at a bifurcation) is bridged by faces up to about an edge above
+  // its floor; a fine vertex farther away than one and a half edges means the proxy lost part
+  // of the surface (a thin vessel shrunk along its length).
+  if (proxy.largest_offset_mm > kLargestOffsetInEdges * edge_mm)
     throw std::runtime_error("mesh proxy: a vertex of the mesh, at (" + base::quantity_text(farthest.x(), "", 1) + ", " +
                              base::quantity_text(farthest.y(), "", 1) + ", " + base::quantity_text(farthest.z(), "", 1) +
                              ") mm, lies " + base::quantity_text(proxy.largest_offset_mm, "mm") +
-                             " from the remeshed surface, more than its edge of " + base::quantity_text(edge_mm, "mm") +
+                             " from the remeshed surface, more than 1.5 times its edge of " + base::quantity_text(edge_mm, "mm") +
                              " (a vessel thinner than the proxy's edge?)");
   return proxy;
 }

@@ -34,7 +34,8 @@ bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm);
 
 /// Isotropic remeshing of the fine surface (Botsch & Kobbelt 2004) to near-equilateral
 /// triangles with edges of about `edge_mm`, keeping the topology; then every fine vertex
-/// bound to it. A sharp crease (a flat cap's rim) is rounded by up to about half an edge;
+/// bound to it. A sharp convex crease (a flat cap's rim) is rounded by up to about half an
+/// edge, a sharp concave one (a crotch) bridged up to about an edge above its floor;
 /// the fine vertices keep their offsets, so the output keeps it. The rim of an open mesh
 /// keeps a subset of its vertices. std::runtime_error when the result is not a valid mesh (the
 /// caller then solves the fine mesh itself).
