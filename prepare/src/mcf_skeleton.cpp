@@ -2,6 +2,8 @@
 
 #include <CGAL/Mean_curvature_flow_skeletonization.h>
 #include <CGAL/Polygon_mesh_processing/border.h>
+#include <CGAL/Polygon_mesh_processing/measure.h>
+#include <CGAL/Polygon_mesh_processing/orientation.h>
 #include <CGAL/Polygon_mesh_processing/triangulate_hole.h>
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
@@ -38,6 +40,10 @@ SkeletonGraph mean_curvature_flow_skeleton(const geometry::TriangleMesh& mesh) {
       ++graph.holes_closed;
     }
   }
+
+  // Faces wound outward: the flow's medial poles lie on the side opposite the normals.
+  if (CGAL::Polygon_mesh_processing::volume(surface) < 0.0)
+    CGAL::Polygon_mesh_processing::reverse_face_orientations(surface);
 
   Skeletonization::Skeleton skeleton;
   Skeletonization flow(surface);

@@ -65,13 +65,15 @@ std::vector<int> chain_from(const Skeleton& s, int end) {
 // mesh vertices that collapsed onto the skeleton points `tail`.
 double room_past(const Skeleton& s, const std::vector<int>& tail, const Eigen::Vector3d& origin, const Eigen::Vector3d& t,
                  const geometry::RayCaster& walls) {
-  if (const auto hit = walls.first_hit(origin, t)) return hit->t_mm;
-  double room = 0.0;
+  double rim = 0.0;
   const auto& V = walls.mesh().V;
   for (const int k : tail)
     for (const int v : s.mesh_vertices[static_cast<std::size_t>(k)])
-      room = std::max(room, (V.row(v).transpose() - origin).dot(t));
-  return room;
+      rim = std::max(rim, (V.row(v).transpose() - origin).dot(t));
+  // A ray out through an opening may meet another vessel from outside: a hit beyond the
+  // collapsed vertices' reach (and a millimetre) is not this vessel's cap.
+  if (const auto hit = walls.first_hit(origin, t); hit && (rim <= 0.0 || hit->t_mm <= rim + 1.0)) return hit->t_mm;
+  return rim;
 }
 
 // The centre of the lumen's cross-section through `q` square to the unit direction `t`:
@@ -144,6 +146,10 @@ SurfaceCenterlines centerlines_from_surface(const geometry::TriangleMesh& surfac
   out.openings_closed = graph.holes_closed;
   out.skeleton_points = static_cast<int>(graph.points.size());
 
+  for (const auto& p : graph.points)
+    if (!p.allFinite())
+      throw base::InputError(source + ": its centerlines cannot be computed from the surface (the skeleton's flow "
+                                      "diverged); give them with --centerlines");
   Skeleton s;
   const std::size_t n = graph.points.size();
   s.point = graph.points;
@@ -188,6 +194,26 @@ SurfaceCenterlines centerlines_from_surface(const geometry::TriangleMesh& surfac
     for (std::size_t i = 0; i < n; ++i)
       std::erase_if(s.next[i], [&](int m) { return dropped[static_cast<std::size_t>(m)] != 0; });
   }
+  // The skeleton in one piece: a surface in several (a stray island of the segmentation)
+  // gives one skeleton per piece.
+  std::vector<int> piece(n, -1);
+  int pieces = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    if (dropped[i] || piece[i] >= 0 || s.next[i].empty()) continue;
+    std::vector<int> todo{static_cast<int>(i)};
+    piece[i] = pieces;
+    while (!todo.empty()) {
+      const int at = todo.back();
+      todo.pop_back();
+      for (const int m : s.next[static_cast<std::size_t>(at)])
+        if (piece[static_cast<std::size_t>(m)] < 0) piece[static_cast<std::size_t>(m)] = pieces, todo.push_back(m);
+    }
+    ++pieces;
+  }
+  if (pieces > 1)
+    throw base::InputError(source + ": no centerlines given, and the surface is in " + std::to_string(pieces) +
+                           " separate pieces (its skeleton is): keep only the aorto-iliac one (3D Slicer: Segment "
+                           "Editor, Islands, keep the largest) or give its centerlines with --centerlines");
   std::vector<int> ends;
   for (std::size_t i = 0; i < n; ++i)
     if (!dropped[i] && s.next[i].size() == 1) ends.push_back(static_cast<int>(i));
@@ -218,7 +244,7 @@ SurfaceCenterlines centerlines_from_surface(const geometry::TriangleMesh& surfac
   // The aorta is the widest vessel by far at its end; an end no wider than the next is no
   // inlet to trust (the aorta's end collapsed into a branch point: cropped just above the
   // renal arteries; or an iliac as wide as the aorta).
-  if (!(widths[0].first >= kInletWiderBy * widths[1].first)) {
+  if (!(widths[0].first > 0.0 && widths[0].first >= kInletWiderBy * widths[1].first)) {
     throw base::InputError(
         source + ": no centerlines given, and the surface's skeleton has no end clearly wider than the others to be "
                  "the aortic inlet (the two widest ends are " + base::quantity_text(2.0 * widths[0].first, "mm", 0) +

@@ -8,6 +8,8 @@
 #include <unordered_map>
 #include <vector>
 
+#include <Eigen/Geometry>
+
 #include "evar/base/input_error.hpp"
 #include "evar/base/quantity_text.hpp"
 #include "evar/geometry/ray_caster.hpp"
@@ -63,8 +65,8 @@ std::vector<std::vector<int>> face_neighbours(const geometry::TriangleMesh& mesh
   return out;
 }
 
-// Vertices closer to a cut plane than this share of the median edge are moved onto it, so
-// the cut makes no sliver beside them.
+// Vertices closer to a cut plane than this share of the median edge are moved onto it (where
+// no face round them turns over or collapses), so the cut makes no sliver beside them.
 constexpr double kSnapShareOfEdge = 0.2;
 
 // `mesh` with its faces that cross the plane through `c` square to the unit `t` split along
@@ -99,15 +101,32 @@ void cut_along_plane(geometry::TriangleMesh& mesh, std::vector<char>& inherited,
     for (const int g : neighbours[static_cast<std::size_t>(f)])
       if (!split[static_cast<std::size_t>(g)] && crosses(g)) split[static_cast<std::size_t>(g)] = 1, todo.push(g);
   }
-  // Onto the plane: their vertices that nearly lie on it (a face then may no longer cross).
+  // Onto the plane: their vertices that nearly lie on it (a face then may no longer cross),
+  // unless that would turn a face round the vertex over or leave it almost without area
+  // (a sliver beside the plane).
+  std::vector<std::vector<Eigen::Index>> faces_of(static_cast<std::size_t>(nv));
+  for (Eigen::Index f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) faces_of[static_cast<std::size_t>(mesh.F(f, k))].push_back(f);
+  const auto area_normal = [&](Eigen::Index f, Eigen::Index moved, const Eigen::Vector3d& to) {
+    std::array<Eigen::Vector3d, 3> p;
+    for (int k = 0; k < 3; ++k) p[static_cast<std::size_t>(k)] = mesh.F(f, k) == moved ? to : mesh.V.row(mesh.F(f, k)).transpose();
+    return Eigen::Vector3d((p[1] - p[0]).cross(p[2] - p[0]));
+  };
   for (Eigen::Index f = 0; f < nf; ++f)
     if (split[static_cast<std::size_t>(f)])
       for (int k = 0; k < 3; ++k) {
-        double& x = d[static_cast<std::size_t>(mesh.F(f, k))];
-        if (x != 0.0 && std::abs(x) < snap) {
-          mesh.V.row(mesh.F(f, k)) -= x * t.transpose();
-          x = 0.0;
+        const Eigen::Index v = mesh.F(f, k);
+        double& x = d[static_cast<std::size_t>(v)];
+        if (x == 0.0 || !(std::abs(x) < snap)) continue;
+        const Eigen::Vector3d to = mesh.V.row(v).transpose() - x * t;
+        bool harmless = true;
+        for (const Eigen::Index g : faces_of[static_cast<std::size_t>(v)]) {
+          const Eigen::Vector3d before = area_normal(g, -1, to), after = area_normal(g, v, to);
+          if (!(after.dot(before) > 0.0 && after.norm() > 0.1 * before.norm())) harmless = false;
         }
+        if (!harmless) continue;
+        mesh.V.row(v) = to.transpose();
+        x = 0.0;
       }
   std::vector<Eigen::Vector3d> added;
   std::unordered_map<std::uint64_t, int> on_edge;

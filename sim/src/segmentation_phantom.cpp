@@ -27,9 +27,12 @@ struct Tube {
 };
 
 bool inside_segment(const Tube& tube, std::size_t i, const Eigen::Vector3d& p) {
+  // A flat end: nothing beyond the plane square to the axis at its end point.
+  const std::size_t n = tube.axis.size();
+  if (tube.flat_start && (p - tube.axis[0]).dot(tube.axis[1] - tube.axis[0]) < 0.0) return false;
+  if (tube.flat_end && (p - tube.axis[n - 1]).dot(tube.axis[n - 1] - tube.axis[n - 2]) > 0.0) return false;
   const Eigen::Vector3d a = tube.axis[i], b = tube.axis[i + 1];
   const double raw = (p - a).dot(b - a) / (b - a).squaredNorm();
-  if ((i == 0 && tube.flat_start && raw < 0.0) || (i + 2 == tube.axis.size() && tube.flat_end && raw > 1.0)) return false;
   const double t = std::clamp(raw, 0.0, 1.0);
   const double r = (1.0 - t) * tube.radius_mm[i] + t * tube.radius_mm[i + 1];
   return (p - (a + t * (b - a))).squaredNorm() < r * r;
@@ -151,9 +154,10 @@ SegmentationPhantom make_segmentation_phantom(const SegmentationPhantomOptions& 
     }
   }
 
-  // The label volume, two voxels of background round the vessels.
-  const Eigen::Vector3d lo(-50.0, -25.0, options.lowest_z_mm), hi(50.0, 35.0, options.highest_z_mm);
+  // The label volume over the extent, with two voxels of background round it.
   const Eigen::Vector3d& h = options.spacing_mm;
+  const Eigen::Vector3d lo = Eigen::Vector3d(-50.0, -25.0, options.lowest_z_mm) - 2.0 * h;
+  const Eigen::Vector3d hi = Eigen::Vector3d(50.0, 35.0, options.highest_z_mm) + 2.0 * h;
   Eigen::Vector3i dims;
   for (int a = 0; a < 3; ++a) dims[a] = static_cast<int>(std::ceil((hi[a] - lo[a]) / h[a])) + 1;
   vtkNew<vtkImageData> volume;

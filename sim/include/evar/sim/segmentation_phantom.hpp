@@ -27,6 +27,8 @@ struct SegmentationPhantomOptions {
   bool side_branches = true;  ///< renal and internal iliac stubs
   /// The label volume's extent from foot to head (LPS z, mm): the whole phantom by default;
   /// less crops it as a segmentation cropped to its region of interest is (flat caps there).
+  /// The truth (paths, ostia) is not cropped with it: below -20 mm the internal iliac stubs
+  /// go, above 105 mm the aorta's top.
   double lowest_z_mm = -100.0, highest_z_mm = 133.0;
 };
 
