@@ -153,8 +153,8 @@ PreparedScene prepare_scene(const SceneInputs& in) {
       in.centerlines.empty() ? in.surface.string() + " (its centerlines, computed)" : in.centerlines.string();
   std::vector<geometry::CenterlineCurve> paths;
   if (in.centerlines.empty()) {
-    const SurfaceCenterlines computed = centerlines_from_surface(surface.mesh, walls, in.surface.string());
-    paths = computed.paths;
+    SurfaceCenterlines computed = centerlines_from_surface(surface.mesh, walls, in.surface.string());
+    paths = std::move(computed.paths);
     std::string extra;
     if (computed.openings_closed > 0)
       extra += "; " + std::to_string(computed.openings_closed) + " openings closed for it";

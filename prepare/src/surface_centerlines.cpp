@@ -268,7 +268,6 @@ SurfaceCenterlines centerlines_from_surface(const geometry::TriangleMesh& surfac
     queue.pop();
     if (d > dist[static_cast<std::size_t>(at)]) continue;
     for (const int m : s.next[static_cast<std::size_t>(at)]) {
-      if (dropped[static_cast<std::size_t>(m)]) continue;
       const double via = d + (s.point[static_cast<std::size_t>(m)] - s.point[static_cast<std::size_t>(at)]).norm();
       if (via < dist[static_cast<std::size_t>(m)]) {
         dist[static_cast<std::size_t>(m)] = via, parent[static_cast<std::size_t>(m)] = at;
@@ -283,19 +282,26 @@ SurfaceCenterlines centerlines_from_surface(const geometry::TriangleMesh& surfac
   const std::size_t inlet_chain = toward_inlet.size();
   geometry::Polyline inlet_run = run_on(s, toward_inlet, walls);
   std::reverse(inlet_run.begin(), inlet_run.end());
+  const std::vector<double> inlet_run_radius = radius_from_surface(walls, inlet_run);
   const std::size_t inlet_dropped = inlet_chain - toward_inlet.size();
+  // One path per other end (the skeleton is in one piece: every end is reached).
   for (const int e : ends) {
-    if (e == inlet || parent[static_cast<std::size_t>(e)] < 0) continue;
+    if (e == inlet) continue;
     std::vector<int> path;
     for (int k = e; k >= 0; k = parent[static_cast<std::size_t>(k)]) path.push_back(k);
     std::reverse(path.begin(), path.end());
     path.erase(path.begin(), path.begin() + static_cast<std::ptrdiff_t>(std::min(inlet_dropped, path.size() - 2)));
     const geometry::Polyline outlet_run = run_on(s, path, walls);
+    const std::vector<double> outlet_run_radius = radius_from_surface(walls, outlet_run);
     geometry::CenterlineCurve curve;
     curve.points = inlet_run;
-    for (const int k : path) curve.points.push_back(s.point[static_cast<std::size_t>(k)]);
+    curve.radius_mm = inlet_run_radius;
+    for (const int k : path) {
+      curve.points.push_back(s.point[static_cast<std::size_t>(k)]);
+      curve.radius_mm.push_back(s.radius_mm[static_cast<std::size_t>(k)]);
+    }
     curve.points.insert(curve.points.end(), outlet_run.begin(), outlet_run.end());
-    curve.radius_mm = radius_from_surface(walls, curve.points);
+    curve.radius_mm.insert(curve.radius_mm.end(), outlet_run_radius.begin(), outlet_run_radius.end());
     out.paths.push_back(std::move(curve));
   }
   out.skeleton_ms = base::ms_since(t0);

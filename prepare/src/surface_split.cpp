@@ -72,11 +72,9 @@ constexpr double kSnapShareOfEdge = 0.2;
 // `mesh` with its faces that cross the plane through `c` square to the unit `t` split along
 // it, where the crossing starts at a face `starts` accepts and as far as the crossing runs
 // on from there (so every edge split is split in both its faces). New vertices lie on the
-// plane, shared by the faces round them; faces keep their winding. `inherited` carries a
-// flag per face to the pieces it is split into.
+// plane, shared by the faces round them; faces keep their winding.
 template <class Starts>
-void cut_along_plane(geometry::TriangleMesh& mesh, std::vector<char>& inherited, const Eigen::Vector3d& c,
-                     const Eigen::Vector3d& t, Starts starts) {
+void cut_along_plane(geometry::TriangleMesh& mesh, const Eigen::Vector3d& c, const Eigen::Vector3d& t, Starts starts) {
   const Eigen::Index nv = mesh.V.rows(), nf = mesh.F.rows();
   const double snap = kSnapShareOfEdge * geometry::median_edge_length(mesh);
   std::vector<double> d(static_cast<std::size_t>(nv));
@@ -140,15 +138,11 @@ void cut_along_plane(geometry::TriangleMesh& mesh, std::vector<char>& inherited,
     return it->second;
   };
   std::vector<std::array<int, 3>> faces;
-  std::vector<char> flags;
-  const auto emit = [&](Eigen::Index parent, int a, int b, int e) {
-    faces.push_back({a, b, e});
-    flags.push_back(inherited[static_cast<std::size_t>(parent)]);
-  };
+  const auto emit = [&](int a, int b, int e) { faces.push_back({a, b, e}); };
   for (Eigen::Index f = 0; f < nf; ++f) {
     std::array<int, 3> v{mesh.F(f, 0), mesh.F(f, 1), mesh.F(f, 2)};
     if (!split[static_cast<std::size_t>(f)] || !crosses(f)) {
-      emit(f, v[0], v[1], v[2]);
+      emit(v[0], v[1], v[2]);
       continue;
     }
     const auto sign = [&](int k) {
@@ -162,13 +156,13 @@ void cut_along_plane(geometry::TriangleMesh& mesh, std::vector<char>& inherited,
     std::rotate(v.begin(), v.begin() + apart, v.end());
     if (d[static_cast<std::size_t>(v[0])] == 0.0) {
       const int p = crossing(v[1], v[2]);
-      emit(f, v[0], v[1], p);
-      emit(f, v[0], p, v[2]);
+      emit(v[0], v[1], p);
+      emit(v[0], p, v[2]);
     } else {
       const int p = crossing(v[0], v[1]), q = crossing(v[0], v[2]);
-      emit(f, v[0], p, q);
-      emit(f, p, v[1], v[2]);
-      emit(f, p, v[2], q);
+      emit(v[0], p, q);
+      emit(p, v[1], v[2]);
+      emit(p, v[2], q);
     }
   }
   mesh.V.conservativeResize(nv + static_cast<Eigen::Index>(added.size()), 3);
@@ -176,7 +170,6 @@ void cut_along_plane(geometry::TriangleMesh& mesh, std::vector<char>& inherited,
   mesh.F.resize(static_cast<Eigen::Index>(faces.size()), 3);
   for (std::size_t k = 0; k < faces.size(); ++k)
     mesh.F.row(static_cast<Eigen::Index>(k)) << faces[k][0], faces[k][1], faces[k][2];
-  inherited = std::move(flags);
 }
 
 }  // namespace
@@ -231,13 +224,12 @@ SurfacePieces split_surface(const geometry::TriangleMesh& surface, const geometr
   // The surface split along both planes round each branch, so each piece's rim is the plane's
   // section, not the faces' jagged edges.
   geometry::TriangleMesh mesh = surface;
-  std::vector<char> unused(static_cast<std::size_t>(mesh.F.rows()), 0);
   for (int b = 0; b < 2; ++b) {
     const Eigen::Vector3d c = out.cut_centre[static_cast<std::size_t>(b)];
     const geometry::PolylineProjector onto_this(tree.branches[static_cast<std::size_t>(b)]);
     const geometry::PolylineProjector onto_other(tree.branches[static_cast<std::size_t>(1 - b)]);
     const double reach = 2.0 * r_cut[static_cast<std::size_t>(b)] + 2.0;
-    cut_along_plane(mesh, unused, c, out.cut_normal[static_cast<std::size_t>(b)], [&](Eigen::Index f) {
+    cut_along_plane(mesh, c, out.cut_normal[static_cast<std::size_t>(b)], [&](Eigen::Index f) {
       const Eigen::Vector3d x = (mesh.V.row(mesh.F(f, 0)) + mesh.V.row(mesh.F(f, 1)) + mesh.V.row(mesh.F(f, 2))).transpose() / 3.0;
       return (x - c).norm() <= reach && onto_this.project(x).distance_mm <= onto_other.project(x).distance_mm;
     });
