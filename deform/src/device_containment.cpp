@@ -20,7 +20,7 @@ DeviceContainment measure_device_containment(const std::vector<NamedSurface>& ve
   std::vector<std::optional<geometry::PolylineProjector>> extents(vessels.size());
   sides.reserve(vessels.size());
   for (std::size_t i = 0; i < vessels.size(); ++i) {
-    sides.emplace_back(*vessels[i].mesh);
+    sides.emplace_back(*vessels[i].mesh, vessels[i].cap_faces);
     if (vessels[i].centerline && vessels[i].centerline->size() >= 2) extents[i].emplace(*vessels[i].centerline);
   }
   const auto within_extent = [&extents](std::size_t i, const Eigen::Vector3d& p) {

@@ -63,8 +63,28 @@ std::vector<Eigen::Vector3d> smoothed_vertex_normals(const geometry::TriangleMes
 
 }  // namespace
 
+double sliver_fraction(const geometry::TriangleMesh& mesh) {
+  if (mesh.F.rows() == 0) return 0.0;
+  // An angle over 150 degrees: cos < -cos(30°). Faces of no area are no slivers (no shape).
+  const double cos_limit = -std::sqrt(3.0) / 2.0;
+  Eigen::Index slivers = 0;
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) {
+      const Eigen::Vector3d p = mesh.V.row(mesh.F(f, k)).transpose();
+      const Eigen::Vector3d u = mesh.V.row(mesh.F(f, (k + 1) % 3)).transpose() - p;
+      const Eigen::Vector3d w = mesh.V.row(mesh.F(f, (k + 2) % 3)).transpose() - p;
+      const double lengths = u.norm() * w.norm();
+      if (lengths > 0.0 && u.cross(w).norm() > 0.0 && u.dot(w) < cos_limit * lengths) {
+        ++slivers;
+        break;
+      }
+    }
+  return static_cast<double>(slivers) / static_cast<double>(mesh.F.rows());
+}
+
 bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm) {
-  return proxy_edge_mm > 0.0 && geometry::median_edge_length(mesh) < 0.75 * proxy_edge_mm;
+  return proxy_edge_mm > 0.0 &&
+         (geometry::median_edge_length(mesh) < 0.75 * proxy_edge_mm || sliver_fraction(mesh) > kSliverFractionForProxy);
 }
 
 MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {

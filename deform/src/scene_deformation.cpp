@@ -197,7 +197,8 @@ SceneDeformation deform_scene(const geometry::Scene& scene, const geometry::Poly
 SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const SceneDeformation* previous) const {
   const auto t_total = Clock::now();
   SceneDeformation out = deform_vessels(device, previous);
-  // 6. The device against the result, without the caps past the centerlines' ends.
+  // 6. The device against the result, the faces touching the mesh past its centerline's
+  // ends marked as caps.
   const auto t_containment = Clock::now();
   std::vector<geometry::TriangleMesh> walls(out.vessels.size());
   std::vector<NamedSurface> surfaces;
@@ -205,15 +206,14 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
     const auto& mesh = out.vessels[i].mesh;
     const auto& past = past_centerline_ends_[i];
     walls[i].V = mesh.V;
-    walls[i].F.resize(mesh.F.rows(), 3);
-    Eigen::Index kept = 0;
+    walls[i].F = mesh.F;
+    if (wound_inward_[i]) walls[i].F.col(1).swap(walls[i].F.col(2));
+    std::vector<char> caps(static_cast<std::size_t>(mesh.F.rows()), 0);
     for (Eigen::Index f = 0; f < mesh.F.rows(); ++f)
-      if (!past[static_cast<std::size_t>(mesh.F(f, 0))] && !past[static_cast<std::size_t>(mesh.F(f, 1))] &&
-          !past[static_cast<std::size_t>(mesh.F(f, 2))])
-        walls[i].F.row(kept++) = wound_inward_[i] ? Eigen::RowVector3i(mesh.F(f, 0), mesh.F(f, 2), mesh.F(f, 1))
-                                                  : Eigen::RowVector3i(mesh.F.row(f));
-    walls[i].F.conservativeResize(kept, 3);
-    surfaces.push_back({original_.vessels[i].name, &walls[i], &original_.vessels[i].centerline});
+      caps[static_cast<std::size_t>(f)] = past[static_cast<std::size_t>(mesh.F(f, 0))] ||
+                                          past[static_cast<std::size_t>(mesh.F(f, 1))] ||
+                                          past[static_cast<std::size_t>(mesh.F(f, 2))];
+    surfaces.push_back({original_.vessels[i].name, &walls[i], &original_.vessels[i].centerline, std::move(caps)});
   }
   out.containment = measure_device_containment(surfaces, device);
   out.containment_ms = ms_since(t_containment);

@@ -5,6 +5,9 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
+#include <utility>
 
 namespace evar::geometry {
 namespace {
@@ -13,7 +16,14 @@ int corner_of(const Faces& F, int f, int v) { return F(f, 0) == v ? 0 : (F(f, 1)
 
 }  // namespace
 
-SurfaceSide::SurfaceSide(const TriangleMesh& mesh, RayCaster::BuildQuality quality) {
+SurfaceSide::SurfaceSide(const TriangleMesh& mesh, RayCaster::BuildQuality quality)
+    : SurfaceSide(mesh, std::vector<char>{}, quality) {}
+
+SurfaceSide::SurfaceSide(const TriangleMesh& mesh, std::vector<char> cap_faces, RayCaster::BuildQuality quality)
+    : cap_faces_(std::move(cap_faces)) {
+  if (!cap_faces_.empty() && cap_faces_.size() != static_cast<std::size_t>(mesh.F.rows()))
+    throw std::invalid_argument("SurfaceSide: " + std::to_string(cap_faces_.size()) + " cap flags for " +
+                                std::to_string(mesh.F.rows()) + " faces (one per face expected)");
   if (mesh.F.rows() > 0) caster_.emplace(mesh, quality);
   const auto& V = mesh.V;
   const auto& F = mesh.F;
@@ -48,11 +58,13 @@ Eigen::Vector3d SurfaceSide::rim_out(int face, int i, int j) const {
 SurfaceSide::FeatureNormal SurfaceSide::at_edge(int face, int i, int j) const {
   FeatureNormal out;
   out.normal = face_normals_.row(face).transpose();
+  out.on_cap = is_cap(face);
   bool shared = false;
   for (int k = first_face_[static_cast<std::size_t>(i)]; k < first_face_[static_cast<std::size_t>(i) + 1]; ++k) {
     const int g = faces_of_[static_cast<std::size_t>(k)];
     if (g != face && (mesh().F(g, 0) == j || mesh().F(g, 1) == j || mesh().F(g, 2) == j)) {
       out.normal += face_normals_.row(g).transpose();
+      out.on_cap = out.on_cap || is_cap(g);
       shared = true;
     }
   }
@@ -72,6 +84,7 @@ SurfaceSide::FeatureNormal SurfaceSide::at_vertex(int v) const {
     const Eigen::Vector3d u = (V.row(a) - V.row(v)).transpose().normalized();
     const Eigen::Vector3d w = (V.row(b) - V.row(v)).transpose().normalized();
     out.normal += std::acos(std::clamp(u.dot(w), -1.0, 1.0)) * face_normals_.row(f).transpose();
+    out.on_cap = out.on_cap || is_cap(f);
     // Each of the vertex's two edges in this face on the rim when no other face around
     // the vertex holds it.
     for (const int other : {a, b}) {
@@ -110,6 +123,7 @@ SidedPoint SurfaceSide::classify(const Eigen::Vector3d& p, double expected_dista
   FeatureNormal at;
   if (zeros == 0) {
     at.normal = face_normals_.row(f).transpose();
+    at.on_cap = is_cap(f);
   } else if (zeros == 1) {
     const int k = w[0] == 0.0 ? 0 : (w[1] == 0.0 ? 1 : 2);  // the edge opposite corner k
     at = at_edge(f, mesh().F(f, (k + 1) % 3), mesh().F(f, (k + 2) % 3));
@@ -124,6 +138,7 @@ SidedPoint SurfaceSide::classify(const Eigen::Vector3d& p, double expected_dista
     out.side = through_wall > 0.0 ? Side::Outside : Side::Inside;
   else
     out.side = through_wall >= past_rim ? Side::Outside : Side::BeyondOpening;
+  if (out.side == Side::Outside && at.on_cap) out.side = Side::BeyondOpening;
   return out;
 }
 

@@ -219,20 +219,26 @@ TEST(CliScene, MarkupsCenterlinesWorkAndAStubPathGivesItsOstiumAsALandmark) {
 // scene is made (centerlines computed, the four stubs' ostia offered), deform takes it and
 // the pushed wire ends inside. Needs no shared data.
 TEST(CliScene, ASegmentationPhantomInImageAxesMakesASceneAndThePushedWireEndsInside) {
-  const evar::test::TempDir dir;
-  const auto phantom = evar::sim::make_segmentation_phantom({.frame = evar::sim::PhantomFrame::Image});
-  const auto surface = dir.path / "segmentation.stl";
-  evar::test::write_untagged_stl(surface, phantom.surface);
-  const auto out = dir.path / "scene";
-  const auto made = evarnode({"scene", "--surface", surface.string(), "--axes", "LIP", "--out", out.string()});
-  ASSERT_EQ(made.code, 0) << made.err;
-  EXPECT_NE(made.err.find("computed from the surface's mean-curvature-flow skeleton"), std::string::npos) << made.err;
-  EXPECT_NE(made.err.find("4 side-branch stubs found"), std::string::npos) << made.err;
-  const auto report = read_json(out / "scene_report.json");
-  EXPECT_EQ(report["axes"], "LIP");
-  const auto scene = evar::geometry::load_scene(out / "scene.json");
-  ASSERT_EQ(scene.vessels.size(), 3u);
-  EXPECT_EQ(scene.landmarks.size(), 4u);
-  EXPECT_TRUE(fs::exists(out / "scene.png"));
-  deform_with_pushed_wire(scene, out);
+  // At the phantom's usual CT spacing, and at a thick-slice CT's, whose marching-cubes
+  // surface has edges the paper's resolution already but slivers by the hundred.
+  for (const Eigen::Vector3d spacing : {Eigen::Vector3d(0.8, 0.8, 1.5), Eigen::Vector3d(0.9, 0.9, 2.0)}) {
+    SCOPED_TRACE("spacing " + std::to_string(spacing.z()) + " mm between slices");
+    const evar::test::TempDir dir;
+    const auto phantom =
+        evar::sim::make_segmentation_phantom({.spacing_mm = spacing, .frame = evar::sim::PhantomFrame::Image});
+    const auto surface = dir.path / "segmentation.stl";
+    evar::test::write_untagged_stl(surface, phantom.surface);
+    const auto out = dir.path / "scene";
+    const auto made = evarnode({"scene", "--surface", surface.string(), "--axes", "LIP", "--out", out.string()});
+    ASSERT_EQ(made.code, 0) << made.err;
+    EXPECT_NE(made.err.find("computed from the surface's mean-curvature-flow skeleton"), std::string::npos) << made.err;
+    EXPECT_NE(made.err.find("4 side-branch stubs found"), std::string::npos) << made.err;
+    const auto report = read_json(out / "scene_report.json");
+    EXPECT_EQ(report["axes"], "LIP");
+    const auto scene = evar::geometry::load_scene(out / "scene.json");
+    ASSERT_EQ(scene.vessels.size(), 3u);
+    EXPECT_EQ(scene.landmarks.size(), 4u);
+    EXPECT_TRUE(fs::exists(out / "scene.png"));
+    deform_with_pushed_wire(scene, out);
+  }
 }

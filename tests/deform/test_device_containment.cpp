@@ -85,3 +85,36 @@ TEST(DeviceContainment, GrazingTheWallIsInside) {
   EXPECT_FALSE(deform::leaves_device_outside(beyond));  // a tenth of a millimetre is not worth a warning
   EXPECT_THROW(deform::measure_device_containment({{"box", &box}}, {{x, 50, 10}, {x, 50, 90}}, 0.0), std::invalid_argument);
 }
+
+// A tube closed by caps where its segmentation stopped, the faces touching them marked (as
+// the deformation marks those past its centerline's ends): the lumen is inside right up to
+// the caps, a device on through a cap or out beside it there is past the vessel's end, not
+// judged, and through the wall elsewhere it is outside.
+TEST(DeviceContainment, CapsBoundTheLumenButWhatLiesPastThemIsNotJudged) {
+  const auto tube = sim::tube_mesh({{0, 0, 0}, {0, 0, 100}}, [](double) { return 8.0; }, {32, 1.0, true});
+  std::vector<char> caps(static_cast<std::size_t>(tube.F.rows()), 0);
+  for (Eigen::Index f = 0; f < tube.F.rows(); ++f)
+    for (int k = 0; k < 3; ++k) caps[static_cast<std::size_t>(f)] |= tube.V(tube.F(f, k), 2) < 0.25 || tube.V(tube.F(f, k), 2) > 99.75;
+  const auto measure = [&](const geometry::Polyline& device) {
+    return deform::measure_device_containment({{"iliac", &tube, nullptr, caps}}, device);
+  };
+  // Up to 0.1 mm short of each cap, off the axis.
+  const auto lumen = measure({{1, 0, 0.1}, {1, 0, 99.9}});
+  EXPECT_EQ(lumen.outside_length_mm, 0.0);
+  EXPECT_EQ(lumen.unjudged_length_mm, 0.0);
+  // On through the far cap for 10 mm.
+  const auto through = measure({{1, 0, 50}, {1, 0, 110}});
+  EXPECT_EQ(through.outside_length_mm, 0.0);
+  EXPECT_NEAR(through.unjudged_length_mm, 10.0, 0.5);
+  // Out beside the cap, through the marked ring of wall next to it.
+  const auto beside = measure({{0, 0, 50}, {0, 0, 99.9}, {10, 0, 99.9}});
+  EXPECT_EQ(beside.outside_length_mm, 0.0);
+  EXPECT_GT(beside.unjudged_length_mm, 1.5);
+  // Through the wall in the middle: outside, as without caps.
+  const auto wall = measure({{0, 0, 35}, {11, 0, 45}, {11, 0, 55}, {0, 0, 65}});
+  ASSERT_EQ(wall.stretches.size(), 1u);
+  EXPECT_NEAR(wall.outside_max_depth_mm, 3.0, 0.05);  // the 32-gon lies 0.04 mm inside the circle
+  // The same tube unmarked is closed: past its cap the device is outside.
+  const auto unmarked = deform::measure_device_containment({{"iliac", &tube}}, {{1, 0, 50}, {1, 0, 110}});
+  EXPECT_NEAR(unmarked.outside_length_mm, 10.0, 0.5);
+}

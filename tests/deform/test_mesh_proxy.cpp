@@ -41,10 +41,44 @@ double area(const geometry::TriangleMesh& m) {
 
 }  // namespace
 
-TEST(MeshProxy, OnlyAMeshMuchFinerThanTheProxyGetsOne) {
+// `m` with every `every`-th face split in three at a point a twentieth of the way from its
+// first edge's midpoint to its third corner: a sliver (an angle of about 170°) and two
+// fair triangles, the surface unchanged.
+geometry::TriangleMesh with_slivers(geometry::TriangleMesh m, int every) {
+  const Eigen::Index faces = m.F.rows(), vertices = m.V.rows();
+  std::vector<Eigen::RowVector3i> more;
+  std::vector<Eigen::RowVector3d> points;
+  for (Eigen::Index f = 0; f < faces; f += every) {
+    const int a = m.F(f, 0), b = m.F(f, 1), c = m.F(f, 2);
+    const Eigen::RowVector3d mid = 0.5 * (m.V.row(a) + m.V.row(b));
+    const int s = static_cast<int>(vertices + static_cast<Eigen::Index>(points.size()));
+    points.push_back(mid + 0.05 * (m.V.row(c) - mid));
+    m.F.row(f) << a, b, s;
+    more.emplace_back(b, c, s);
+    more.emplace_back(c, a, s);
+  }
+  m.V.conservativeResize(vertices + static_cast<Eigen::Index>(points.size()), 3);
+  for (std::size_t k = 0; k < points.size(); ++k) m.V.row(vertices + static_cast<Eigen::Index>(k)) = points[k];
+  m.F.conservativeResize(faces + static_cast<Eigen::Index>(more.size()), 3);
+  for (std::size_t k = 0; k < more.size(); ++k) m.F.row(faces + static_cast<Eigen::Index>(k)) = more[k];
+  return m;
+}
+
+TEST(MeshProxy, AMeshMuchFinerThanTheProxyOrOneWithSliversGetsOne) {
   EXPECT_TRUE(deform::needs_proxy(tube(0.5), 1.4));
   EXPECT_FALSE(deform::needs_proxy(tube(1.4), 1.4));   // the paper's resolution already
   EXPECT_FALSE(deform::needs_proxy(tube(0.5), 0.0));   // switched off
+  EXPECT_EQ(deform::sliver_fraction(tube(1.4)), 0.0);
+  // A hundredth of the faces split (each split makes one sliver of three faces).
+  const auto slivered = with_slivers(tube(1.4), 100);
+  EXPECT_NEAR(deform::sliver_fraction(slivered), 1.0 / 102.0, 2e-4);
+  EXPECT_TRUE(deform::needs_proxy(slivered, 1.4));
+  EXPECT_FALSE(deform::needs_proxy(slivered, 0.0));
+  // One in two thousand: a stray sliver does not.
+  EXPECT_FALSE(deform::needs_proxy(with_slivers(tube(1.4), 2000), 1.4));
+  // And the slivered tube is remeshed into one without.
+  const auto proxy = deform::make_proxy(slivered, 1.4);
+  EXPECT_EQ(deform::sliver_fraction(proxy.coarse), 0.0);
 }
 
 namespace {

@@ -2,8 +2,11 @@
 // wall and beyond their openings.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
+#include <stdexcept>
+#include <vector>
 
 #include "evar/geometry/surface_side.hpp"
 
@@ -87,4 +90,30 @@ TEST(SurfaceSide, AnOpenTubeTellsItsWallFromItsOpenings) {
   empty.V.resize(0, 3);
   empty.F.resize(0, 3);
   EXPECT_EQ(geometry::SurfaceSide(empty).classify({0, 0, 0}).side, Side::BeyondOpening);
+}
+
+// A box whose top face (z = 10) is marked as a cap: it still bounds the inside, but what
+// lies outside nearest to it (above it, or past its edges and corners) is beyond an
+// opening; beside the other faces it is outside as before.
+TEST(SurfaceSide, ACapBoundsTheInsideButWhatLiesPastItIsBeyondAnOpening) {
+  const auto box = closed_box(10.0);
+  std::vector<char> caps(static_cast<std::size_t>(box.F.rows()), 0);
+  for (Eigen::Index f = 0; f < box.F.rows(); ++f)
+    caps[static_cast<std::size_t>(f)] = box.V(box.F(f, 0), 2) == 10.0 && box.V(box.F(f, 1), 2) == 10.0 &&
+                                        box.V(box.F(f, 2), 2) == 10.0;
+  ASSERT_EQ(std::count(caps.begin(), caps.end(), 1), 2);
+  const geometry::SurfaceSide capped(box, caps);
+  EXPECT_EQ(capped.classify({5, 5, 9.9}).side, Side::Inside);   // just below the cap
+  EXPECT_EQ(capped.classify({0.1, 5, 9.8}).side, Side::Inside);  // and in its corner
+  EXPECT_EQ(capped.classify({5, 5, 10.5}).side, Side::BeyondOpening);
+  EXPECT_EQ(capped.classify({5, -1, 11}).side, Side::BeyondOpening);   // past the cap's edge
+  EXPECT_EQ(capped.classify({-1, -1, 11}).side, Side::BeyondOpening);  // and its corner
+  EXPECT_EQ(capped.classify({5, -1, 5}).side, Side::Outside);          // beside a wall
+  EXPECT_EQ(capped.classify({5, 5, -1}).side, Side::Outside);          // under the floor
+  const auto beside = capped.classify({5, -1, 5});
+  EXPECT_NEAR(beside.distance_mm, 1.0, 1e-12);
+  // Unmarked, the same box is closed everywhere.
+  EXPECT_EQ(geometry::SurfaceSide(box).classify({5, 5, 10.5}).side, Side::Outside);
+  // One flag per face, or none.
+  EXPECT_THROW(geometry::SurfaceSide(box, std::vector<char>(3, 1)), std::invalid_argument);
 }

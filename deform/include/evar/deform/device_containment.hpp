@@ -5,9 +5,9 @@
 // The device is sampled every 0.5 mm; a sample is inside when it lies inside the wall of
 // any vessel (surface_side.hpp). Otherwise the nearest surface decides: outside when it is
 // a wall, not judged when it is an opening the sample lies beyond (past the end of the
-// meshes, or in the seam between the aorta's erased stump and the iliac that replaced it),
-// where the lumen may go on. A sample outside a wall but past that vessel's centerline's
-// ends is not judged either.
+// meshes, or in the seam between the aorta's erased stump and the iliac that replaced it)
+// or a cap closing a vessel where its segmentation stopped, where the lumen may go on. A
+// sample outside a wall but past that vessel's centerline's ends is not judged either.
 #include <string>
 #include <vector>
 
@@ -48,6 +48,10 @@ struct NamedSurface {
   /// take only such device points (a device leaving past a vessel's end is in vessels the
   /// scene does not hold).
   const geometry::Polyline* centerline = nullptr;
+  /// The mesh's caps (optional): one flag per face, non-zero where the face closes the
+  /// vessel where its segmentation stopped. They bound the lumen, but a sample outside
+  /// whose nearest surface is a cap is past the vessel's end, not judged.
+  std::vector<char> cap_faces;
 };
 
 /// Measures `device` against the union of `vessels`.

@@ -28,8 +28,21 @@ struct MeshProxy {
   double largest_offset_mm = 0.0;         ///< of any fine vertex from the proxy surface
 };
 
+/// The share of a mesh's faces that are slivers: an angle over 150 degrees, where the
+/// cotangent weight of the opposite edge is below −√3 and ARAP's membrane energy loses its
+/// hold on the face's shape (it can be turned over by a deformation that bends its
+/// neighbours only a little). Marching cubes leaves them by the hundreds (0.5-2 % of the
+/// faces on the segmentation phantom, 1.7 % on VMTK's surface); the simulator's meshes have
+/// none.
+double sliver_fraction(const geometry::TriangleMesh& mesh);
+
+/// More slivers than this share of the faces: the mesh is solved on a proxy whatever its
+/// edge length (one in a thousand lets a stray sliver from an export's rounding pass).
+inline constexpr double kSliverFractionForProxy = 1e-3;
+
 /// Whether a mesh is solved on a proxy with edges of about `proxy_edge_mm`: when its
-/// median edge is under 3/4 of that (never when `proxy_edge_mm` is 0).
+/// median edge is under 3/4 of that, or it carries slivers (above); never when
+/// `proxy_edge_mm` is 0.
 bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm);
 
 /// Isotropic remeshing of the fine surface (Botsch & Kobbelt 2004) to near-equilateral

@@ -8,7 +8,9 @@
 // out of the opening, m, the direction in the wall away from it, across the rim), p is
 // beside the wall, outside, only when it is more out through the wall (along n) than out
 // past the rim (along m); otherwise it is beyond the opening, where the surface cannot
-// tell.
+// tell. Caps (faces that close a model where its segmentation stopped) may be marked: they
+// count for inside, so the side is exact right up to them, but a point outside whose
+// closest feature touches one is beyond an opening, as it would be with the cap cut away.
 #include <Eigen/Core>
 #include <limits>
 #include <optional>
@@ -32,6 +34,9 @@ class SurfaceSide {
   /// Faces must wind consistently with outward normals (as every vessel mesh of a scene
   /// does; scene loading checks it). Vertices no face uses are ignored.
   explicit SurfaceSide(const TriangleMesh& mesh, RayCaster::BuildQuality quality = RayCaster::BuildQuality::Low);
+  /// `cap_faces`: one flag per face, non-zero for a cap (none marked when empty).
+  SurfaceSide(const TriangleMesh& mesh, std::vector<char> cap_faces,
+              RayCaster::BuildQuality quality = RayCaster::BuildQuality::Low);
 
   /// The side of `p` (BeyondOpening, infinitely far, for a mesh without faces).
   /// `expected_distance_mm`: a bound the closest point is likely within (e.g. the previous
@@ -41,11 +46,12 @@ class SurfaceSide {
                       double expected_distance_mm = std::numeric_limits<double>::infinity()) const;
 
  private:
-  // The pseudonormal at a feature, and for one on a rim the direction m out past it
-  // (zero elsewhere).
+  // The pseudonormal at a feature, for one on a rim the direction m out past it (zero
+  // elsewhere), and whether a cap face holds it.
   struct FeatureNormal {
     Eigen::Vector3d normal = Eigen::Vector3d::Zero();
     Eigen::Vector3d rim_out = Eigen::Vector3d::Zero();
+    bool on_cap = false;
   };
   FeatureNormal at_edge(int face, int i, int j) const;
   FeatureNormal at_vertex(int v) const;
@@ -58,6 +64,9 @@ class SurfaceSide {
   Eigen::Matrix<double, Eigen::Dynamic, 3, Eigen::RowMajor> face_normals_;  // unit (zero for a sliver)
   // The faces around each vertex: faces_of_[first_face_[v] .. first_face_[v + 1]).
   std::vector<int> first_face_, faces_of_;
+  std::vector<char> cap_faces_;  // empty, or one flag per face
+
+  bool is_cap(int face) const { return !cap_faces_.empty() && cap_faces_[static_cast<std::size_t>(face)] != 0; }
 };
 
 }  // namespace evar::geometry
