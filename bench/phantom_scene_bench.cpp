@@ -9,6 +9,7 @@
 #include <memory>
 
 #include "bulged_wire.hpp"
+#include "proxy_files.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/ray_caster.hpp"
@@ -29,6 +30,7 @@ const evar::sim::SegmentationPhantomOptions kOptions{
 struct PhantomScene {
   evar::sim::SegmentationPhantom phantom;
   evar::geometry::Scene scene;
+  evar::geometry::Scene scene_with_proxy_files;  ///< as `evarnode scene` leaves it
   evar::geometry::Polyline wire;
 };
 
@@ -44,6 +46,7 @@ const PhantomScene& phantom_scene() {
     const auto prepared = evar::prepare::prepare_scene({out / "surface.ply", {}, {}, ""});
     s->scene = evar::geometry::load_scene(evar::prepare::write_prepared_scene(prepared, out / "scene", 0.89));
     s->wire = evar::bench::bulged_wire(s->scene);
+    s->scene_with_proxy_files = evar::bench::with_proxy_files(s->scene, out / "scene");
     return s;
   }();
   return *made;
@@ -78,6 +81,16 @@ void BM_PhantomSceneSolver(benchmark::State& state) {
   state.counters["proxies_refused"] = refused;
 }
 BENCHMARK(BM_PhantomSceneSolver)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// The same with the proxies read from the files `evarnode scene` keeps beside the meshes.
+void BM_PhantomSceneSolverFromProxyFiles(benchmark::State& state) {
+  const auto& s = phantom_scene();
+  for (auto _ : state) {
+    const evar::deform::SceneDeformer deformer(s.scene_with_proxy_files);
+    benchmark::DoNotOptimize(deformer.precompute_ms());
+  }
+}
+BENCHMARK(BM_PhantomSceneSolverFromProxyFiles)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 // Each later deformation of the prepared scene by the wire (containment check included).
 void BM_PhantomDeform(benchmark::State& state) {

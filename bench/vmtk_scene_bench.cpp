@@ -10,6 +10,7 @@
 #include <optional>
 
 #include "bulged_wire.hpp"
+#include "proxy_files.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/scene.hpp"
 #include "evar/prepare/scene_preparation.hpp"
@@ -29,6 +30,7 @@ std::optional<fs::path> vmtk_dir() {
 // the right iliac.
 struct VmtkScene {
   evar::geometry::Scene scene;
+  evar::geometry::Scene scene_with_proxy_files;  ///< as `evarnode scene` leaves it
   evar::geometry::Polyline wire;
 };
 
@@ -43,6 +45,7 @@ const VmtkScene* vmtk_scene() {
     auto s = std::make_unique<VmtkScene>();
     s->scene = evar::geometry::load_scene(evar::prepare::write_prepared_scene(prepared, out, 0.89));
     s->wire = evar::bench::bulged_wire(s->scene);
+    s->scene_with_proxy_files = evar::bench::with_proxy_files(s->scene, out);
     return s;
   }();
   return made.get();
@@ -61,6 +64,20 @@ void BM_VmtkSceneSolver(benchmark::State& state) {
   }
 }
 BENCHMARK(BM_VmtkSceneSolver)->Unit(benchmark::kMillisecond)->MinTime(2.0);
+
+// The same with the proxies read from the files `evarnode scene` keeps beside the meshes.
+void BM_VmtkSceneSolverFromProxyFiles(benchmark::State& state) {
+  const VmtkScene* s = vmtk_scene();
+  if (!s) {
+    state.SkipWithError("../shared/data/vmtk-aorta is absent (set EVAR_SHARED_DATA)");
+    return;
+  }
+  for (auto _ : state) {
+    const evar::deform::SceneDeformer deformer(s->scene_with_proxy_files);
+    benchmark::DoNotOptimize(deformer.precompute_ms());
+  }
+}
+BENCHMARK(BM_VmtkSceneSolverFromProxyFiles)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 // Each later deformation of the prepared scene by the wire (containment check included).
 void BM_VmtkDeform(benchmark::State& state) {

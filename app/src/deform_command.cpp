@@ -1,4 +1,5 @@
 // `evarnode deform`: the deformation stage on files.
+#include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
 
@@ -26,6 +27,8 @@ nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& out
           {"faces", r.faces},
           {"proxy_vertices", r.proxy_vertices},
           {"proxy_refused", r.proxy_refused},
+          {"proxy_file", r.proxy_file},
+          {"proxy_file_unused", r.proxy_file_unused},
           {"device_points", r.device_points},
           {"control_points", r.control_points},
           {"bound_vertices", r.bound_vertices},
@@ -141,7 +144,12 @@ int run_deform(const DeformCommand& cmd) {
                r.max_displacement_mm, r.timings.total_ms,
                r.erased_faces > 0 ? fmt::format(", {} faces erased", r.erased_faces) : "");
     if (r.proxy_vertices > 0)
-      node::log().info("{:<12} solved on a proxy of {} vertices (its {} follow it)", r.name, r.proxy_vertices, r.vertices);
+      node::log().info("{:<12} solved on a proxy of {} vertices (its {} follow it){}", r.name, r.proxy_vertices, r.vertices,
+                       r.proxy_file.empty() ? "" : ", read from " + std::filesystem::path(r.proxy_file).filename().string());
+    if (!r.proxy_file_unused.empty())
+      node::log().warn("{}: the scene's proxy file was not used, the proxy was made anew (seconds on a large mesh; "
+                       "run `evarnode scene` again to keep a fresh one): {}",
+                       r.name, r.proxy_file_unused);
     if (!r.proxy_refused.empty())
       node::log().warn("{}: solved on its own {} vertices, slower and less even than on a proxy: {}", r.name, r.vertices,
                  r.proxy_refused);

@@ -2,9 +2,12 @@
 // checked by loading it as `deform` does, with a picture and a report.
 #include <fmt/format.h>
 
+#include <fstream>
+
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "evar/deform/mesh_proxy_file.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/polyline.hpp"
 #include "evar/geometry/scene.hpp"
@@ -41,6 +44,25 @@ void write_scene_picture(const std::filesystem::path& png, const prepare::Prepar
   overlay::write_comparison_png(png, picture);
 }
 
+// The proxies the solver made, kept beside their meshes and named in scene.json, so deform
+// and run read them instead of remeshing at every load. Returns how many.
+int keep_proxies(const std::filesystem::path& json, const geometry::Scene& scene, const deform::SceneDeformer& deformer,
+                 double edge_mm) {
+  std::ifstream in(json);
+  auto manifest = nlohmann::ordered_json::parse(in);
+  int kept = 0;
+  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+    const deform::MeshProxy* proxy = deformer.proxy(i);
+    if (!proxy) continue;
+    const std::string name = scene.vessels[i].mesh_path.stem().string() + ".proxy";
+    deform::write_mesh_proxy(json.parent_path() / name, *proxy, scene.vessels[i].mesh.mesh, edge_mm);
+    manifest["vessels"][i]["proxy"] = name;
+    ++kept;
+  }
+  if (kept > 0) write_text(json, manifest.dump(2) + '\n');
+  return kept;
+}
+
 }  // namespace
 
 int run_scene(const SceneCommand& cmd) {
@@ -55,7 +77,9 @@ int run_scene(const SceneCommand& cmd) {
 
   // What deform and run will do with it: load it and make its solver (every scene check).
   const geometry::Scene loaded = geometry::load_scene(json);
-  const deform::SceneDeformer deformer(loaded);
+  const deform::DeformOptions defaults;
+  const deform::SceneDeformer deformer(loaded, defaults);
+  const int proxies = keep_proxies(json, loaded, deformer, defaults.proxy_edge_mm);
   nlohmann::json report = {{"format", "evarnode-scene-report"},
                            {"version", 1},
                            {"surface", cmd.surface.string()},
@@ -68,7 +92,8 @@ int run_scene(const SceneCommand& cmd) {
                            {"vessels", nlohmann::json::array()},
                            {"landmarks", scene.landmarks.size()},
                            {"prepare_ms", scene.prepare_ms},
-                           {"solver_ms", deformer.precompute_ms()}};
+                           {"solver_ms", deformer.precompute_ms()},
+                           {"proxy_files", proxies}};
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
     const auto& v = scene.vessels[i];
     report["vessels"].push_back({{"name", v.name},
@@ -83,9 +108,10 @@ int run_scene(const SceneCommand& cmd) {
   }
   write_json(cmd.out / "scene_report.json", report);
   if (cmd.picture) write_scene_picture(cmd.out / "scene.png", scene, "evarnode scene: " + cmd.surface.filename().string());
-  node::log().info("wrote {} ({} vessels, {} landmarks){}; deform takes it (its solver made in {:.0f} ms)", json.string(),
+  node::log().info("wrote {} ({} vessels, {} landmarks){}{}; deform takes it (its solver made in {:.0f} ms{})", json.string(),
                    scene.vessels.size(), scene.landmarks.size(), cmd.picture ? ", scene.png" : "",
-                   deformer.precompute_ms());
+                   proxies > 0 ? fmt::format(", {} proxy file(s)", proxies) : "", deformer.precompute_ms(),
+                   proxies > 0 ? fmt::format(", {:.0f} of them making the proxies, which deform now reads", deformer.proxy_ms()) : "");
   return 0;
 }
 

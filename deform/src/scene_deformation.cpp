@@ -13,6 +13,7 @@
 #include <stdexcept>
 
 #include "evar/deform/landmark_binding.hpp"
+#include "evar/deform/mesh_proxy_file.hpp"
 #include "evar/deform/registration_tether.hpp"
 #include "evar/base/elapsed.hpp"
 #include "evar/geometry/closest_point.hpp"
@@ -58,22 +59,36 @@ void check_device(const geometry::Polyline& device) {
                                " long; at most 10000 mm is plausible (a stray control point?)");
 }
 
-// The scene with a proxy in place of every mesh that needs one (null when none does); a
-// mesh whose proxy cannot be made is solved as it is.
+// The scene with a proxy in place of every mesh that needs one (null when none does): read
+// from the scene's proxy file where it names a usable one, made otherwise; a mesh whose
+// proxy cannot be made is solved as it is.
 std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double edge_mm,
                                          std::vector<std::optional<MeshProxy>>& proxies,
-                                         std::vector<std::string>& refusals, double& ms) {
+                                         std::vector<std::string>& refusals,
+                                         std::vector<SceneDeformer::ProxyOrigin>& origins, double& ms) {
   const auto t0 = Clock::now();
   proxies.assign(scene.vessels.size(), std::nullopt);
   refusals.assign(scene.vessels.size(), std::string());
+  origins.assign(scene.vessels.size(), {});
   std::unique_ptr<geometry::Scene> working;
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
-    if (!needs_proxy(scene.vessels[i].mesh.mesh, edge_mm)) continue;
-    try {
-      proxies[i] = make_proxy(scene.vessels[i].mesh.mesh, edge_mm);
-    } catch (const std::runtime_error& e) {
-      refusals[i] = e.what();
-      continue;
+    const auto& vessel = scene.vessels[i];
+    if (!needs_proxy(vessel.mesh.mesh, edge_mm)) continue;
+    if (!vessel.proxy_path.empty()) {
+      try {
+        proxies[i] = read_mesh_proxy(vessel.proxy_path, vessel.mesh.mesh, edge_mm);
+        origins[i].file = vessel.proxy_path.string();
+      } catch (const std::runtime_error& e) {
+        origins[i].unused = e.what();
+      }
+    }
+    if (!proxies[i]) {
+      try {
+        proxies[i] = make_proxy(vessel.mesh.mesh, edge_mm);
+      } catch (const std::runtime_error& e) {
+        refusals[i] = e.what();
+        continue;
+      }
     }
     if (!working) working = std::make_unique<geometry::Scene>(scene);
     working->vessels[i].mesh.mesh = proxies[i]->coarse;
@@ -87,7 +102,7 @@ std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double ed
 SceneDeformer::SceneDeformer(const geometry::Scene& original, DeformOptions options)
     : original_(original),
       options_(std::move(options)),
-      working_(proxied(original, options_.proxy_edge_mm, proxies_, proxy_refusals_, proxy_ms_)),
+      working_(proxied(original, options_.proxy_edge_mm, proxies_, proxy_refusals_, proxy_origins_, proxy_ms_)),
       scene_(working_ ? *working_ : original) {
   const auto t0 = Clock::now();
   const geometry::Scene& scene = scene_;
@@ -224,7 +239,10 @@ SceneDeformation SceneDeformer::deform(const geometry::Polyline& device, const S
 SceneDeformation SceneDeformer::deform_vessels(const geometry::Polyline& device, const SceneDeformation* previous) const {
   if (!working_) {
     SceneDeformation out = solve(device, previous);
-    for (std::size_t i = 0; i < out.reports.size(); ++i) out.reports[i].proxy_refused = proxy_refusals_[i];
+    for (std::size_t i = 0; i < out.reports.size(); ++i) {
+      out.reports[i].proxy_refused = proxy_refusals_[i];
+      out.reports[i].proxy_file_unused = proxy_origins_[i].unused;
+    }
     return out;
   }
   const auto t_total = Clock::now();
@@ -246,6 +264,8 @@ SceneDeformation SceneDeformer::deform_vessels(const geometry::Polyline& device,
   out.proxy_solutions.resize(out.vessels.size());
   for (std::size_t i = 0; i < out.vessels.size(); ++i) {
     out.reports[i].proxy_refused = proxy_refusals_[i];
+    out.reports[i].proxy_file = proxy_origins_[i].file;
+    out.reports[i].proxy_file_unused = proxy_origins_[i].unused;
     if (!proxies_[i]) continue;
     const MeshProxy& proxy = *proxies_[i];
     const geometry::TriangleMesh& fine = original_.vessels[i].mesh.mesh;

@@ -155,6 +155,7 @@ Scene load_scene(const std::filesystem::path& scene_json) {
     if (v.contains("mesh_coordinate_system") && !v.at("mesh_coordinate_system").is_null())
       vessel.declared_mesh_space = parse_space(file, string_field(file, v, "mesh_coordinate_system", field + ".mesh_coordinate_system"),
                                                field + ".mesh_coordinate_system");
+    if (v.contains("proxy") && !v.at("proxy").is_null()) vessel.proxy_path = dir / string_field(file, v, "proxy", field + ".proxy");
     scene.vessels.push_back(std::move(vessel));
   }
   if (aortas == 0) bad(file, "vessels", "no vessel of kind \"aorta\"; the scene needs exactly one");
@@ -222,6 +223,7 @@ void write_scene_manifest(const std::filesystem::path& scene_json, const SceneMa
       invalid("vessel \"" + v.name + "\" has mesh_coordinate_system \"" + v.mesh_coordinate_system + "\"");
     ordered entry = {{"name", v.name}, {"kind", v.kind}, {"mesh", v.mesh}, {"centerline", v.centerline}};
     if (!v.mesh_coordinate_system.empty()) entry["mesh_coordinate_system"] = v.mesh_coordinate_system;
+    if (!v.proxy.empty()) entry["proxy"] = v.proxy;
     vessels.push_back(std::move(entry));
   }
   if (aortas != 1) invalid("exactly one vessel must be of kind \"aorta\"");
@@ -268,6 +270,8 @@ std::filesystem::path copy_scene(const Scene& scene, const std::filesystem::path
     m.vessels.push_back({v.name, to_string(v.kind), copy(v.mesh_path, stem + v.mesh_path.extension().string()),
                          copy(v.centerline_path, std::string(stem).append(".centerline").append(markup_suffix(v.centerline_path))),
                          v.declared_mesh_space == MeshSpace::Undeclared ? std::string() : space_name(v.declared_mesh_space)});
+    // The proxy goes along when there is one (it is only a cache: a missing one is made anew).
+    if (!v.proxy_path.empty() && fs::exists(v.proxy_path)) m.vessels.back().proxy = copy(v.proxy_path, stem + ".proxy");
   }
   if (!scene.landmarks_path.empty()) m.landmarks = copy(scene.landmarks_path, std::string("landmarks").append(markup_suffix(scene.landmarks_path)));
   const fs::path json = directory / "scene.json";

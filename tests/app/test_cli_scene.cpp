@@ -76,6 +76,13 @@ void deform_with_pushed_wire(const evar::geometry::Scene& scene, const fs::path&
   EXPECT_EQ(result["device_iliac"], "iliac_right");
   EXPECT_LT(result["device_outside_max_depth_mm"].get<double>(), 0.5);
   double moved = 0.0;
+  for (const auto& v : result["vessels"]) {
+    // Every proxy read from the file `scene` kept, none made anew.
+    if (v["proxy_vertices"].get<int>() > 0) {
+      EXPECT_NE(v["proxy_file"], "") << v["name"];
+      EXPECT_EQ(v["proxy_file_unused"], "") << v["name"];
+    }
+  }
   for (const auto& v : result["vessels"])
     if (v["name"] == "iliac_right") {
       moved = v["max_displacement_mm"].get<double>();
@@ -221,7 +228,7 @@ TEST(CliScene, MarkupsCenterlinesWorkAndAStubPathGivesItsOstiumAsALandmark) {
 TEST(CliScene, ASegmentationPhantomInImageAxesMakesASceneAndThePushedWireEndsInside) {
   // At the phantom's usual CT spacing, and at a thick-slice CT's, whose marching-cubes
   // surface has edges the paper's resolution already but slivers by the hundred.
-  for (const Eigen::Vector3d spacing : {Eigen::Vector3d(0.8, 0.8, 1.5), Eigen::Vector3d(0.9, 0.9, 2.0)}) {
+  for (const Eigen::Vector3d& spacing : {Eigen::Vector3d(0.8, 0.8, 1.5), Eigen::Vector3d(0.9, 0.9, 2.0)}) {
     SCOPED_TRACE("spacing " + std::to_string(spacing.z()) + " mm between slices");
     const evar::test::TempDir dir;
     const auto phantom =
@@ -239,6 +246,19 @@ TEST(CliScene, ASegmentationPhantomInImageAxesMakesASceneAndThePushedWireEndsIns
     ASSERT_EQ(scene.vessels.size(), 3u);
     EXPECT_EQ(scene.landmarks.size(), 4u);
     EXPECT_TRUE(fs::exists(out / "scene.png"));
+    EXPECT_EQ(report["proxy_files"], 3);
+    for (const auto& v : scene.vessels) EXPECT_TRUE(fs::exists(v.proxy_path)) << v.name;
     deform_with_pushed_wire(scene, out);
+    if (spacing.z() != 1.5) continue;
+    // A proxy file that is not the mesh's (here the left iliac's for the right): not used,
+    // made anew, said so with the fix; the result stands.
+    fs::copy_file(scene.vessels[2].proxy_path, scene.vessels[1].proxy_path, fs::copy_options::overwrite_existing);
+    const auto stale = evarnode({"deform", "--scene", (out / "scene.json").string(), "--device", (out / "wire.mrk.json").string(),
+                                 "--out", (dir.path / "stale").string(), "--strict", "--no-preview"});
+    EXPECT_EQ(stale.code, 0) << stale.err;
+    EXPECT_NE(stale.err.find("iliac_right: the scene's proxy file was not used, the proxy was made anew"), std::string::npos)
+        << stale.err;
+    EXPECT_NE(stale.err.find("run `evarnode scene` again"), std::string::npos);
+    EXPECT_NE(stale.err.find("made for another mesh"), std::string::npos);
   }
 }

@@ -275,8 +275,15 @@ TEST(CopyScene, CarriesEveryFileUnderUniqueNamesAndNeverOverwrites) {
   write_markups(file.parent_path() / "other" / "iliac_r.centerline.mrk.json", {curve(30)});
   j["vessels"][2]["mesh"] = "other/iliac_r.ply";
   j["vessels"][2]["centerline"] = "other/iliac_r.centerline.mrk.json";
+  // A proxy file (deform's cache; its bytes are not read here) goes along; one named but
+  // missing is dropped (deform makes the proxy anew).
+  std::ofstream(file.parent_path() / "aorta.proxy") << "proxy bytes";
+  j["vessels"][0]["proxy"] = "aorta.proxy";
+  j["vessels"][1]["proxy"] = "gone.proxy";
   write_json(file, j);
   const Scene original = load_scene(file);
+  EXPECT_EQ(original.vessels[0].proxy_path, file.parent_path() / "aorta.proxy");
+  EXPECT_TRUE(original.vessels[2].proxy_path.empty());
 
   const fs::path copy = copy_scene(original, dir / "copy");
   const Scene back = load_scene(copy);
@@ -289,6 +296,10 @@ TEST(CopyScene, CarriesEveryFileUnderUniqueNamesAndNeverOverwrites) {
   }
   EXPECT_EQ(back.landmarks.size(), original.landmarks.size());
   EXPECT_DOUBLE_EQ(back.device_thickness_mm, original.device_thickness_mm);
+  ASSERT_FALSE(back.vessels[0].proxy_path.empty());
+  EXPECT_EQ(back.vessels[0].proxy_path.parent_path(), dir / "copy");
+  EXPECT_TRUE(fs::exists(back.vessels[0].proxy_path));
+  EXPECT_TRUE(back.vessels[1].proxy_path.empty());
   // A second copy into the same place would overwrite: refused.
   EXPECT_THROW(copy_scene(original, dir / "copy"), fs::filesystem_error);
 }

@@ -78,6 +78,8 @@ struct VesselReport {
   int vertices = 0, faces = 0;
   int proxy_vertices = 0;        ///< the proxy it was solved on (0: solved on its own mesh)
   std::string proxy_refused;     ///< why a mesh fine enough for a proxy is solved as it is ("" otherwise)
+  std::string proxy_file;        ///< the scene's proxy file it was read from ("" when made here, or none)
+  std::string proxy_file_unused; ///< why the scene's proxy file was not used, the proxy made anew ("" otherwise)
   int device_points = 0;         ///< device samples that lie within this vessel's reach
   int control_points = 0;        ///< handles from the device
   int bound_vertices = 0;        ///< iliac top vertices bound to the aorta
@@ -145,7 +147,8 @@ class SceneDeformer {
   /// stopping rule's distance to it.
   SceneDeformation deform(const geometry::Polyline& device, const SceneDeformation* previous = nullptr) const;
   double precompute_ms() const { return precompute_ms_; }
-  /// Of precompute_ms: making the proxies of fine meshes.
+  /// Of precompute_ms: making the proxies of fine meshes (or reading them from the scene's
+  /// proxy files).
   double proxy_ms() const { return proxy_ms_; }
   /// The scene it deforms (as given, fine meshes).
   const geometry::Scene& scene() const { return original_; }
@@ -156,6 +159,12 @@ class SceneDeformer {
   const MeshProxy* proxy(std::size_t vessel) const { return proxies_[vessel] ? &*proxies_[vessel] : nullptr; }
   /// Why vessel i needed a proxy and has none ("" when it has one or needs none).
   const std::string& proxy_refused(std::size_t vessel) const { return proxy_refusals_[vessel]; }
+  /// Where vessel i's proxy came from: the scene's proxy file when it was read from there,
+  /// and why a proxy file the scene names was not used (each "" otherwise).
+  struct ProxyOrigin {
+    std::string file, unused;
+  };
+  const ProxyOrigin& proxy_origin(std::size_t vessel) const { return proxy_origins_[vessel]; }
 
   struct VesselModel;  ///< opaque per-vessel precomputation
 
@@ -169,6 +178,7 @@ class SceneDeformer {
   DeformOptions options_;
   std::vector<std::optional<MeshProxy>> proxies_;  ///< per vessel
   std::vector<std::string> proxy_refusals_;        ///< per vessel, see proxy_refused()
+  std::vector<ProxyOrigin> proxy_origins_;         ///< per vessel, see proxy_origin()
   double proxy_ms_ = 0.0;                          ///< making them (part of precompute_ms_)
   std::unique_ptr<geometry::Scene> working_;       ///< the scene with the proxies (null: none)
   const geometry::Scene& scene_;                   ///< *working_ or original_

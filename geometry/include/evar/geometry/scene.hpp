@@ -20,6 +20,10 @@ struct Vessel {
   VesselKind kind = VesselKind::Aorta;
   std::filesystem::path mesh_path;        ///< resolved (absolute or relative to cwd)
   std::filesystem::path centerline_path;  ///< resolved
+  /// scene.json's optional "proxy": deform's proxy for this mesh kept beside it
+  /// (evarnode scene writes it; deform/mesh_proxy_file.hpp), resolved; empty when none.
+  /// A cache: deform makes the proxy anew, and says so, when it is missing or stale.
+  std::filesystem::path proxy_path;
   LoadedMesh mesh;                        ///< validated, in LPS
   /// scene.json's "mesh_coordinate_system" for a mesh file that declares none (3D Slicer
   /// before 4.11 saved RAS without saying so); Undeclared when the field is absent.
@@ -54,6 +58,7 @@ struct SceneManifest {
           mesh_coordinate_system(std::move(mesh_coordinate_system_)) {}
     std::string name, kind, mesh, centerline;
     std::string mesh_coordinate_system;  ///< "LPS", "RAS", or empty: not written
+    std::string proxy;                   ///< the proxy file, or empty: not written
   };
   std::vector<Entry> vessels;
   std::string landmarks;  ///< may be empty
