@@ -16,13 +16,16 @@ DeviceContainment measure_device_containment(const std::vector<NamedSurface>& ve
   if (!(sample_step_mm > 0.0)) throw std::invalid_argument("device containment: the sample step must be > 0");
   DeviceContainment out;
   if (device.size() < 2) return out;
-  std::vector<geometry::SurfaceSide> sides;
+  // Each vessel's surface is built when a sample first asks it (a vessel the device never
+  // comes near, the other iliac, costs nothing).
+  std::vector<std::optional<geometry::SurfaceSide>> sides(vessels.size());
+  const auto side = [&](std::size_t i) -> const geometry::SurfaceSide& {
+    if (!sides[i]) sides[i].emplace(*vessels[i].mesh, vessels[i].cap_faces);
+    return *sides[i];
+  };
   std::vector<std::optional<geometry::PolylineProjector>> extents(vessels.size());
-  sides.reserve(vessels.size());
-  for (std::size_t i = 0; i < vessels.size(); ++i) {
-    sides.emplace_back(*vessels[i].mesh, vessels[i].cap_faces);
+  for (std::size_t i = 0; i < vessels.size(); ++i)
     if (vessels[i].centerline && vessels[i].centerline->size() >= 2) extents[i].emplace(*vessels[i].centerline);
-  }
   const auto within_extent = [&extents](std::size_t i, const Eigen::Vector3d& p) {
     if (!extents[i]) return true;
     const auto at = extents[i]->project(p);
@@ -41,23 +44,34 @@ DeviceContainment measure_device_containment(const std::vector<NamedSurface>& ve
   // Per vessel, the last distance found to it and where: the next sample's is within
   // that plus the step, which bounds its search. The vessel a sample was inside is asked
   // first for the next one.
-  std::vector<double> last_distance(sides.size(), std::numeric_limits<double>::infinity());
-  std::vector<Eigen::Vector3d> last_point(sides.size(), Eigen::Vector3d::Zero());
-  std::vector<std::size_t> order(sides.size());
+  std::vector<double> last_distance(vessels.size(), std::numeric_limits<double>::infinity());
+  std::vector<Eigen::Vector3d> last_point(vessels.size(), Eigen::Vector3d::Zero());
+  std::vector<std::size_t> order(vessels.size());
   for (std::size_t i = 0; i < order.size(); ++i) order[i] = i;
+  // The last sample found inside a vessel and a ball round it that holds none of that
+  // vessel's wall and reaches none of its openings: a sample within it is inside too, without
+  // asking (SurfaceSide::inside_ball_radius_mm).
+  Eigen::Vector3d ball_centre = Eigen::Vector3d::Zero();
+  double ball_radius = 0.0;
   for (std::size_t k = 0; k < samples.size(); ++k) {
     if (k > 0) s[k].arc_mm = s[k - 1].arc_mm + (samples[k] - samples[k - 1]).norm();
+    if ((samples[k] - ball_centre).norm() < ball_radius) {
+      s[k].state = State::Inside;
+      continue;
+    }
     bool any_inside = false;
     double depth = std::numeric_limits<double>::infinity();    // to the nearest wall it is outside of
     double opening = std::numeric_limits<double>::infinity();  // to the nearest opening it lies beyond
     for (std::size_t n = 0; n < order.size() && !any_inside; ++n) {
       const std::size_t i = order[n];
       const double bound = last_distance[i] + (samples[k] - last_point[i]).norm() + 1e-6;
-      const auto at = sides[i].classify(samples[k], bound);
+      const auto at = side(i).classify(samples[k], bound);
       last_distance[i] = at.distance_mm;
       last_point[i] = samples[k];
       if (at.side == geometry::Side::Inside || (at.side == geometry::Side::Outside && at.distance_mm <= kOutsideToleranceMm)) {
         any_inside = true;
+        ball_centre = samples[k];
+        ball_radius = at.side == geometry::Side::Inside ? side(i).inside_ball_radius_mm(samples[k], at.distance_mm) : 0.0;
         std::rotate(order.begin(), order.begin() + static_cast<std::ptrdiff_t>(n), order.begin() + static_cast<std::ptrdiff_t>(n) + 1);
       } else if (at.side == geometry::Side::BeyondOpening) {
         opening = std::min(opening, at.distance_mm);

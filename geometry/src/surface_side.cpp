@@ -1,5 +1,6 @@
 #include "evar/geometry/surface_side.hpp"
 
+#include <Eigen/Eigenvalues>
 #include <Eigen/Geometry>
 
 #include <algorithm>
@@ -43,6 +44,53 @@ SurfaceSide::SurfaceSide(const TriangleMesh& mesh, std::vector<char> cap_faces, 
   std::vector<int> fill(first_face_.begin(), first_face_.end() - 1);
   for (Eigen::Index f = 0; f < nf; ++f)
     for (int k = 0; k < 3; ++k) faces_of_[static_cast<std::size_t>(fill[static_cast<std::size_t>(F(f, k))]++)] = static_cast<int>(f);
+
+  // The openings: boundary edges (held by one face) joined into loops by their vertices.
+  std::vector<std::vector<int>> rim_next(static_cast<std::size_t>(V.rows()));
+  for (Eigen::Index f = 0; f < nf; ++f)
+    for (int k = 0; k < 3; ++k) {
+      const int a = F(f, k), b = F(f, (k + 1) % 3);
+      bool shared = false;
+      for (int l = first_face_[static_cast<std::size_t>(a)]; l < first_face_[static_cast<std::size_t>(a) + 1] && !shared; ++l) {
+        const int g = faces_of_[static_cast<std::size_t>(l)];
+        shared = g != f && (F(g, 0) == b || F(g, 1) == b || F(g, 2) == b);
+      }
+      if (!shared) rim_next[static_cast<std::size_t>(a)].push_back(b), rim_next[static_cast<std::size_t>(b)].push_back(a);
+    }
+  std::vector<char> seen(rim_next.size(), 0);
+  for (std::size_t start = 0; start < rim_next.size(); ++start) {
+    if (rim_next[start].empty() || seen[start]) continue;
+    std::vector<int> loop{static_cast<int>(start)};
+    seen[start] = 1;
+    for (std::size_t k = 0; k < loop.size(); ++k)
+      for (const int w : rim_next[static_cast<std::size_t>(loop[k])])
+        if (!seen[static_cast<std::size_t>(w)]) seen[static_cast<std::size_t>(w)] = 1, loop.push_back(w);
+    Opening o;
+    for (const int v : loop) o.centre += V.row(v).transpose();
+    o.centre /= static_cast<double>(loop.size());
+    Eigen::Matrix3d scatter = Eigen::Matrix3d::Zero();
+    for (const int v : loop) {
+      const Eigen::Vector3d d = V.row(v).transpose() - o.centre;
+      scatter += d * d.transpose();
+    }
+    o.normal = Eigen::SelfAdjointEigenSolver<Eigen::Matrix3d>(scatter).eigenvectors().col(0);
+    for (const int v : loop) {
+      const Eigen::Vector3d d = V.row(v).transpose() - o.centre;
+      o.radius_mm = std::max(o.radius_mm, d.norm());
+      o.half_thickness_mm = std::max(o.half_thickness_mm, std::abs(d.dot(o.normal)));
+    }
+    openings_.push_back(o);
+  }
+}
+
+double SurfaceSide::inside_ball_radius_mm(const Eigen::Vector3d& p, double distance_mm) const {
+  double r = 0.9 * distance_mm;
+  for (const Opening& o : openings_) {
+    const Eigen::Vector3d d = p - o.centre;
+    if (d.norm() - o.radius_mm >= r) continue;  // the ball cannot reach its slab
+    r = std::min(r, std::max(0.0, std::abs(d.dot(o.normal)) - o.half_thickness_mm));
+  }
+  return r;
 }
 
 Eigen::Vector3d SurfaceSide::rim_out(int face, int i, int j) const {

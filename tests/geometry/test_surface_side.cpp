@@ -117,3 +117,23 @@ TEST(SurfaceSide, ACapBoundsTheInsideButWhatLiesPastItIsBeyondAnOpening) {
   // One flag per face, or none.
   EXPECT_THROW(geometry::SurfaceSide(box, std::vector<char>(3, 1)), std::invalid_argument);
 }
+
+// An open tube's two openings, and the ball round an inside point that stays inside: nine
+// tenths of its distance from the wall, cut short where an opening's plane is nearer.
+TEST(SurfaceSide, TheBallRoundAnInsidePointKeepsOffTheWallAndTheOpenings) {
+  const geometry::SurfaceSide tube(open_tube(5.0, 50.0));
+  ASSERT_EQ(tube.openings().size(), 2u);
+  for (const auto& o : tube.openings()) {
+    EXPECT_NEAR(std::abs(o.normal.z()), 1.0, 1e-9);
+    EXPECT_TRUE(std::abs(o.centre.z()) < 1e-9 || std::abs(o.centre.z() - 50.0) < 1e-9) << o.centre.transpose();
+    EXPECT_NEAR(o.radius_mm, 5.0, 1e-9);
+    EXPECT_NEAR(o.half_thickness_mm, 0.0, 1e-9);
+  }
+  const auto middle = tube.classify({0, 0, 25});
+  ASSERT_EQ(middle.side, Side::Inside);
+  EXPECT_NEAR(tube.inside_ball_radius_mm({0, 0, 25}, middle.distance_mm), 0.9 * middle.distance_mm, 1e-12);
+  const auto near_end = tube.classify({0, 0, 48});
+  ASSERT_EQ(near_end.side, Side::Inside);
+  EXPECT_NEAR(tube.inside_ball_radius_mm({0, 0, 48}, near_end.distance_mm), 2.0, 1e-9);
+  EXPECT_EQ(geometry::SurfaceSide(closed_box(10.0)).openings().size(), 0u);
+}

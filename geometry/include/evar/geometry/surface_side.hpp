@@ -45,6 +45,20 @@ class SurfaceSide {
   SidedPoint classify(const Eigen::Vector3d& p,
                       double expected_distance_mm = std::numeric_limits<double>::infinity()) const;
 
+  /// An opening of the surface (a loop of boundary edges), as the slab it spans: centre,
+  /// unit normal of its best-fit plane, radius (farthest loop vertex from the centre) and
+  /// half thickness (farthest loop vertex from the plane).
+  struct Opening {
+    Eigen::Vector3d centre = Eigen::Vector3d::Zero(), normal = Eigen::Vector3d::UnitZ();
+    double radius_mm = 0.0, half_thickness_mm = 0.0;
+  };
+  const std::vector<Opening>& openings() const { return openings_; }
+
+  /// For a point `p` classified Inside at `distance_mm` from the surface: the radius of a
+  /// ball round it that holds no surface and reaches no opening, so every point in it is
+  /// inside as well (nine tenths of the distance, less where an opening is nearer).
+  double inside_ball_radius_mm(const Eigen::Vector3d& p, double distance_mm) const;
+
  private:
   // The pseudonormal at a feature, for one on a rim the direction m out past it (zero
   // elsewhere), and whether a cap face holds it.
@@ -65,6 +79,7 @@ class SurfaceSide {
   // The faces around each vertex: faces_of_[first_face_[v] .. first_face_[v + 1]).
   std::vector<int> first_face_, faces_of_;
   std::vector<char> cap_faces_;  // empty, or one flag per face
+  std::vector<Opening> openings_;
 
   bool is_cap(int face) const { return !cap_faces_.empty() && cap_faces_[static_cast<std::size_t>(face)] != 0; }
 };
