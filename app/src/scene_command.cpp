@@ -55,7 +55,13 @@ int keep_proxies(const std::filesystem::path& json, const geometry::Scene& scene
     const deform::MeshProxy* proxy = deformer.proxy(i);
     if (!proxy) continue;
     const std::string name = scene.vessels[i].mesh_path.stem().string() + ".proxy";
-    deform::write_mesh_proxy(json.parent_path() / name, *proxy, scene.vessels[i].mesh.mesh, edge_mm);
+    try {
+      deform::write_mesh_proxy(json.parent_path() / name, *proxy, scene.vessels[i].mesh.mesh, edge_mm);
+    } catch (const std::exception& e) {  // the scene stands without it: deform makes the proxy itself
+      node::log().warn("{}: its proxy could not be kept ({}); deform will make it at every load", scene.vessels[i].name,
+                       e.what());
+      continue;
+    }
     manifest["vessels"][i]["proxy"] = name;
     ++kept;
   }
@@ -102,7 +108,11 @@ int run_scene(const SceneCommand& cmd) {
                                  {"faces", v.mesh.F.rows()},
                                  {"closed", geometry::is_closed(v.mesh)},
                                  {"centerline_points", v.centerline.size()},
-                                 {"centerline_length_mm", geometry::arc_lengths(v.centerline).back()}});
+                                 {"centerline_length_mm", geometry::arc_lengths(v.centerline).back()},
+                                 {"proxy_refused", deformer.proxy_refused(i)}});
+    if (!deformer.proxy_refused(i).empty())
+      node::log().warn("{}: no proxy could be made, so deform solves its own {} vertices (slower, less even): {}", v.name,
+                       v.mesh.V.rows(), deformer.proxy_refused(i));
     node::log().info("{:<12} {:>6} vertices, centerline {:.1f} mm", v.name, v.mesh.V.rows(),
                      geometry::arc_lengths(v.centerline).back());
   }

@@ -17,6 +17,8 @@ namespace {
 
 static_assert(std::endian::native == std::endian::little, "proxy files are little-endian, as this machine must be");
 
+// The digit is the version of the layout and of make_proxy's method: bumped whenever either
+// changes, so files of another version are made anew.
 constexpr std::string_view kMagic = "evarnode-proxy1\n";
 
 void put_bytes(std::string& out, const void* p, std::size_t n) { out.append(static_cast<const char*>(p), n); }
@@ -97,6 +99,16 @@ void write_mesh_proxy(const std::filesystem::path& file, const MeshProxy& proxy,
 }
 
 MeshProxy read_mesh_proxy(const std::filesystem::path& file, const geometry::TriangleMesh& fine, double edge_mm) {
+  std::error_code ec;
+  if (!std::filesystem::is_regular_file(file, ec)) throw std::runtime_error(file.string() + ": cannot be opened (no such file)");
+  // Not read when far bigger than this mesh's proxy can be (one binding per mesh vertex and
+  // a proxy of, generously, four times the mesh's vertices and faces): a wrong path to some
+  // large file.
+  const auto size = std::filesystem::file_size(file, ec);
+  const auto largest = kMagic.size() + 64 + static_cast<std::uintmax_t>(fine.V.rows()) * (52 + 4 * 24) +
+                       static_cast<std::uintmax_t>(fine.F.rows()) * 4 * 12;
+  if (ec || size > largest)
+    throw std::runtime_error(file.string() + ": " + (ec ? "cannot be read" : std::to_string(size) + " bytes, more than a proxy of this mesh can hold"));
   std::ifstream in(file, std::ios::binary);
   if (!in) throw std::runtime_error(file.string() + ": cannot be opened");
   Reader r(file, std::string(std::istreambuf_iterator<char>(in), {}));
@@ -147,6 +159,17 @@ MeshProxy read_mesh_proxy(const std::filesystem::path& file, const geometry::Tri
       r.fail("the binding of vertex " + std::to_string(i) + " names face " + std::to_string(b.face) + " of " +
              std::to_string(faces) + " or holds a number that is not finite");
   }
+  // Every binding must give its vertex back on the unmoved proxy, as a proxy just made does
+  // (to rounding): a damaged number anywhere in the proxy or the bindings shows here.
+  const geometry::Vertices back = follow_proxy(proxy, proxy.coarse.V);
+  const Eigen::Index worst = [&] {
+    Eigen::Index k = 0;
+    (back - fine.V).rowwise().norm().maxCoeff(&k);
+    return k;
+  }();
+  if (const double off = (back.row(worst) - fine.V.row(worst)).norm(); !(off <= 1e-6))
+    r.fail("damaged: vertex " + std::to_string(worst) + " comes back " + base::quantity_text(off, "mm") +
+           " from where it is through its binding");
   return proxy;
 }
 

@@ -78,7 +78,7 @@ std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double ed
       try {
         proxies[i] = read_mesh_proxy(vessel.proxy_path, vessel.mesh.mesh, edge_mm);
         origins[i].file = vessel.proxy_path.string();
-      } catch (const std::runtime_error& e) {
+      } catch (const std::exception& e) {  // a cache: whatever is wrong with it, the proxy is made anew
         origins[i].unused = e.what();
       }
     }

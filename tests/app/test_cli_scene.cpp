@@ -5,6 +5,7 @@
 #include <gtest/gtest.h>
 
 #include <Eigen/Geometry>
+#include <algorithm>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -246,19 +247,29 @@ TEST(CliScene, ASegmentationPhantomInImageAxesMakesASceneAndThePushedWireEndsIns
     ASSERT_EQ(scene.vessels.size(), 3u);
     EXPECT_EQ(scene.landmarks.size(), 4u);
     EXPECT_TRUE(fs::exists(out / "scene.png"));
-    EXPECT_EQ(report["proxy_files"], 3);
-    for (const auto& v : scene.vessels) EXPECT_TRUE(fs::exists(v.proxy_path)) << v.name;
+    // A proxy file for every vessel whose proxy could be made (the phantom's thin renal stubs
+    // sometimes fold the aorta's: then the report says why, and deform solves its own mesh).
+    int proxy_files = 0;
+    for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
+      const bool kept = !scene.vessels[i].proxy_path.empty() && fs::exists(scene.vessels[i].proxy_path);
+      proxy_files += kept;
+      EXPECT_EQ(kept, report["vessels"][i]["proxy_refused"].get<std::string>().empty()) << scene.vessels[i].name;
+    }
+    EXPECT_EQ(report["proxy_files"], proxy_files);
     deform_with_pushed_wire(scene, out);
     if (spacing.z() != 1.5) continue;
-    // A proxy file that is not the mesh's (here the left iliac's for the right): not used,
-    // made anew, said so with the fix; the result stands.
-    fs::copy_file(scene.vessels[2].proxy_path, scene.vessels[1].proxy_path, fs::copy_options::overwrite_existing);
+    // A proxy file damaged (here overwritten with text): not used, made anew, said so with
+    // the fix; the result stands.
+    const auto with_file = std::find_if(scene.vessels.begin(), scene.vessels.end(),
+                                        [](const auto& v) { return !v.proxy_path.empty(); });
+    ASSERT_NE(with_file, scene.vessels.end()) << "no vessel kept a proxy file";
+    std::ofstream(with_file->proxy_path, std::ios::trunc) << "solid not a proxy\n";
     const auto stale = evarnode({"deform", "--scene", (out / "scene.json").string(), "--device", (out / "wire.mrk.json").string(),
                                  "--out", (dir.path / "stale").string(), "--strict", "--no-preview"});
     EXPECT_EQ(stale.code, 0) << stale.err;
-    EXPECT_NE(stale.err.find("iliac_right: the scene's proxy file was not used, the proxy was made anew"), std::string::npos)
+    EXPECT_NE(stale.err.find(with_file->name + ": the scene's proxy file was not used, the proxy was made anew"), std::string::npos)
         << stale.err;
     EXPECT_NE(stale.err.find("run `evarnode scene` again"), std::string::npos);
-    EXPECT_NE(stale.err.find("made for another mesh"), std::string::npos);
+    EXPECT_NE(stale.err.find("not an evarnode proxy file"), std::string::npos);
   }
 }
