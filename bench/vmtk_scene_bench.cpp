@@ -51,32 +51,23 @@ const VmtkScene* vmtk_scene() {
   return made.get();
 }
 
-// Preparing the scene's solver: proxies, skeletons, factorizations (paid once per scene).
-void BM_VmtkSceneSolver(benchmark::State& state) {
+// Preparing the scene's solver: proxies, skeletons, factorizations (paid once per scene);
+// the proxies made (BM_VmtkSceneSolver) or read from the files `evarnode scene` keeps beside
+// the meshes (BM_VmtkSceneSolverFromProxyFiles).
+void scene_solver(benchmark::State& state, bool from_proxy_files) {
   const VmtkScene* s = vmtk_scene();
   if (!s) {
     state.SkipWithError("../shared/data/vmtk-aorta is absent (set EVAR_SHARED_DATA)");
     return;
   }
   for (auto _ : state) {
-    const evar::deform::SceneDeformer deformer(s->scene);
+    const evar::deform::SceneDeformer deformer(from_proxy_files ? s->scene_with_proxy_files : s->scene);
     benchmark::DoNotOptimize(deformer.precompute_ms());
   }
 }
+void BM_VmtkSceneSolver(benchmark::State& state) { scene_solver(state, false); }
+void BM_VmtkSceneSolverFromProxyFiles(benchmark::State& state) { scene_solver(state, true); }
 BENCHMARK(BM_VmtkSceneSolver)->Unit(benchmark::kMillisecond)->MinTime(2.0);
-
-// The same with the proxies read from the files `evarnode scene` keeps beside the meshes.
-void BM_VmtkSceneSolverFromProxyFiles(benchmark::State& state) {
-  const VmtkScene* s = vmtk_scene();
-  if (!s) {
-    state.SkipWithError("../shared/data/vmtk-aorta is absent (set EVAR_SHARED_DATA)");
-    return;
-  }
-  for (auto _ : state) {
-    const evar::deform::SceneDeformer deformer(s->scene_with_proxy_files);
-    benchmark::DoNotOptimize(deformer.precompute_ms());
-  }
-}
 BENCHMARK(BM_VmtkSceneSolverFromProxyFiles)->Unit(benchmark::kMillisecond)->MinTime(2.0);
 
 // Each later deformation of the prepared scene by the wire (containment check included).
