@@ -8,13 +8,41 @@
 #include <CGAL/Simple_cartesian.h>
 #include <CGAL/Surface_mesh.h>
 
+#include <algorithm>
+#include <functional>
 #include <stdexcept>
+
+namespace evar::prepare::detail {
+// The flow's traits: CGAL's Cartesian kernel under a name of our own, so that the ordering
+// below applies to the flow's meso-skeleton and to nothing else.
+struct SkeletonTraits : CGAL::Simple_cartesian<double> {};
+using SurfaceMesh = CGAL::Surface_mesh<SkeletonTraits::Point_3>;
+using Skeletonization = CGAL::Mean_curvature_flow_skeletonization<SurfaceMesh, SkeletonTraits>;
+// The meso-skeleton the flow contracts (a Polyhedron_3, CGAL's own choice) and its edges.
+using MesoSkeleton = CGAL::Polyhedron_3<SkeletonTraits, CGAL::internal::Skel_polyhedron_items_3<SurfaceMesh::Vertex_index>>;
+using MesoEdge = boost::graph_traits<MesoSkeleton>::edge_descriptor;
+}  // namespace evar::prepare::detail
+
+// The flow collapses short edges in the order of a std::set of edges, which CGAL orders by
+// the halfedges' heap addresses: the skeleton then differs from run to run, even within one
+// process. Ordered by the halfedges' ids instead (unique and unchanged while the collapses
+// run: the flow numbers every halfedge afresh before each collapse pass), the skeleton is the
+// same for the same surface.
+template <>
+struct std::less<evar::prepare::detail::MesoEdge> {
+  bool operator()(const evar::prepare::detail::MesoEdge& a, const evar::prepare::detail::MesoEdge& b) const {
+    return key(a) < key(b);
+  }
+  static std::size_t key(const evar::prepare::detail::MesoEdge& e) {
+    return std::min(e.halfedge()->id(), e.halfedge()->opposite()->id());
+  }
+};
 
 namespace evar::prepare {
 namespace {
-using Kernel = CGAL::Simple_cartesian<double>;
-using SurfaceMesh = CGAL::Surface_mesh<Kernel::Point_3>;
-using Skeletonization = CGAL::Mean_curvature_flow_skeletonization<SurfaceMesh>;
+using detail::SkeletonTraits;
+using detail::SurfaceMesh;
+using detail::Skeletonization;
 }  // namespace
 
 SkeletonGraph mean_curvature_flow_skeleton(const geometry::TriangleMesh& mesh) {

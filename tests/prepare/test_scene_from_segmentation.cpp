@@ -9,11 +9,13 @@
 #include <algorithm>
 #include <cmath>
 #include <map>
+#include <memory>
 
 #include "evar/base/input_error.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/polyline.hpp"
 #include "evar/prepare/scene_preparation.hpp"
+#include "evar/prepare/surface_centerlines.hpp"
 #include "evar/sim/segmentation_phantom.hpp"
 #include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
@@ -243,4 +245,29 @@ TEST(SceneFromSegmentation, ASurfaceInSeveralPiecesIsRefusedWithTheFix) {
   const std::string message = refusal_of(phantom, dir.path / "two.stl");
   EXPECT_NE(message.find("the surface is in 2 separate pieces"), std::string::npos) << message;
   EXPECT_NE(message.find("Islands"), std::string::npos) << message;
+}
+
+// The skeleton does not depend on where the heap put things (CGAL orders the flow's edge
+// collapses by address unless told otherwise): the same surface, skeletonised three times in
+// one process with the heap in another state each time, gives the same centerlines to the
+// last bit, so a scene, and any failure met on it, can be made again.
+TEST(SceneFromSegmentation, TheSameSurfaceGivesTheSameCenterlinesEveryTime) {
+  const auto phantom = sim::make_segmentation_phantom({.spacing_mm = {1.2, 1.2, 2.5}, .side_branches = false});
+  const geometry::RayCaster walls(phantom.surface);
+  const auto first = prepare::centerlines_from_surface(phantom.surface, walls, "phantom");
+  ASSERT_EQ(first.paths.size(), 2u);
+  std::vector<std::unique_ptr<char[]>> clutter;
+  for (int run = 1; run <= 2; ++run) {
+    SCOPED_TRACE("run " + std::to_string(run));
+    for (std::size_t k = 0; k < 2000; ++k) clutter.push_back(std::make_unique<char[]>(24 + 40 * (k % 7) * run));
+    for (std::size_t k = 0; k < clutter.size(); k += 3) clutter[k].reset();
+    const auto again = prepare::centerlines_from_surface(phantom.surface, walls, "phantom");
+    EXPECT_EQ(again.skeleton_points, first.skeleton_points);
+    ASSERT_EQ(again.paths.size(), first.paths.size());
+    for (std::size_t i = 0; i < first.paths.size(); ++i) {
+      ASSERT_EQ(again.paths[i].points.size(), first.paths[i].points.size()) << "path " << i;
+      for (std::size_t j = 0; j < first.paths[i].points.size(); ++j)
+        ASSERT_EQ(again.paths[i].points[j], first.paths[i].points[j]) << "path " << i << " point " << j;
+    }
+  }
 }
