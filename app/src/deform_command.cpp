@@ -6,6 +6,7 @@
 #include "commands.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/base/input_error.hpp"
+#include "evar/base/quantity_text.hpp"
 #include "evar/geometry/markups.hpp"
 #include "evar/geometry/mesh_io.hpp"
 #include "evar/geometry/scene.hpp"
@@ -26,6 +27,7 @@ nlohmann::json vessel_json(const deform::VesselReport& r, const std::string& out
           {"vertices", r.vertices},
           {"faces", r.faces},
           {"proxy_vertices", r.proxy_vertices},
+          {"proxy_edge_mm", r.proxy_vertices > 0 ? nlohmann::json(r.proxy_edge_mm) : nlohmann::json()},
           {"proxy_refused", r.proxy_refused},
           {"proxy_file", r.proxy_file},
           {"proxy_file_unused", r.proxy_file_unused},
@@ -144,8 +146,8 @@ int run_deform(const DeformCommand& cmd) {
                r.max_displacement_mm, r.timings.total_ms,
                r.erased_faces > 0 ? fmt::format(", {} faces erased", r.erased_faces) : "");
     if (r.proxy_vertices > 0)
-      node::log().info("{:<12} solved on a proxy of {} vertices (its {} follow it){}", r.name, r.proxy_vertices, r.vertices,
-                       r.proxy_file.empty() ? "" : ", read from " + std::filesystem::path(r.proxy_file).filename().string());
+      node::log().info("{:<12} solved on a proxy of {} vertices, edges of about {} (its {} follow it){}", r.name,
+                       r.proxy_vertices, base::quantity_text(r.proxy_edge_mm, "mm", 2), r.vertices, r.proxy_file.empty() ? "" : ", read from " + std::filesystem::path(r.proxy_file).filename().string());
     if (!r.proxy_file_unused.empty())
       node::log().warn("{}: the scene's proxy file was not used, the proxy was made anew (seconds on a large mesh; "
                        "run `evarnode scene` again to keep a fresh one): {}",

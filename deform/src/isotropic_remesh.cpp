@@ -3,7 +3,6 @@
 #include <algorithm>
 #include <array>
 #include <cmath>
-#include <map>
 #include <stdexcept>
 #include <utility>
 #include <vector>
@@ -53,12 +52,33 @@ class Remesher {
     face_alive_.assign(F_.size(), 1);
     vertex_alive_.assign(n, 1);
     // Vertices on an edge with one face are the open mesh's rim: they only collapse along it.
+    // Each face names its vertex's neighbours along its two edges there; a neighbour named
+    // once is across a rim edge. Wound consistently, a neighbour named twice follows the
+    // vertex in exactly one of the two faces.
     rim_.assign(n, 0);
-    std::map<std::pair<int, int>, int> uses;
-    for (const Face& f : F_)
-      for (int k = 0; k < 3; ++k) ++uses[ordered(f[static_cast<std::size_t>(k)], f[static_cast<std::size_t>((k + 1) % 3)])];
-    for (const auto& [e, count] : uses)
-      if (count == 1) rim_[static_cast<std::size_t>(e.first)] = rim_[static_cast<std::size_t>(e.second)] = 1;
+    std::vector<int>& named = scratch_u_;
+    std::vector<int>& after = scratch_v_;
+    for (std::size_t a = 0; a < n; ++a) {
+      named.clear();
+      after.clear();
+      for (const int f : vf_[a]) {
+        const Face& t = F_[idx(f)];
+        const std::size_t k = corner(t, static_cast<int>(a));
+        after.push_back(t[(k + 1) % 3]);
+        named.push_back(t[(k + 1) % 3]);
+        named.push_back(t[(k + 2) % 3]);
+      }
+      std::sort(named.begin(), named.end());
+      std::sort(after.begin(), after.end());
+      for (std::size_t k = 0; k < named.size();) {
+        std::size_t end = k + 1;
+        while (end < named.size() && named[end] == named[k]) ++end;
+        if (end - k == 1) rim_[a] = rim_[idx(named[k])] = 1;
+        const auto follows = std::equal_range(after.begin(), after.end(), named[k]);
+        if (end - k == 2 && follows.second - follows.first != 1) wound_consistently_ = false;
+        k = end;
+      }
+    }
   }
 
   void split_long_edges() {
@@ -142,19 +162,27 @@ class Remesher {
 
  private:
   static std::size_t idx(int i) { return static_cast<std::size_t>(i); }
-  static std::pair<int, int> ordered(int a, int b) { return a < b ? std::pair{a, b} : std::pair{b, a}; }
+  // Where vertex v is in face t.
+  static std::size_t corner(const Face& t, int v) { return t[0] == v ? 0 : t[1] == v ? 1 : 2; }
 
   // Every edge once, as (smaller, larger) vertex, in lexicographic order: per vertex, its
-  // larger neighbours (found through its faces), sorted.
+  // larger neighbours, sorted. On a consistently wound surface an edge inside it runs a→b
+  // in one of its faces, so a finds b as the vertex after it in one of its faces; a rim edge
+  // has one face, and a may find b before it there instead. (Splits, collapses and flips
+  // keep the winding.)
   std::vector<std::pair<int, int>> edges() const {
     std::vector<std::pair<int, int>> e;
     e.reserve(3 * P_.size());
     std::vector<int>& larger = scratch_edges_;
     for (std::size_t a = 0; a < P_.size(); ++a) {
       larger.clear();
-      for (const int f : vf_[a])
-        for (const int b : F_[idx(f)])
-          if (static_cast<std::size_t>(b) > a) larger.push_back(b);
+      for (const int f : vf_[a]) {
+        const Face& t = F_[idx(f)];
+        const std::size_t k = corner(t, static_cast<int>(a));
+        const int after = t[(k + 1) % 3], before = t[(k + 2) % 3];
+        if (idx(after) > a) larger.push_back(after);
+        if (idx(before) > a && (!wound_consistently_ || (rim_[a] && rim_[idx(before)]))) larger.push_back(before);
+      }
       std::sort(larger.begin(), larger.end());
       larger.erase(std::unique(larger.begin(), larger.end()), larger.end());
       for (const int b : larger) e.emplace_back(static_cast<int>(a), b);
@@ -329,6 +357,7 @@ class Remesher {
   }
 
   double lo_, hi_;
+  bool wound_consistently_ = true;
   // try_collapse's neighbour lists, kept between calls so that they are not reallocated.
   std::vector<int> scratch_u_, scratch_v_, scratch_common_;
   mutable std::vector<int> scratch_edges_;

@@ -92,9 +92,10 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
   if (fine.F.rows() == 0) throw std::runtime_error("mesh proxy: the mesh has no faces");
   const auto n = static_cast<std::size_t>(fine.V.rows());
   MeshProxy proxy;
+  proxy.edge_mm = edge_mm;
   // One BVH over the fine surface: the remesher puts its vertices back on it, and the check
   // below looks up where each face lies.
-  const geometry::RayCaster fine_bvh(fine);
+  const geometry::RayCaster fine_bvh(fine, geometry::RayCaster::BuildQuality::Low);
   proxy.coarse = detail::isotropic_remesh(fine, fine_bvh, edge_mm);
   try {
     geometry::validate_mesh(proxy.coarse, "the proxy");
@@ -150,6 +151,21 @@ MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm) {
                              " from the remeshed surface, more than 1.5 times its edge of " + base::quantity_text(edge_mm, "mm") +
                              " (a vessel thinner than the proxy's edge?)");
   return proxy;
+}
+
+MeshProxy make_proxy_or_finer(const geometry::TriangleMesh& fine, double edge_mm) {
+  const double median_edge = geometry::median_edge_length(fine);
+  std::string reasons;
+  double edge = edge_mm;
+  for (int rung = 0; rung < 3; ++rung, edge *= 0.8) {
+    if (rung > 0 && !(edge > median_edge)) break;
+    try {
+      return make_proxy(fine, edge);
+    } catch (const std::runtime_error& e) {
+      reasons += (reasons.empty() ? "" : "; at ") + std::string(rung == 0 ? "" : base::quantity_text(edge, "mm", 2) + ": ") + e.what();
+    }
+  }
+  throw std::runtime_error(reasons);
 }
 
 geometry::Vertices follow_proxy(const MeshProxy& proxy, const geometry::Vertices& V) {

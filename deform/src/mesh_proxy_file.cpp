@@ -19,7 +19,9 @@ static_assert(std::endian::native == std::endian::little, "proxy files are littl
 
 // The digit is the version of the layout and of make_proxy's method: bumped whenever either
 // changes, so files of another version are made anew.
-constexpr std::string_view kMagic = "evarnode-proxy1\n";
+constexpr std::string_view kMagic = "evarnode-proxy2\n";
+// What every version's first 15 bytes are.
+constexpr std::string_view kMagicStem = "evarnode-proxy";
 
 void put_bytes(std::string& out, const void* p, std::size_t n) { out.append(static_cast<const char*>(p), n); }
 template <class T>
@@ -80,6 +82,7 @@ void write_mesh_proxy(const std::filesystem::path& file, const MeshProxy& proxy,
                                 " vertices, the mesh has " + std::to_string(fine.V.rows()));
   std::string out(kMagic);
   put(out, edge_mm);
+  put(out, proxy.edge_mm);
   put(out, static_cast<std::uint64_t>(fine.V.rows()));
   put(out, static_cast<std::uint64_t>(fine.F.rows()));
   put(out, mesh_fingerprint(fine));
@@ -105,7 +108,7 @@ MeshProxy read_mesh_proxy(const std::filesystem::path& file, const geometry::Tri
   // a proxy of, generously, four times the mesh's vertices and faces): a wrong path to some
   // large file.
   const auto size = std::filesystem::file_size(file, ec);
-  const auto largest = kMagic.size() + 64 + static_cast<std::uintmax_t>(fine.V.rows()) * (52 + 4 * 24) +
+  const auto largest = kMagic.size() + 72 + static_cast<std::uintmax_t>(fine.V.rows()) * (52 + 4 * 24) +
                        static_cast<std::uintmax_t>(fine.F.rows()) * 4 * 12;
   if (ec || size > largest)
     throw std::runtime_error(file.string() + ": " + (ec ? "cannot be read" : std::to_string(size) + " bytes, more than a proxy of this mesh can hold"));
@@ -114,11 +117,20 @@ MeshProxy read_mesh_proxy(const std::filesystem::path& file, const geometry::Tri
   Reader r(file, std::string(std::istreambuf_iterator<char>(in), {}));
   char magic[kMagic.size()];
   r.take(magic, sizeof magic, "header");
-  if (std::string_view(magic, sizeof magic) != kMagic) r.fail("not an evarnode proxy file (its first 16 bytes are not \"evarnode-proxy1\")");
+  const std::string_view header(magic, sizeof magic);
+  if (header.substr(0, kMagicStem.size()) != kMagicStem || header.back() != '\n')
+    r.fail("not an evarnode proxy file (its first 16 bytes are not \"" + std::string(kMagic.substr(0, kMagic.size() - 1)) + "\")");
+  if (header != kMagic)
+    r.fail("made by another version of evarnode's proxies (" + std::string(header.substr(0, header.size() - 1)) + ", this one makes " +
+           std::string(kMagic.substr(0, kMagic.size() - 1)) + ")");
   const double made_for_mm = r.get<double>("edge length");
   if (!(made_for_mm == edge_mm))
     r.fail("made for proxy edges of " + base::quantity_text(made_for_mm, "mm") + ", " + base::quantity_text(edge_mm, "mm") +
            " asked");
+  const double remeshed_mm = r.get<double>("remeshed edge length");
+  if (!(remeshed_mm > 0.0 && remeshed_mm <= made_for_mm))
+    r.fail("says it was remeshed to edges of " + base::quantity_text(remeshed_mm, "mm") + ", not between 0 and the " +
+           base::quantity_text(made_for_mm, "mm") + " it was made for (damaged)");
   const auto fine_vertices = r.get<std::uint64_t>("mesh's vertex count");
   const auto fine_faces = r.get<std::uint64_t>("mesh's face count");
   const auto fingerprint = r.get<std::uint64_t>("mesh's fingerprint");
@@ -130,6 +142,7 @@ MeshProxy read_mesh_proxy(const std::filesystem::path& file, const geometry::Tri
   const auto vertices = r.get<std::uint64_t>("proxy's vertex count");
   const auto faces = r.get<std::uint64_t>("proxy's face count");
   MeshProxy proxy;
+  proxy.edge_mm = remeshed_mm;
   proxy.largest_offset_mm = r.get<double>("largest offset");
   // Sizes checked against what is left before anything is allocated for them.
   const std::uint64_t needed = vertices * 24 + faces * 12 + fine_vertices * 52;

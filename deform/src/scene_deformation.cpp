@@ -84,7 +84,7 @@ std::unique_ptr<geometry::Scene> proxied(const geometry::Scene& scene, double ed
     }
     if (!proxies[i]) {
       try {
-        proxies[i] = make_proxy(vessel.mesh.mesh, edge_mm);
+        proxies[i] = make_proxy_or_finer(vessel.mesh.mesh, edge_mm);
       } catch (const std::runtime_error& e) {
         refusals[i] = e.what();
         continue;
@@ -283,6 +283,7 @@ SceneDeformation SceneDeformer::deform_vessels(const geometry::Polyline& device,
     }
     apply_erasure(followed, fine.F, fine.V, r);
     r.proxy_vertices = r.vertices;
+    r.proxy_edge_mm = proxy.edge_mm;
     r.vertices = static_cast<int>(fine.V.rows());
     r.faces = static_cast<int>(fine.F.rows());
     dv = std::move(followed);

@@ -102,26 +102,34 @@ TEST_F(Cli, DeformWritesMeshesLandmarksReportAndPreview) {
 
 // A vessel too thin for the asked proxy edge is solved on its own mesh; the run says so in
 // the log and in report.json, and still writes every vessel.
+// At a 14 mm proxy edge the suite's small example scene gets the aorta's proxy at that edge
+// and none for the iliacs (4.5-6 mm radius) at any rung (14, 11.2, 8.96 mm): each says so in
+// report.json, and the log names the vessels solved on their own meshes.
 TEST_F(Cli, DeformSaysWhichVesselsItCouldNotSolveOnAProxy) {
   const auto out = scratch("deform_proxy_refused");
   const auto r = evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", out.string(),
-                           "--no-preview", "--proxy-edge-mm", "10"});
+                           "--no-preview", "--proxy-edge-mm", "14"});
   ASSERT_EQ(r.code, 0) << r.err;
   const auto report = nlohmann::json::parse(std::ifstream(out / "report.json"));
-  EXPECT_EQ(report["proxy_edge_mm"], 10.0);
+  EXPECT_EQ(report["proxy_edge_mm"], 14.0);
   ASSERT_EQ(report["vessels"].size(), 3u);
   for (const auto& v : report["vessels"]) {
     const std::string name = v["name"];
     EXPECT_TRUE(fs::exists(out / (name + ".stl"))) << name;
     if (name == "aorta") {
       EXPECT_GT(v["proxy_vertices"].get<int>(), 0);
+      EXPECT_EQ(v["proxy_edge_mm"], 14.0);
       EXPECT_EQ(v["proxy_refused"], "");
     } else {
       EXPECT_EQ(v["proxy_vertices"], 0) << name;
+      EXPECT_TRUE(v["proxy_edge_mm"].is_null()) << name;
       EXPECT_NE(v["proxy_refused"].get<std::string>().find("thinner than the proxy's edge"), std::string::npos) << name;
+      EXPECT_NE(v["proxy_refused"].get<std::string>().find("; at 8.96 mm: "), std::string::npos) << name;
       EXPECT_NE(r.err.find(name + ": solved on its own"), std::string::npos) << r.err;
     }
   }
+  EXPECT_NE(r.err.find("aorta        solved on a proxy of"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("edges of about 14 mm"), std::string::npos) << r.err;
 }
 
 TEST_F(Cli, DeformWithoutCoarseRotationsSaysSoAndIteratesTheIliacsPlainly) {

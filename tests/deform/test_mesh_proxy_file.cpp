@@ -50,6 +50,7 @@ TEST(MeshProxyFile, AProxyIsReadBackExactly) {
   EXPECT_EQ(read.coarse.V, made.coarse.V);
   EXPECT_EQ(read.coarse.F, made.coarse.F);
   EXPECT_EQ(read.largest_offset_mm, made.largest_offset_mm);
+  EXPECT_EQ(read.edge_mm, 1.4);
   ASSERT_EQ(read.bindings.size(), made.bindings.size());
   for (std::size_t i = 0; i < read.bindings.size(); ++i) {
     EXPECT_EQ(read.bindings[i].face, made.bindings[i].face);
@@ -86,6 +87,20 @@ TEST(MeshProxyFile, AStaleOrDamagedFileIsRefusedWithTheFileAndWhy) {
   EXPECT_NE(refusal(fine, 1.4, cut).find("ends inside its"), std::string::npos) << refusal(fine, 1.4, cut);
   write_bytes(cut, "solid iliac\n" + whole);
   EXPECT_NE(refusal(fine, 1.4, cut).find("not an evarnode proxy file"), std::string::npos);
+  // Another version's file (the digit in its first 16 bytes) is made anew, saying so.
+  std::string older = whole;
+  older[14] = '1';
+  write_bytes(cut, older);
+  EXPECT_NE(refusal(fine, 1.4, cut).find("made by another version of evarnode's proxies (evarnode-proxy1, this one makes "
+                                         "evarnode-proxy2)"),
+            std::string::npos)
+      << refusal(fine, 1.4, cut);
+  // A remeshed edge longer than the asked one (bytes 24-31).
+  std::string longer = whole;
+  const double remeshed = 2.0;
+  std::memcpy(longer.data() + 24, &remeshed, sizeof remeshed);
+  write_bytes(cut, longer);
+  EXPECT_NE(refusal(fine, 1.4, cut).find("remeshed to edges of 2 mm"), std::string::npos) << refusal(fine, 1.4, cut);
   EXPECT_NE(refusal(fine, 1.4, dir.path / "absent.proxy").find("absent.proxy: cannot be opened"), std::string::npos);
   // A number damaged inside: the last binding's first offset (24 bytes from the end).
   std::string damaged = whole;

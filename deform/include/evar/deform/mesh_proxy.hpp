@@ -26,6 +26,7 @@ struct MeshProxy {
   geometry::TriangleMesh coarse;          ///< closed if the fine mesh is; its vertices lie on the fine surface
   std::vector<ProxyBinding> bindings;     ///< per fine vertex, on `coarse`
   double largest_offset_mm = 0.0;         ///< of any fine vertex from the proxy surface
+  double edge_mm = 0.0;                   ///< the edge length it was remeshed to
 };
 
 /// The share of a mesh's faces that are slivers: an angle over 150 degrees, where the
@@ -53,6 +54,15 @@ bool needs_proxy(const geometry::TriangleMesh& mesh, double proxy_edge_mm);
 /// keeps a subset of its vertices. std::runtime_error when the result is not a valid mesh (the
 /// caller then solves the fine mesh itself).
 MeshProxy make_proxy(const geometry::TriangleMesh& fine, double edge_mm);
+
+/// make_proxy at `edge_mm`, or, where that is refused (a side-branch stub or a vessel
+/// thinner than about an edge folds under the collapses), at finer edges: each rung 4/5 of
+/// the last, at most two, and only while still longer than the mesh's median edge (a proxy
+/// no coarser than its mesh would gain nothing). A finer proxy costs more per solve than
+/// the asked one, but unlike a segmentation's own mesh it has no slivers to turn over and
+/// even triangles (docs/DEFORMATION.md). std::runtime_error with every rung's reason
+/// when none holds (the caller then solves the fine mesh itself).
+MeshProxy make_proxy_or_finer(const geometry::TriangleMesh& fine, double edge_mm);
 
 /// The fine mesh's vertices for the proxy's vertices V (same order as proxy.coarse.V).
 geometry::Vertices follow_proxy(const MeshProxy& proxy, const geometry::Vertices& V);

@@ -4,7 +4,8 @@
 // bindings, the edge it was made for and a fingerprint of the fine mesh it belongs to.
 //
 // File layout (little-endian; docs/FORMATS.md, "Proxy files"): the 16 bytes
-// "evarnode-proxy1\n"; edge_mm (f64); the fine mesh's vertex and face counts (u64 each) and
+// "evarnode-proxy2\n"; edge_mm (f64, asked); the edge it was remeshed to (f64: edge_mm, or
+// finer where that was refused); the fine mesh's vertex and face counts (u64 each) and
 // its fingerprint (u64); the proxy's vertex and face counts (u64 each); its largest offset
 // (f64); its vertices (3 f64 each) and faces (3 i32 each); per fine vertex its binding
 // (face i32, barycentric weights 3 f64, offset in the face's frame 3 f64).

@@ -77,6 +77,7 @@ struct VesselReport {
   std::string role;              ///< "deformed", "carries the device", "follows the aorta", "unchanged"
   int vertices = 0, faces = 0;
   int proxy_vertices = 0;        ///< the proxy it was solved on (0: solved on its own mesh)
+  double proxy_edge_mm = 0.0;    ///< the proxy's edge: the asked one, or finer where the vessel was too thin for it
   std::string proxy_refused;     ///< why a mesh fine enough for a proxy is solved as it is ("" otherwise)
   std::string proxy_file;        ///< the scene's proxy file it was read from ("" when made here, or none)
   std::string proxy_file_unused; ///< why the scene's proxy file was not used, the proxy made anew ("" otherwise)
