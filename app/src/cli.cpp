@@ -99,6 +99,21 @@ int run_cli(const std::vector<std::string>& args) {
       ->capture_default_str();
   sc->add_flag("!--no-picture", scene_cmd.picture, "do not write scene.png");
 
+  ProxiesCommand proxies;
+  auto* px = app.add_subcommand(
+      "proxies",
+      "Make the proxies of a scene's finely meshed vessels and keep them beside their meshes, named in\n"
+      "scene.json (docs/FORMATS.md, \"Proxy files\"), so deform, run and record read them in milliseconds\n"
+      "instead of remeshing at every load. `evarnode scene` does this for the scenes it makes; this is for\n"
+      "scenes put together otherwise. Rewrites scene.json (its other fields kept); run it again after\n"
+      "editing a mesh. Example:\n"
+      "  evarnode proxies --scene S/scene.json");
+  px->add_option("--scene", proxies.scene, "scene.json (format evarnode-scene, version 1)")->required();
+  px->add_option("--proxy-edge-mm", proxies.proxy_edge_mm,
+                 "the proxies' edge; deform reads a proxy file only when given the same --proxy-edge-mm")
+      ->check(CLI::PositiveNumber)
+      ->capture_default_str();
+
   ArapCommand arap;
   auto* a = app.add_subcommand("arap",
                                "Plain surface ARAP for explicit constraints (no skeleton), to compare the\n"
@@ -433,6 +448,7 @@ int run_cli(const std::vector<std::string>& args) {
   try {
     if (d->parsed()) return run_deform(deform);
     if (sc->parsed()) return run_scene(scene_cmd);
+    if (px->parsed()) return run_proxies(proxies);
     if (a->parsed()) return run_arap(arap);
     if (e->parsed()) return run_example(example);
     if (pr->parsed()) return run_project(project);

@@ -39,6 +39,12 @@ struct SceneCommand {
 };
 int run_scene(const SceneCommand& cmd);
 
+struct ProxiesCommand {
+  std::filesystem::path scene;
+  double proxy_edge_mm = 1.4;  // as deform's default
+};
+int run_proxies(const ProxiesCommand& cmd);
+
 struct ArapCommand {
   std::filesystem::path mesh, constraints, out, report;
   std::optional<int> iterations;

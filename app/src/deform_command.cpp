@@ -1,4 +1,5 @@
 // `evarnode deform`: the deformation stage on files.
+#include <algorithm>
 #include <filesystem>
 #include <fstream>
 #include <nlohmann/json.hpp>
@@ -150,13 +151,20 @@ int run_deform(const DeformCommand& cmd) {
                        r.proxy_vertices, base::quantity_text(r.proxy_edge_mm, "mm", 2), r.vertices, r.proxy_file.empty() ? "" : ", read from " + std::filesystem::path(r.proxy_file).filename().string());
     if (!r.proxy_file_unused.empty())
       node::log().warn("{}: the scene's proxy file was not used, the proxy was made anew (seconds on a large mesh; "
-                       "run `evarnode scene` again to keep a fresh one): {}",
-                       r.name, r.proxy_file_unused);
+                       "`evarnode proxies --scene {}` keeps a fresh one): {}",
+                       r.name, cmd.scene.string(), r.proxy_file_unused);
     if (!r.proxy_refused.empty())
       node::log().warn("{}: solved on its own {} vertices, slower and less even than on a proxy: {}", r.name, r.vertices,
                  r.proxy_refused);
     if (!r.converged) node::log().warn("{}: ARAP stopped at the iteration cap before reaching {} mm", r.name, cmd.tolerance_mm);
   }
+  const auto made_here = std::count_if(result.reports.begin(), result.reports.end(),
+                                      [](const auto& r) { return r.proxy_vertices > 0 && r.proxy_file.empty(); });
+  if (made_here > 0)
+    node::log().info("{} {} made at load in {:.0f} ms; `evarnode proxies --scene {}` keeps {} beside the meshes, so later "
+                     "loads read {} in milliseconds",
+                     made_here, made_here == 1 ? "proxy" : "proxies", result.proxy_ms, cmd.scene.string(),
+                     made_here == 1 ? "it" : "them", made_here == 1 ? "it" : "them");
   geometry::Markup landmarks{"Fiducial", "landmarks", result.landmarks};
   geometry::write_markups(cmd.out / "landmarks.mrk.json", {landmarks});
   for (std::size_t k = 0; k < result.landmarks.size(); ++k) {

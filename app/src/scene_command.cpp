@@ -7,7 +7,6 @@
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
-#include "evar/deform/mesh_proxy_file.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/polyline.hpp"
 #include "evar/geometry/scene.hpp"
@@ -15,6 +14,7 @@
 #include "evar/overlay/mesh_preview.hpp"
 #include "evar/prepare/scene_preparation.hpp"
 #include "json_file.hpp"
+#include "proxy_keeping.hpp"
 
 namespace evar::app {
 namespace {
@@ -42,31 +42,6 @@ void write_scene_picture(const std::filesystem::path& png, const prepare::Prepar
   picture.overlay.polylines.push_back({"", {tip + Eigen::Vector3d(0, -4, -6), tip, tip + Eigen::Vector3d(0, 4, -6)}, {90, 90, 255}, 2});
   picture.overlay.markers.push_back({scene.bifurcation, "bifurcation", "", {250, 250, 250}, false, 4});
   overlay::write_comparison_png(png, picture);
-}
-
-// The proxies the solver made, kept beside their meshes and named in scene.json, so deform
-// and run read them instead of remeshing at every load. Returns how many.
-int keep_proxies(const std::filesystem::path& json, const geometry::Scene& scene, const deform::SceneDeformer& deformer,
-                 double edge_mm) {
-  std::ifstream in(json);
-  auto manifest = nlohmann::ordered_json::parse(in);
-  int kept = 0;
-  for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
-    const deform::MeshProxy* proxy = deformer.proxy(i);
-    if (!proxy) continue;
-    const std::string name = scene.vessels[i].mesh_path.stem().string() + ".proxy";
-    try {
-      deform::write_mesh_proxy(json.parent_path() / name, *proxy, scene.vessels[i].mesh.mesh, edge_mm);
-    } catch (const std::exception& e) {  // the scene stands without it: deform makes the proxy itself
-      node::log().warn("{}: its proxy could not be kept ({}); deform will make it at every load", scene.vessels[i].name,
-                       e.what());
-      continue;
-    }
-    manifest["vessels"][i]["proxy"] = name;
-    ++kept;
-  }
-  if (kept > 0) write_text(json, manifest.dump(2) + '\n');
-  return kept;
 }
 
 }  // namespace

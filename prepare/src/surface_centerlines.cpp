@@ -60,6 +60,31 @@ std::vector<int> chain_from(const Skeleton& s, int end) {
   return chain;
 }
 
+// Whether the end of `chain` (from an end to its junction) leaves the junction the way
+// another of its branches does (within 45°, each branch's direction taken about
+// `radius_mm` along it): the flow's leftovers near a junction point along the vessels that
+// leave it, while a vessel's own end leaves in a direction no other branch takes, even one
+// the flow pulled back inside the junction's lumen (a short, wide aorta above the renal
+// arteries).
+bool repeats_a_branch(const Skeleton& s, const std::vector<int>& chain, double radius_mm) {
+  const auto junction = static_cast<std::size_t>(chain.back());
+  const Eigen::Vector3d& centre = s.point[junction];
+  const Eigen::Vector3d own = (s.point[static_cast<std::size_t>(chain.front())] - centre).normalized();
+  const int own_first = chain[chain.size() - 2];
+  for (const int first : s.next[junction]) {
+    if (first == own_first) continue;
+    int previous = static_cast<int>(junction), at = first;
+    while ((s.point[static_cast<std::size_t>(at)] - centre).norm() < radius_mm && s.next[static_cast<std::size_t>(at)].size() == 2) {
+      const auto& two = s.next[static_cast<std::size_t>(at)];
+      const int step = two[0] == previous ? two[1] : two[0];
+      previous = at, at = step;
+    }
+    const Eigen::Vector3d branch = s.point[static_cast<std::size_t>(at)] - centre;
+    if (branch.norm() > 0.0 && branch.normalized().dot(own) > std::cos(M_PI / 4.0)) return true;
+  }
+  return false;
+}
+
 // How far the surface goes on from `origin` along the unit direction `t`: to the wall the
 // ray meets (a cap), or, out through an opening, to its rim: the farthest along `t` of the
 // mesh vertices that collapsed onto the skeleton points `tail`.
@@ -179,10 +204,11 @@ SurfaceCenterlines centerlines_from_surface(const geometry::TriangleMesh& surfac
       const auto chain = chain_from(s, static_cast<int>(i));
       const auto junction = static_cast<std::size_t>(chain.back());
       if (s.next[junction].size() < 3) continue;
-      // A spur: the end lies inside the lumen round its junction (the flow's leftovers, often
-      // a point or two), or the wall is no farther than that beyond it.
+      // A spur: the end lies inside the lumen round its junction along another branch (the
+      // flow's leftovers, often a point or two), or the wall is no farther than that lumen
+      // beyond it.
       const double reach = (s.point[i] - s.point[junction]).norm();
-      const bool spur = reach < s.radius_mm[junction] ||
+      const bool spur = (reach < s.radius_mm[junction] && repeats_a_branch(s, chain, s.radius_mm[junction])) ||
                         reach + room_past(s, chain, s.point[i], (s.point[i] - s.point[junction]).normalized(), walls) <=
                             s.radius_mm[junction] + kSpurMarginMm;
       if (!spur) continue;

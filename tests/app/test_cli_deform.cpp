@@ -132,6 +132,60 @@ TEST_F(Cli, DeformSaysWhichVesselsItCouldNotSolveOnAProxy) {
   EXPECT_NE(r.err.find("edges of about 14 mm"), std::string::npos) << r.err;
 }
 
+// A scene put together without `evarnode scene` names no proxy files: deform makes the
+// proxies at every load and says how to keep them; `proxies` keeps them beside the meshes
+// and names them in scene.json (nothing else in it changed), deform then reads them with
+// the same result, and a second `proxies` finds them current and rewrites nothing. (At a
+// 14 mm edge the suite's small scene has a proxy for its aorta only, which keeps it fast.)
+TEST_F(Cli, ProxiesKeepsAHandMadeScenesProxiesAndDeformReadsThemWithTheSameResult) {
+  const auto dir = scratch("proxies_scene");
+  evar::sim::ExampleSceneParams p;
+  p.aorta_vertices = 2500;
+  p.iliac_vertices = 1500;
+  evar::sim::write_example_scene(evar::sim::make_example_scene(p), dir);
+  const auto json = dir / "scene.json";
+  const auto manifest_before = nlohmann::json::parse(std::ifstream(json));
+  const auto deform_once = [&](const std::string& name) {
+    const auto out = scratch(name);
+    const auto r = evarnode({"deform", "--scene", json.string(), "--device", (dir / "device.mrk.json").string(), "--out",
+                             out.string(), "--no-preview", "--proxy-edge-mm", "14"});
+    EXPECT_EQ(r.code, 0) << r.err;
+    return std::pair{r.err, nlohmann::json::parse(std::ifstream(out / "report.json"))};
+  };
+  const auto [made_log, made] = deform_once("proxies_made");
+  EXPECT_EQ(made["vessels"][0]["proxy_file"], "");
+  EXPECT_NE(made_log.find("1 proxy made at load"), std::string::npos) << made_log;
+  EXPECT_NE(made_log.find("`evarnode proxies --scene " + json.string() + "`"), std::string::npos) << made_log;
+
+  const auto kept = evarnode({"proxies", "--scene", json.string(), "--proxy-edge-mm", "14"});
+  ASSERT_EQ(kept.code, 0) << kept.err;
+  EXPECT_TRUE(fs::is_regular_file(dir / "aorta.proxy"));
+  EXPECT_NE(kept.err.find("iliac_left: no proxy could be made"), std::string::npos) << kept.err;
+  EXPECT_NE(kept.err.find("scene.json names 1 proxy file(s)"), std::string::npos) << kept.err;
+  auto manifest = nlohmann::json::parse(std::ifstream(json));
+  EXPECT_EQ(manifest["vessels"][0]["proxy"], "aorta.proxy");
+  for (const std::size_t i : {1u, 2u}) EXPECT_FALSE(manifest["vessels"][i].contains("proxy")) << i;
+  manifest["vessels"][0].erase("proxy");
+  EXPECT_EQ(manifest, manifest_before);
+
+  const auto [read_log, read] = deform_once("proxies_read");
+  EXPECT_EQ(fs::path(read["vessels"][0]["proxy_file"].get<std::string>()).filename(), "aorta.proxy");
+  EXPECT_EQ(read_log.find("made at load"), std::string::npos) << read_log;
+  ASSERT_EQ(read["landmarks"].size(), made["landmarks"].size());
+  for (std::size_t k = 0; k < made["landmarks"].size(); ++k)
+    EXPECT_EQ(read["landmarks"][k]["after_lps_mm"], made["landmarks"][k]["after_lps_mm"]) << k;
+
+  const std::string before_again = [&] {
+    std::ifstream in(json);
+    return std::string(std::istreambuf_iterator<char>(in), {});
+  }();
+  const auto again = evarnode({"proxies", "--scene", json.string(), "--proxy-edge-mm", "14"});
+  ASSERT_EQ(again.code, 0) << again.err;
+  EXPECT_NE(again.err.find("is current: kept as it is"), std::string::npos) << again.err;
+  std::ifstream in(json);
+  EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), before_again);
+}
+
 TEST_F(Cli, DeformWithoutCoarseRotationsSaysSoAndIteratesTheIliacsPlainly) {
   const auto with = scratch("deform_coarse"), without = scratch("deform_plain");
   ASSERT_EQ(evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", with.string(),

@@ -269,7 +269,8 @@ TEST(CliScene, ASegmentationPhantomInImageAxesMakesASceneAndThePushedWireEndsIns
     EXPECT_EQ(stale.code, 0) << stale.err;
     EXPECT_NE(stale.err.find(with_file->name + ": the scene's proxy file was not used, the proxy was made anew"), std::string::npos)
         << stale.err;
-    EXPECT_NE(stale.err.find("run `evarnode scene` again"), std::string::npos);
+    EXPECT_NE(stale.err.find("`evarnode proxies --scene " + (out / "scene.json").string() + "` keeps a fresh one"), std::string::npos)
+        << stale.err;
     EXPECT_NE(stale.err.find("not an evarnode proxy file"), std::string::npos);
   }
 }
