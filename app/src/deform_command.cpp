@@ -135,6 +135,10 @@ int run_deform(const DeformCommand& cmd) {
                            {"proxy_edge_mm", cmd.proxy_edge_mm},
                            {"vessels", nlohmann::json::array()},
                            {"landmarks", nlohmann::json::array()}};
+  // The command that keeps this scene's proxies for later loads, at this call's edge.
+  const std::string proxies_command =
+      "evarnode proxies --scene " + cmd.scene.string() +
+      (cmd.proxy_edge_mm == ProxiesCommand{}.proxy_edge_mm ? "" : " --proxy-edge-mm " + base::quantity_text(cmd.proxy_edge_mm, "", 3));
   for (std::size_t i = 0; i < scene.vessels.size(); ++i) {
     const auto& v = scene.vessels[i];
     const auto out_path = cmd.out / v.mesh_path.filename();
@@ -151,8 +155,8 @@ int run_deform(const DeformCommand& cmd) {
                        r.proxy_vertices, base::quantity_text(r.proxy_edge_mm, "mm", 2), r.vertices, r.proxy_file.empty() ? "" : ", read from " + std::filesystem::path(r.proxy_file).filename().string());
     if (!r.proxy_file_unused.empty())
       node::log().warn("{}: the scene's proxy file was not used, the proxy was made anew (seconds on a large mesh; "
-                       "`evarnode proxies --scene {}` keeps a fresh one): {}",
-                       r.name, cmd.scene.string(), r.proxy_file_unused);
+                       "`{}` keeps a fresh one): {}",
+                       r.name, proxies_command, r.proxy_file_unused);
     if (!r.proxy_refused.empty())
       node::log().warn("{}: solved on its own {} vertices, slower and less even than on a proxy: {}", r.name, r.vertices,
                  r.proxy_refused);
@@ -161,9 +165,9 @@ int run_deform(const DeformCommand& cmd) {
   const auto made_here = std::count_if(result.reports.begin(), result.reports.end(),
                                       [](const auto& r) { return r.proxy_vertices > 0 && r.proxy_file.empty(); });
   if (made_here > 0)
-    node::log().info("{} {} made at load in {:.0f} ms; `evarnode proxies --scene {}` keeps {} beside the meshes, so later "
+    node::log().info("{} {} made at load in {:.0f} ms; `{}` keeps {} beside the meshes, so later "
                      "loads read {} in milliseconds",
-                     made_here, made_here == 1 ? "proxy" : "proxies", result.proxy_ms, cmd.scene.string(),
+                     made_here, made_here == 1 ? "proxy" : "proxies", result.proxy_ms, proxies_command,
                      made_here == 1 ? "it" : "them", made_here == 1 ? "it" : "them");
   geometry::Markup landmarks{"Fiducial", "landmarks", result.landmarks};
   geometry::write_markups(cmd.out / "landmarks.mrk.json", {landmarks});

@@ -36,10 +36,15 @@ int run_proxies(const ProxiesCommand& cmd) {
       node::log().info("{:<12} {} vertices, median edge {}: solved as it is, no proxy needed", v.name, mesh.V.rows(),
                        base::quantity_text(geometry::median_edge_length(mesh), "mm", 2));
   }
-  const int usable = keep_proxies(cmd.scene, scene, deformer, cmd.proxy_edge_mm);
+  const KeptProxies kept = keep_proxies(cmd.scene, scene, deformer, cmd.proxy_edge_mm);
   node::log().info("{} names {} proxy file(s); deform, run and record read them when given the same --proxy-edge-mm "
                    "(reading or making them took {:.0f} ms here)",
-                   cmd.scene.filename().string(), usable, deformer.proxy_ms());
+                   cmd.scene.filename().string(), kept.usable, deformer.proxy_ms());
+  if (kept.failed > 0) {
+    node::log().error("{} proxy file(s) could not be written beside {} (see above): is its folder writable?", kept.failed,
+                      cmd.scene.string());
+    return 1;
+  }
   return 0;
 }
 

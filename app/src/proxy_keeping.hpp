@@ -9,12 +9,18 @@
 
 namespace evar::app {
 
-/// Writes `<mesh stem>.proxy` beside scene.json for every vessel of `scene` (loaded from
+struct KeptProxies {
+  int usable = 0;  ///< vessels whose scene.json entry now names a current proxy file
+  int failed = 0;  ///< proxies made that could not be written (warned about)
+};
+
+/// Writes `<vessel>.proxy` beside scene.json for every vessel of `scene` (loaded from
 /// `json`) whose proxy `deformer` made rather than read from the file scene.json names,
-/// then adds `vessels[i].proxy` to scene.json (rewritten atomically, its other fields and
-/// their order kept). A proxy that cannot be written is warned about and left out: the
-/// scene stands without it. Returns how many vessels now name a usable proxy file.
-int keep_proxies(const std::filesystem::path& json, const geometry::Scene& scene, const deform::SceneDeformer& deformer,
-                 double edge_mm);
+/// and names it in `vessels[i].proxy`; removes the entry of a vessel that has no proxy now
+/// (none needed, or refused at every edge). scene.json is rewritten atomically, its other
+/// fields and their order kept, and only when something changed. A proxy that cannot be
+/// written is warned about and left out: the scene stands without it.
+KeptProxies keep_proxies(const std::filesystem::path& json, const geometry::Scene& scene,
+                         const deform::SceneDeformer& deformer, double edge_mm);
 
 }  // namespace evar::app

@@ -60,7 +60,7 @@ int run_scene(const SceneCommand& cmd) {
   const geometry::Scene loaded = geometry::load_scene(json);
   const deform::DeformOptions defaults;
   const deform::SceneDeformer deformer(loaded, defaults);
-  const int proxies = keep_proxies(json, loaded, deformer, defaults.proxy_edge_mm);
+  const int proxies = keep_proxies(json, loaded, deformer, defaults.proxy_edge_mm).usable;
   nlohmann::json report = {{"format", "evarnode-scene-report"},
                            {"version", 1},
                            {"surface", cmd.surface.string()},

@@ -20,7 +20,7 @@ static_assert(std::endian::native == std::endian::little, "proxy files are littl
 // The digit is the version of the layout and of make_proxy's method: bumped whenever either
 // changes, so files of another version are made anew.
 constexpr std::string_view kMagic = "evarnode-proxy2\n";
-// What every version's first 15 bytes are.
+// What every version's first 14 bytes are.
 constexpr std::string_view kMagicStem = "evarnode-proxy";
 
 void put_bytes(std::string& out, const void* p, std::size_t n) { out.append(static_cast<const char*>(p), n); }
@@ -77,6 +77,9 @@ std::uint64_t mesh_fingerprint(const geometry::TriangleMesh& mesh) {
 
 void write_mesh_proxy(const std::filesystem::path& file, const MeshProxy& proxy, const geometry::TriangleMesh& fine,
                       double edge_mm) {
+  if (!(proxy.edge_mm > 0.0 && proxy.edge_mm <= edge_mm))
+    throw std::invalid_argument("write_mesh_proxy: the proxy says it was remeshed to " + std::to_string(proxy.edge_mm) +
+                                " mm, not between 0 and the " + std::to_string(edge_mm) + " mm it is written for");
   if (proxy.bindings.size() != static_cast<std::size_t>(fine.V.rows()))
     throw std::invalid_argument("write_mesh_proxy: the proxy binds " + std::to_string(proxy.bindings.size()) +
                                 " vertices, the mesh has " + std::to_string(fine.V.rows()));

@@ -11,6 +11,7 @@
 #include <algorithm>
 #include <functional>
 #include <stdexcept>
+#include <type_traits>
 
 namespace evar::prepare::detail {
 // The flow's traits: CGAL's Cartesian kernel under a name of our own, so that the ordering
@@ -21,6 +22,10 @@ using Skeletonization = CGAL::Mean_curvature_flow_skeletonization<SurfaceMesh, S
 // The meso-skeleton the flow contracts (a Polyhedron_3, CGAL's own choice) and its edges.
 using MesoSkeleton = CGAL::Polyhedron_3<SkeletonTraits, CGAL::internal::Skel_polyhedron_items_3<SurfaceMesh::Vertex_index>>;
 using MesoEdge = boost::graph_traits<MesoSkeleton>::edge_descriptor;
+// Should CGAL change its meso-skeleton's type, the ordering below would silently stop
+// applying: refuse to build instead.
+static_assert(std::is_same_v<MesoSkeleton, Skeletonization::Meso_skeleton>,
+              "CGAL's meso-skeleton type changed: update MesoSkeleton so its edges are ordered by id");
 }  // namespace evar::prepare::detail
 
 // The flow collapses short edges in the order of a std::set of edges, which CGAL orders by

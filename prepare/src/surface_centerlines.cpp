@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <numbers>
 #include <limits>
 #include <optional>
 #include <queue>
@@ -62,25 +63,28 @@ std::vector<int> chain_from(const Skeleton& s, int end) {
 
 // Whether the end of `chain` (from an end to its junction) leaves the junction the way
 // another of its branches does (within 45°, each branch's direction taken about
-// `radius_mm` along it): the flow's leftovers near a junction point along the vessels that
+// `radius_mm` along it; branches dropped as spurs and branches that end inside that radius
+// do not count): the flow's leftovers near a junction point along the vessels that
 // leave it, while a vessel's own end leaves in a direction no other branch takes, even one
 // the flow pulled back inside the junction's lumen (a short, wide aorta above the renal
 // arteries).
-bool repeats_a_branch(const Skeleton& s, const std::vector<int>& chain, double radius_mm) {
+bool repeats_a_branch(const Skeleton& s, const std::vector<int>& chain, double radius_mm, const std::vector<char>& dropped) {
   const auto junction = static_cast<std::size_t>(chain.back());
   const Eigen::Vector3d& centre = s.point[junction];
   const Eigen::Vector3d own = (s.point[static_cast<std::size_t>(chain.front())] - centre).normalized();
   const int own_first = chain[chain.size() - 2];
   for (const int first : s.next[junction]) {
-    if (first == own_first) continue;
+    if (first == own_first || dropped[static_cast<std::size_t>(first)]) continue;
     int previous = static_cast<int>(junction), at = first;
     while ((s.point[static_cast<std::size_t>(at)] - centre).norm() < radius_mm && s.next[static_cast<std::size_t>(at)].size() == 2) {
       const auto& two = s.next[static_cast<std::size_t>(at)];
       const int step = two[0] == previous ? two[1] : two[0];
       previous = at, at = step;
     }
+    // Only a branch that leaves the lumen counts: two ends both inside it (a vessel's end
+    // pulled back and a leftover beside it) would otherwise each repeat the other.
     const Eigen::Vector3d branch = s.point[static_cast<std::size_t>(at)] - centre;
-    if (branch.norm() > 0.0 && branch.normalized().dot(own) > std::cos(M_PI / 4.0)) return true;
+    if (branch.norm() >= radius_mm && branch.normalized().dot(own) > std::cos(std::numbers::pi / 4.0)) return true;
   }
   return false;
 }
@@ -208,7 +212,7 @@ SurfaceCenterlines centerlines_from_surface(const geometry::TriangleMesh& surfac
       // flow's leftovers, often a point or two), or the wall is no farther than that lumen
       // beyond it.
       const double reach = (s.point[i] - s.point[junction]).norm();
-      const bool spur = (reach < s.radius_mm[junction] && repeats_a_branch(s, chain, s.radius_mm[junction])) ||
+      const bool spur = (reach < s.radius_mm[junction] && repeats_a_branch(s, chain, s.radius_mm[junction], dropped)) ||
                         reach + room_past(s, chain, s.point[i], (s.point[i] - s.point[junction]).normalized(), walls) <=
                             s.radius_mm[junction] + kSpurMarginMm;
       if (!spur) continue;

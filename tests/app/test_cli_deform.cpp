@@ -100,9 +100,9 @@ TEST_F(Cli, DeformWritesMeshesLandmarksReportAndPreview) {
   EXPECT_EQ(before.V.rows(), after.V.rows());
 }
 
-// A vessel too thin for the asked proxy edge is solved on its own mesh; the run says so in
-// the log and in report.json, and still writes every vessel.
-// At a 14 mm proxy edge the suite's small example scene gets the aorta's proxy at that edge
+// A vessel too thin for the asked proxy edge, and for the finer ones tried after it, is solved
+// on its own mesh; the run says so in the log and in report.json, and still writes every
+// vessel. At a 14 mm proxy edge the suite's small example scene gets the aorta's proxy at that edge
 // and none for the iliacs (4.5-6 mm radius) at any rung (14, 11.2, 8.96 mm): each says so in
 // report.json, and the log names the vessels solved on their own meshes.
 TEST_F(Cli, DeformSaysWhichVesselsItCouldNotSolveOnAProxy) {
@@ -155,7 +155,9 @@ TEST_F(Cli, ProxiesKeepsAHandMadeScenesProxiesAndDeformReadsThemWithTheSameResul
   const auto [made_log, made] = deform_once("proxies_made");
   EXPECT_EQ(made["vessels"][0]["proxy_file"], "");
   EXPECT_NE(made_log.find("1 proxy made at load"), std::string::npos) << made_log;
-  EXPECT_NE(made_log.find("`evarnode proxies --scene " + json.string() + "`"), std::string::npos) << made_log;
+  // The command to keep them, at this call's edge (a file made at another edge is not read).
+  EXPECT_NE(made_log.find("`evarnode proxies --scene " + json.string() + " --proxy-edge-mm 14`"), std::string::npos)
+      << made_log;
 
   const auto kept = evarnode({"proxies", "--scene", json.string(), "--proxy-edge-mm", "14"});
   ASSERT_EQ(kept.code, 0) << kept.err;
@@ -184,6 +186,13 @@ TEST_F(Cli, ProxiesKeepsAHandMadeScenesProxiesAndDeformReadsThemWithTheSameResul
   EXPECT_NE(again.err.find("is current: kept as it is"), std::string::npos) << again.err;
   std::ifstream in(json);
   EXPECT_EQ(std::string(std::istreambuf_iterator<char>(in), {}), before_again);
+
+  // At an edge no vessel can be remeshed to, the aorta has no proxy any more: the entry that
+  // names its file would be stale, and is removed.
+  const auto none = evarnode({"proxies", "--scene", json.string(), "--proxy-edge-mm", "200"});
+  ASSERT_EQ(none.code, 0) << none.err;
+  EXPECT_NE(none.err.find("aorta: no proxy could be made"), std::string::npos) << none.err;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(json)), manifest_before);
 }
 
 TEST_F(Cli, DeformWithoutCoarseRotationsSaysSoAndIteratesTheIliacsPlainly) {
