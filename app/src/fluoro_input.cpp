@@ -33,6 +33,22 @@ FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesyste
   }
   if (!geometry.empty()) {
     in.view = read_view(geometry);
+    if (const auto mapping = read_video_mapping_of_view(geometry)) {
+      // The monitor's picture: the detector image read back out of its rectangle (turned and
+      // mirrored back, resampled to detector pixels), so everything after works on the detector.
+      if (mapping->video_cols != in.image.cols || mapping->video_rows != in.image.rows)
+        throw base::InputError(geometry.string() + ": video_mapping.video_size_px is " + std::to_string(mapping->video_cols) +
+                               " x " + std::to_string(mapping->video_rows) + " but " + image.string() + " is " +
+                               std::to_string(in.image.cols) + " x " + std::to_string(in.image.rows));
+      const geometry::VideoToDetector map(*mapping, in.view->detector_cols, in.view->detector_rows);
+      cv::Mat to_video(2, 3, CV_64F);
+      for (int r = 0; r < 2; ++r)
+        for (int c = 0; c < 3; ++c) to_video.at<double>(r, c) = map.detector_to_video()(r, c);
+      cv::Mat detector;
+      cv::warpAffine(in.image, detector, to_video, cv::Size(in.view->detector_cols, in.view->detector_rows),
+                     cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
+      in.image = detector;
+    }
     if (in.view->detector_cols != in.image.cols || in.view->detector_rows != in.image.rows)
       throw base::InputError(geometry.string() + ": detector_size_px is " + std::to_string(in.view->detector_cols) +
                                  " x " + std::to_string(in.view->detector_rows) + " but " + image.string() + " is " +

@@ -11,7 +11,8 @@
 namespace evar::app {
 
 struct FluoroInput {
-  cv::Mat image;                               ///< CV_8UC1 or CV_16UC1, dark = attenuating
+  cv::Mat image;                               ///< CV_8UC1 or CV_16UC1, dark = attenuating; the detector's
+                                               ///< pixels (a video-out frame is mapped back, view's video_mapping)
   std::optional<geometry::CArmView> view;      ///< from --geometry or the DICOM header
 };
 

@@ -2,6 +2,7 @@
 // projection conventions by hand (docs/CARM_GEOMETRY.md).
 #include <cmath>
 #include <cstdio>
+#include <optional>
 #include <string>
 
 #include <fmt/format.h>
@@ -30,6 +31,8 @@ int run_project(const ProjectCommand& cmd) {
   const geometry::CArmView view = read_view(cmd.geometry);
   geometry::ProjectionMatrix P = geometry::projection_matrix(view);
   if (!cmd.registration.empty()) P = geometry::registered(P, geometry::read_registration(cmd.registration));
+  std::optional<geometry::VideoToDetector> video;
+  if (const auto mapping = read_video_mapping_of_view(cmd.geometry)) video.emplace(*mapping, view.detector_cols, view.detector_rows);
   std::vector<geometry::ControlPoint> points;
   for (const auto& m : geometry::read_markups(cmd.points))
     points.insert(points.end(), m.points.begin(), m.points.end());
@@ -62,6 +65,11 @@ int run_project(const ProjectCommand& cmd) {
                   depth, where.c_str());
     nlohmann::json j{{"label", label}, {"position_mm", {x.x(), x.y(), x.z()}}, {"depth_mm", depth}, {"where", where}};
     j["pixel"] = px ? nlohmann::json{px->x(), px->y()} : nlohmann::json(nullptr);
+    if (video) {
+      const auto shown = px ? std::optional(video->to_video(*px)) : std::nullopt;
+      j["video_pixel"] = shown ? nlohmann::json{shown->x(), shown->y()} : nlohmann::json(nullptr);
+      if (shown) std::printf("%-24s %10s %10s %10s %10.2f %10.2f %11s  in the video frame\n", "", "", "", "", shown->x(), shown->y(), "");
+    }
     out.push_back(j);
   }
   if (!cmd.out.empty()) {

@@ -21,4 +21,9 @@ inline geometry::CArmView read_view(const std::filesystem::path& path) {
   return is_dicom_file(path) ? geometry::read_xa_dicom(path).view : geometry::read_view_geometry(path);
 }
 
+/// The view geometry file's video mapping (none for DICOM: its frames are the detector's).
+inline std::optional<geometry::VideoMapping> read_video_mapping_of_view(const std::filesystem::path& path) {
+  return is_dicom_file(path) ? std::nullopt : geometry::read_view_video_mapping(path);
+}
+
 }  // namespace evar::app

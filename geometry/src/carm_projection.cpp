@@ -153,7 +153,22 @@ CArmView read_view_geometry(const std::filesystem::path& path) {
   return v;
 }
 
-void write_view_geometry(const std::filesystem::path& path, const CArmView& view) {
+std::optional<VideoMapping> read_view_video_mapping(const std::filesystem::path& path) {
+  const CArmView v = read_view_geometry(path);
+  const auto root = detail::parse_json_file(path);
+  const auto it = root.find("video_mapping");
+  if (it == root.end() || it->is_null()) return std::nullopt;
+  VideoMapping mapping = parse_video_mapping(*it, path, "video_mapping.");
+  try {
+    const VideoToDetector check(mapping, v.detector_cols, v.detector_rows);
+  } catch (const std::invalid_argument& e) {
+    detail::bad_field(path, "video_mapping", std::string(e.what()).substr(std::string("video mapping: ").size()));
+  }
+  return mapping;
+}
+
+void write_view_geometry(const std::filesystem::path& path, const CArmView& view,
+                         const std::optional<VideoMapping>& video_mapping) {
   nlohmann::json j;
   j["primary_angle_deg"] = view.primary_angle_deg;
   j["secondary_angle_deg"] = view.secondary_angle_deg;
@@ -170,6 +185,7 @@ void write_view_geometry(const std::filesystem::path& path, const CArmView& view
     }
     j["projection_matrix"] = rows;
   }
+  if (video_mapping) j["video_mapping"] = video_mapping_json(*video_mapping);
   base::write_file_atomically(path, j.dump(2) + "\n");
 }
 

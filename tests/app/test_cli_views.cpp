@@ -18,6 +18,8 @@
 #include "evar/sim/fluoro_render.hpp"
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include "evar/geometry/video_mapping.hpp"
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <iterator>
@@ -136,6 +138,84 @@ TEST_F(Cli, SegmentWritesTheCurveAndSaysWhenThereIsNone) {
   EXPECT_FALSE(nlohmann::json::parse(std::ifstream(dir / "n.json"))["found"].get<bool>());
   write_text(dir / "junk.png", "not an image");
   EXPECT_EQ(evarnode({"segment", "--image", (dir / "junk.png").string(), "--out", (dir / "x.json").string()}).code, 1);
+}
+
+namespace {
+// The monitor's picture of a detector frame, made as a display makes it: turned clockwise,
+// mirrored left to right, resized into the rectangle, black around it.
+cv::Mat video_out(const cv::Mat& detector, const evar::geometry::VideoMapping& m) {
+  cv::Mat turned = detector;
+  if (m.rotation_deg == 90) cv::rotate(detector, turned, cv::ROTATE_90_CLOCKWISE);
+  if (m.rotation_deg == 180) cv::rotate(detector, turned, cv::ROTATE_180);
+  if (m.rotation_deg == 270) cv::rotate(detector, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
+  cv::Mat mirrored = turned;
+  if (m.mirror) cv::flip(turned, mirrored, 1);
+  const cv::Rect rect(static_cast<int>(m.image_rect.x), static_cast<int>(m.image_rect.y),
+                      static_cast<int>(m.image_rect.width), static_cast<int>(m.image_rect.height));
+  cv::Mat resized;
+  cv::resize(mirrored, resized, rect.size(), 0, 0, cv::INTER_LINEAR);
+  cv::Mat frame(m.video_rows, m.video_cols, detector.type(), cv::Scalar(0));
+  resized.copyTo(frame(rect));
+  return frame;
+}
+}  // namespace
+
+// Frames in a C-arm's video-out form (each view's 768² detector image shown 1.33 times
+// larger in a 1280 x 1024 frame with black borders, one turned a quarter and mirrored), their
+// view geometry carrying the video mapping: reconstruct reads the detector image back through
+// it and finds the wire as from the detector's own frames; project gives the video pixel
+// beside the detector's; a frame of another size than the mapping's is refused by name.
+TEST_F(Cli, VideoOutFramesWithTheirMappingReconstructAsTheDetectorsOwn) {
+  const auto dir = scratch("video_out");
+  const auto t = write_two_frames(dir);
+  std::vector<evar::geometry::VideoMapping> mappings;
+  for (const int k : {1, 2}) {
+    const std::string n = std::to_string(k);
+    const auto view = evar::geometry::read_view_geometry(dir / ("view" + n + ".json"));
+    evar::geometry::VideoMapping m;
+    m.video_cols = 1280;
+    m.video_rows = 1024;
+    m.image_rect = {128, 0, 1024, 1024};
+    m.rotation_deg = k == 1 ? 90 : 0;
+    m.mirror = k == 1;
+    m.text_regions = {{0, 0, 120, 40}};
+    mappings.push_back(m);
+    cv::imwrite((dir / ("video" + n + ".png")).string(),
+                video_out(cv::imread((dir / ("view" + n + ".png")).string(), cv::IMREAD_UNCHANGED), m));
+    evar::geometry::write_view_geometry(dir / ("video" + n + ".json"), view, m);
+  }
+  std::vector<std::string> args{"reconstruct", "--out", (dir / "device.mrk.json").string()};
+  for (const char* n : {"1", "2"})
+    args.insert(args.end(), {"--image", (dir / (std::string("video") + n + ".png")).string(), "--geometry",
+                             (dir / (std::string("video") + n + ".json")).string()});
+  const auto run = evarnode(args);
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto curve = evar::geometry::read_curve(dir / "device.mrk.json", 2);
+  double sum = 0.0;
+  for (const auto& p : curve.points) sum += evar::geometry::project_onto(t.wire, p.position_lps).distance_mm;
+  EXPECT_LT(sum / static_cast<double>(curve.points.size()), 1.0);  // as from the detector's frames
+  EXPECT_LT((curve.points.front().position_lps - t.wire.front()).norm(), 3.0);
+
+  write_text(dir / "tip.mrk.json", R"({"markups": [{"type": "Fiducial", "coordinateSystem": "LPS", "controlPoints": [
+      {"label": "tip", "position": [)" + std::to_string(t.wire.front().x()) + ", " + std::to_string(t.wire.front().y()) +
+                                         ", " + std::to_string(t.wire.front().z()) + "]}]}]}");
+  testing::internal::CaptureStdout();
+  ASSERT_EQ(run_cli({"project", "--geometry", (dir / "video1.json").string(), "--points", (dir / "tip.mrk.json").string(),
+                     "--out", (dir / "r.json").string()}),
+            0);
+  testing::internal::GetCapturedStdout();
+  const auto r = nlohmann::json::parse(std::ifstream(dir / "r.json"));
+  const Eigen::Vector2d pixel(r["points"][0]["pixel"][0].get<double>(), r["points"][0]["pixel"][1].get<double>());
+  const Eigen::Vector2d shown = evar::geometry::VideoToDetector(mappings[0], 768, 768).to_video(pixel);
+  EXPECT_NEAR(r["points"][0]["video_pixel"][0].get<double>(), shown.x(), 1e-9);
+  EXPECT_NEAR(r["points"][0]["video_pixel"][1].get<double>(), shown.y(), 1e-9);
+  // Turned a quarter clockwise and mirrored, the detector's u runs down the frame.
+  EXPECT_NEAR(shown.y(), (pixel.x() + 0.5) * 1024.0 / 768.0 - 0.5, 1e-9);
+
+  const auto wrong = evarnode({"segment", "--image", (dir / "view1.png").string(), "--geometry",
+                               (dir / "video1.json").string(), "--out", (dir / "d.json").string()});
+  EXPECT_EQ(wrong.code, 1);
+  EXPECT_NE(wrong.err.find("video_mapping.video_size_px is 1280 x 1024 but"), std::string::npos) << wrong.err;
 }
 
 TEST_F(Cli, ReconstructFromPngsAndFromDicomMatchesTheWire) {

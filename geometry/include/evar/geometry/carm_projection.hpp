@@ -19,6 +19,8 @@
 #include <filesystem>
 #include <optional>
 
+#include "evar/geometry/video_mapping.hpp"
+
 namespace evar::geometry {
 
 using ProjectionMatrix = Eigen::Matrix<double, 3, 4>;
@@ -76,8 +78,14 @@ double device_shadow_width_px(const CArmView& view, double diameter_mm);
 
 /// Reads a view geometry JSON file; InputError names the file and the field.
 CArmView read_view_geometry(const std::filesystem::path& path);
-/// Writes one (the projection matrix only when the view has one).
-void write_view_geometry(const std::filesystem::path& path, const CArmView& view);
+/// Its optional "video_mapping": where the detector image lies in the frames when they are
+/// a C-arm's video output (the monitor's picture), not the detector's pixels; none: the
+/// frames are the detector's. InputError naming "video_mapping.<field>", or the mapping
+/// when its rectangle does not have the (turned) detector's shape.
+std::optional<VideoMapping> read_view_video_mapping(const std::filesystem::path& path);
+/// Writes one (the projection matrix only when the view has one, the video mapping when given).
+void write_view_geometry(const std::filesystem::path& path, const CArmView& view,
+                         const std::optional<VideoMapping>& video_mapping = std::nullopt);
 
 /// Reads a CT→C-arm registration: JSON {"matrix": [[4 numbers] x 4]} (row-major, mm,
 /// last row 0 0 0 1). InputError names the file and the field.
