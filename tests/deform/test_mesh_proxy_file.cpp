@@ -151,3 +151,26 @@ TEST(MeshProxyFile, ASceneDeformsThroughItsProxyFilesAsThroughProxiesMadeAtLoad)
   EXPECT_EQ(again.reports[2].proxy_file, scene.vessels[2].proxy_path.string());
   EXPECT_EQ(again.vessels[1].mesh.V, reference.vessels[1].mesh.V);
 }
+
+// A proxy made at a finer rung than the asked edge (the example's left iliac at a 14 mm
+// edge holds only at 8.96 mm, MeshProxy.AVesselWhoseProxyIsRefused…) is kept for the asked
+// edge and read back with the edge it was remeshed to, so deform reports it.
+TEST(MeshProxyFile, AProxyMadeAtAFinerRungReadsBackWithItsOwnEdge) {
+  const test::TempDir dir;
+  const geometry::Scene scene = sim::to_scene(sim::make_example_scene({}));
+  ASSERT_EQ(scene.vessels[1].name, "iliac_left");
+  const auto& mesh = scene.vessels[1].mesh.mesh;
+  const deform::MeshProxy made = deform::make_proxy_or_finer(mesh, 14.0);
+  EXPECT_NEAR(made.edge_mm, 8.96, 1e-9);
+  const fs::path file = dir.path / "iliac_left.proxy";
+  deform::write_mesh_proxy(file, made, mesh, 14.0);
+  const deform::MeshProxy read = deform::read_mesh_proxy(file, mesh, 14.0);
+  EXPECT_EQ(read.edge_mm, made.edge_mm);
+  EXPECT_EQ(read.coarse.V, made.coarse.V);
+  // A proxy that does not say its edge, or says one longer than the asked, is not written.
+  deform::MeshProxy unsaid = made;
+  unsaid.edge_mm = 0.0;
+  EXPECT_NE(test::error_message<std::invalid_argument>([&] { deform::write_mesh_proxy(file, unsaid, mesh, 14.0); })
+                .find("remeshed to 0"),
+            std::string::npos);
+}
