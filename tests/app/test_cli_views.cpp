@@ -20,6 +20,7 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include "evar/geometry/video_mapping.hpp"
+#include "support/video_out.hpp"
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <iterator>
@@ -140,25 +141,6 @@ TEST_F(Cli, SegmentWritesTheCurveAndSaysWhenThereIsNone) {
   EXPECT_EQ(evarnode({"segment", "--image", (dir / "junk.png").string(), "--out", (dir / "x.json").string()}).code, 1);
 }
 
-namespace {
-// The monitor's picture of a detector frame, made as a display makes it: turned clockwise,
-// mirrored left to right, resized into the rectangle, black around it.
-cv::Mat video_out(const cv::Mat& detector, const evar::geometry::VideoMapping& m) {
-  cv::Mat turned = detector;
-  if (m.rotation_deg == 90) cv::rotate(detector, turned, cv::ROTATE_90_CLOCKWISE);
-  if (m.rotation_deg == 180) cv::rotate(detector, turned, cv::ROTATE_180);
-  if (m.rotation_deg == 270) cv::rotate(detector, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
-  cv::Mat mirrored = turned;
-  if (m.mirror) cv::flip(turned, mirrored, 1);
-  const cv::Rect rect(static_cast<int>(m.image_rect.x), static_cast<int>(m.image_rect.y),
-                      static_cast<int>(m.image_rect.width), static_cast<int>(m.image_rect.height));
-  cv::Mat resized;
-  cv::resize(mirrored, resized, rect.size(), 0, 0, cv::INTER_LINEAR);
-  cv::Mat frame(m.video_rows, m.video_cols, detector.type(), cv::Scalar(0));
-  resized.copyTo(frame(rect));
-  return frame;
-}
-}  // namespace
 
 // Frames in a C-arm's video-out form (each view's 768² detector image shown 1.33 times
 // larger in a 1280 x 1024 frame with black borders, one turned a quarter and mirrored), their
@@ -181,7 +163,7 @@ TEST_F(Cli, VideoOutFramesWithTheirMappingReconstructAsTheDetectorsOwn) {
     m.text_regions = {{0, 0, 120, 40}};
     mappings.push_back(m);
     cv::imwrite((dir / ("video" + n + ".png")).string(),
-                video_out(cv::imread((dir / ("view" + n + ".png")).string(), cv::IMREAD_UNCHANGED), m));
+                evar::test::shown_on_monitor(cv::imread((dir / ("view" + n + ".png")).string(), cv::IMREAD_UNCHANGED), m));
     evar::geometry::write_view_geometry(dir / ("video" + n + ".json"), view, m);
   }
   std::vector<std::string> args{"reconstruct", "--out", (dir / "device.mrk.json").string()};

@@ -11,6 +11,7 @@
 #include "evar/geometry/video_mapping.hpp"
 #include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
+#include "support/video_out.hpp"
 
 using namespace evar;
 using geometry::VideoMapping;
@@ -27,24 +28,6 @@ cv::Mat detector_with_spot(int cols, int rows, const Eigen::Vector2d& at) {
       if (d2 < 100.0) image.at<float>(v, u) = static_cast<float>(std::exp(-d2 / (2.0 * 2.0 * 2.0)));
     }
   return image;
-}
-
-// The monitor's picture of `detector`, made the way a display makes it: turned clockwise,
-// mirrored left to right, resized into the (whole-pixel) rectangle, black around it.
-cv::Mat shown(const cv::Mat& detector, const VideoMapping& m) {
-  cv::Mat turned = detector;
-  if (m.rotation_deg == 90) cv::rotate(detector, turned, cv::ROTATE_90_CLOCKWISE);
-  if (m.rotation_deg == 180) cv::rotate(detector, turned, cv::ROTATE_180);
-  if (m.rotation_deg == 270) cv::rotate(detector, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
-  cv::Mat mirrored = turned;
-  if (m.mirror) cv::flip(turned, mirrored, 1);
-  cv::Mat resized;
-  const cv::Rect rect(static_cast<int>(m.image_rect.x), static_cast<int>(m.image_rect.y), static_cast<int>(m.image_rect.width),
-                      static_cast<int>(m.image_rect.height));
-  cv::resize(mirrored, resized, rect.size(), 0, 0, cv::INTER_LINEAR);
-  cv::Mat video(m.video_rows, m.video_cols, CV_32F, cv::Scalar(0));
-  resized.copyTo(video(rect));
-  return video;
 }
 
 Eigen::Vector2d centroid(const cv::Mat& image) {
@@ -82,7 +65,7 @@ TEST(VideoMapping, EveryTurnMirrorAndScalePutsAPointWhereTheDisplayShowsItAndBac
         const VideoToDetector map(m, f.detector_cols, f.detector_rows);
         for (const Eigen::Vector2d& at : {Eigen::Vector2d(40.3, 60.7), Eigen::Vector2d(f.detector_cols - 30.5, 25.25),
                                           Eigen::Vector2d(0.5 * f.detector_cols, f.detector_rows - 20.0)}) {
-          const Eigen::Vector2d expected = centroid(shown(detector_with_spot(f.detector_cols, f.detector_rows, at), m));
+          const Eigen::Vector2d expected = centroid(test::shown_on_monitor(detector_with_spot(f.detector_cols, f.detector_rows, at), m));
           const Eigen::Vector2d video = map.to_video(at);
           EXPECT_LT((video - expected).norm(), 0.1) << at.transpose() << " -> " << video.transpose() << ", shown at "
                                                     << expected.transpose();
