@@ -1,5 +1,6 @@
 #include "fluoro_input.hpp"
 
+#include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -32,8 +33,9 @@ FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesyste
     in.image = raw;
   }
   if (!geometry.empty()) {
-    in.view = read_view(geometry);
-    if (const auto mapping = read_video_mapping_of_view(geometry)) {
+    const auto file = read_view_file(geometry);
+    in.view = file.view;
+    if (const auto& mapping = file.video_mapping) {
       // The monitor's picture: the detector image read back out of its rectangle (turned and
       // mirrored back, resampled to detector pixels), so everything after works on the detector.
       if (mapping->video_cols != in.image.cols || mapping->video_rows != in.image.rows)
@@ -41,9 +43,8 @@ FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesyste
                                " x " + std::to_string(mapping->video_rows) + " but " + image.string() + " is " +
                                std::to_string(in.image.cols) + " x " + std::to_string(in.image.rows));
       const geometry::VideoToDetector map(*mapping, in.view->detector_cols, in.view->detector_rows);
-      cv::Mat to_video(2, 3, CV_64F);
-      for (int r = 0; r < 2; ++r)
-        for (int c = 0; c < 3; ++c) to_video.at<double>(r, c) = map.detector_to_video()(r, c);
+      cv::Mat to_video;
+      cv::eigen2cv(map.detector_to_video(), to_video);
       cv::Mat detector;
       cv::warpAffine(in.image, detector, to_video, cv::Size(in.view->detector_cols, in.view->detector_rows),
                      cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);

@@ -28,11 +28,12 @@ std::string describe(const geometry::CArmView& v) {
 }  // namespace
 
 int run_project(const ProjectCommand& cmd) {
-  const geometry::CArmView view = read_view(cmd.geometry);
+  const geometry::ViewGeometryFile file = read_view_file(cmd.geometry);
+  const geometry::CArmView& view = file.view;
   geometry::ProjectionMatrix P = geometry::projection_matrix(view);
   if (!cmd.registration.empty()) P = geometry::registered(P, geometry::read_registration(cmd.registration));
   std::optional<geometry::VideoToDetector> video;
-  if (const auto mapping = read_video_mapping_of_view(cmd.geometry)) video.emplace(*mapping, view.detector_cols, view.detector_rows);
+  if (file.video_mapping) video.emplace(*file.video_mapping, view.detector_cols, view.detector_rows);
   std::vector<geometry::ControlPoint> points;
   for (const auto& m : geometry::read_markups(cmd.points))
     points.insert(points.end(), m.points.begin(), m.points.end());

@@ -29,10 +29,7 @@ int run_proxies(const ProxiesCommand& cmd) {
     else if (proxy)
       node::log().info("{:<12} proxy of {} vertices, edges of about {}, for its {} vertices", v.name, proxy->coarse.V.rows(),
                        base::quantity_text(proxy->edge_mm, "mm", 2), mesh.V.rows());
-    else if (!deformer.proxy_refused(i).empty())
-      node::log().warn("{}: no proxy could be made, so deform solves its own {} vertices (slower, less even): {}", v.name,
-                       mesh.V.rows(), deformer.proxy_refused(i));
-    else
+    else if (deformer.proxy_refused(i).empty())  // a refusal: keep_proxies says it
       node::log().info("{:<12} {} vertices, median edge {}: solved as it is, no proxy needed", v.name, mesh.V.rows(),
                        base::quantity_text(geometry::median_edge_length(mesh), "mm", 2));
   }

@@ -19,6 +19,9 @@ KeptProxies keep_proxies(const std::filesystem::path& json, const geometry::Scen
     auto& entry = manifest["vessels"][i];
     const deform::MeshProxy* proxy = deformer.proxy(i);
     if (!proxy) {
+      if (!deformer.proxy_refused(i).empty())
+        node::log().warn("{}: no proxy could be made, so deform solves its own {} vertices (slower, less even): {}",
+                         scene.vessels[i].name, scene.vessels[i].mesh.mesh.V.rows(), deformer.proxy_refused(i));
       // No proxy (none needed, or every edge refused): a file the scene still names is stale.
       if (entry.contains("proxy")) entry.erase("proxy"), changed = true;
       continue;

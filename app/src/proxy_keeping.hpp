@@ -18,8 +18,9 @@ struct KeptProxies {
 /// `json`) whose proxy `deformer` made rather than read from the file scene.json names,
 /// and names it in `vessels[i].proxy`; removes the entry of a vessel that has no proxy now
 /// (none needed, or refused at every edge). scene.json is rewritten atomically, its other
-/// fields and their order kept, and only when something changed. A proxy that cannot be
-/// written is warned about and left out: the scene stands without it.
+/// fields and their order kept, and only when something changed. A vessel refused a proxy
+/// at every edge, and a proxy that cannot be written, are warned about and left out: the
+/// scene stands without them.
 KeptProxies keep_proxies(const std::filesystem::path& json, const geometry::Scene& scene,
                          const deform::SceneDeformer& deformer, double edge_mm);
 

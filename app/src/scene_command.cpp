@@ -85,9 +85,6 @@ int run_scene(const SceneCommand& cmd) {
                                  {"centerline_points", v.centerline.size()},
                                  {"centerline_length_mm", geometry::arc_lengths(v.centerline).back()},
                                  {"proxy_refused", deformer.proxy_refused(i)}});
-    if (!deformer.proxy_refused(i).empty())
-      node::log().warn("{}: no proxy could be made, so deform solves its own {} vertices (slower, less even): {}", v.name,
-                       v.mesh.V.rows(), deformer.proxy_refused(i));
     node::log().info("{:<12} {:>6} vertices, centerline {:.1f} mm", v.name, v.mesh.V.rows(),
                      geometry::arc_lengths(v.centerline).back());
   }

@@ -16,14 +16,14 @@ inline bool is_dicom_file(const std::filesystem::path& path) {
   return in.read(magic, sizeof magic) && std::string(magic + 128, 4) == "DICM";
 }
 
-inline geometry::CArmView read_view(const std::filesystem::path& path) {
+/// The view and, for a view geometry JSON file, its video mapping (a DICOM file's frames
+/// are the detector's).
+inline geometry::ViewGeometryFile read_view_file(const std::filesystem::path& path) {
   base::check_input_file(path, base::kDicomLimit);  // before opening: a FIFO would block
-  return is_dicom_file(path) ? geometry::read_xa_dicom(path).view : geometry::read_view_geometry(path);
+  if (is_dicom_file(path)) return {geometry::read_xa_dicom(path).view, std::nullopt};
+  return geometry::read_view_geometry_file(path);
 }
 
-/// The view geometry file's video mapping (none for DICOM: its frames are the detector's).
-inline std::optional<geometry::VideoMapping> read_video_mapping_of_view(const std::filesystem::path& path) {
-  return is_dicom_file(path) ? std::nullopt : geometry::read_view_video_mapping(path);
-}
+inline geometry::CArmView read_view(const std::filesystem::path& path) { return read_view_file(path).view; }
 
 }  // namespace evar::app

@@ -108,7 +108,7 @@ double device_shadow_width_px(const CArmView& view, double diameter_mm) {
          std::min(view.row_spacing_mm, view.col_spacing_mm);
 }
 
-CArmView read_view_geometry(const std::filesystem::path& path) {
+ViewGeometryFile read_view_geometry_file(const std::filesystem::path& path) {
   using detail::bad_field;
   using detail::member;
   using detail::number_array;
@@ -150,22 +150,19 @@ CArmView read_view_geometry(const std::filesystem::path& path) {
     if (const auto problem = projection_matrix_problem(P, true); !problem.empty()) bad_field(path, "projection_matrix", problem);
     v.projection_matrix = P;
   }
-  return v;
+  ViewGeometryFile file{v, std::nullopt};
+  if (const auto it = root.find("video_mapping"); it != root.end() && !it->is_null()) {
+    file.video_mapping = parse_video_mapping(*it, path, "video_mapping.");
+    try {
+      const VideoToDetector check(*file.video_mapping, v.detector_cols, v.detector_rows);
+    } catch (const std::invalid_argument& e) {
+      bad_field(path, "video_mapping", std::string(e.what()).substr(std::string("video mapping: ").size()));
+    }
+  }
+  return file;
 }
 
-std::optional<VideoMapping> read_view_video_mapping(const std::filesystem::path& path) {
-  const CArmView v = read_view_geometry(path);
-  const auto root = detail::parse_json_file(path);
-  const auto it = root.find("video_mapping");
-  if (it == root.end() || it->is_null()) return std::nullopt;
-  VideoMapping mapping = parse_video_mapping(*it, path, "video_mapping.");
-  try {
-    const VideoToDetector check(mapping, v.detector_cols, v.detector_rows);
-  } catch (const std::invalid_argument& e) {
-    detail::bad_field(path, "video_mapping", std::string(e.what()).substr(std::string("video mapping: ").size()));
-  }
-  return mapping;
-}
+CArmView read_view_geometry(const std::filesystem::path& path) { return read_view_geometry_file(path).view; }
 
 void write_view_geometry(const std::filesystem::path& path, const CArmView& view,
                          const std::optional<VideoMapping>& video_mapping) {

@@ -61,7 +61,7 @@ std::string video_mapping_problem(const VideoMapping& m) {
   return "";
 }
 
-VideoToDetector::VideoToDetector(const VideoMapping& mapping, int detector_cols, int detector_rows) : mapping_(mapping) {
+VideoToDetector::VideoToDetector(const VideoMapping& mapping, int detector_cols, int detector_rows) {
   if (const auto p = video_mapping_problem(mapping); !p.empty()) throw std::invalid_argument("video mapping: " + p);
   if (detector_cols < 1 || detector_rows < 1) throw std::invalid_argument("video mapping: the detector has no pixels");
   const double W = detector_cols, H = detector_rows;
@@ -75,7 +75,6 @@ VideoToDetector::VideoToDetector(const VideoMapping& mapping, int detector_cols,
         std::to_string(detector_cols) + " x " + std::to_string(detector_rows) + " detector turned by " +
         std::to_string(mapping.rotation_deg) + " degrees " + number_text(shown_w / shown_h) +
         " (display pixels are square): check rotation_deg and the rectangle");
-  scale_ = 0.5 * (sx + sy);
 
   // On pixel edges (centre + ½): turn, mirror, scale into the rectangle.
   Eigen::Matrix2d R;
@@ -144,12 +143,9 @@ VideoMapping parse_video_mapping(const nlohmann::json& j, const std::filesystem:
     m.mirror = it->get<bool>();
   }
   if (const auto it = j.find("rotation_deg"); it != j.end()) {
-    if (!it->is_number_integer())
-      bad_field(source, field("rotation_deg"), "must be 0, 90, 180 or 270 (clockwise as shown), found " + it->dump());
-    const long long r = it->get<long long>();
-    m.rotation_deg = (r == 0 || r == 90 || r == 180 || r == 270) ? static_cast<int>(r) : -1;
-    if (m.rotation_deg < 0)
-      bad_field(source, field("rotation_deg"), "must be 0, 90, 180 or 270 (clockwise as shown), found " + it->dump());
+    const bool quarter = it->is_number_integer() && (*it == 0 || *it == 90 || *it == 180 || *it == 270);
+    if (!quarter) bad_field(source, field("rotation_deg"), "must be 0, 90, 180 or 270 (clockwise as shown), found " + it->dump());
+    m.rotation_deg = it->get<int>();
   }
   if (const auto it = j.find("field_shape"); it != j.end()) {
     if (*it == "rectangle")

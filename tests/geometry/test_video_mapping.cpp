@@ -162,23 +162,23 @@ TEST(VideoMapping, AViewGeometryCarriesItAndNamesItsFields) {
   m.rotation_deg = 180;
   const auto file = dir.path / "g.json";
   geometry::write_view_geometry(file, view, m);
-  const auto back = geometry::read_view_video_mapping(file);
+  const auto back = geometry::read_view_geometry_file(file).video_mapping;
   ASSERT_TRUE(back.has_value());
   EXPECT_EQ(geometry::video_mapping_json(*back), geometry::video_mapping_json(m));
   EXPECT_EQ(geometry::read_view_geometry(file).detector_cols, 1024);
   geometry::write_view_geometry(dir.path / "plain.json", view);
-  EXPECT_FALSE(geometry::read_view_video_mapping(dir.path / "plain.json").has_value());
+  EXPECT_FALSE(geometry::read_view_geometry_file(dir.path / "plain.json").video_mapping.has_value());
 
   auto j = nlohmann::json::parse(std::ifstream(file));
   j["video_mapping"]["rotation_deg"] = 30;
   std::ofstream(dir.path / "bad.json") << j.dump();
-  EXPECT_NE(test::error_message([&] { geometry::read_view_video_mapping(dir.path / "bad.json"); })
+  EXPECT_NE(test::error_message([&] { geometry::read_view_geometry_file(dir.path / "bad.json"); })
                 .find("bad.json: video_mapping.rotation_deg: must be 0, 90, 180 or 270"),
             std::string::npos);
   j["video_mapping"]["rotation_deg"] = 0;
   j["video_mapping"]["image_rect_px"] = {0, 0, 1280, 1024};  // 5:4 for a square detector
   std::ofstream(dir.path / "shape.json") << j.dump();
-  const std::string why = test::error_message([&] { geometry::read_view_video_mapping(dir.path / "shape.json"); });
+  const std::string why = test::error_message([&] { geometry::read_view_geometry_file(dir.path / "shape.json"); });
   EXPECT_NE(why.find("shape.json: video_mapping: image_rect_px [0, 0, 1280, 1024] is 1.25 times as wide as high"),
             std::string::npos)
       << why;

@@ -76,13 +76,18 @@ Eigen::Vector3d back_projected_ray(const PinholeCamera& camera, const Eigen::Vec
 /// isocenter: diameter × SID/SOD / pixel spacing (the finer of the two spacings).
 double device_shadow_width_px(const CArmView& view, double diameter_mm);
 
-/// Reads a view geometry JSON file; InputError names the file and the field.
+/// A view geometry JSON file: the view, and its optional "video_mapping" (where the
+/// detector image lies in the frames when they are a C-arm's video output, the monitor's
+/// picture; none: the frames are the detector's).
+struct ViewGeometryFile {
+  CArmView view;
+  std::optional<VideoMapping> video_mapping;
+};
+/// Reads one; InputError names the file and the field ("video_mapping.<field>", or the
+/// mapping when its rectangle does not have the turned detector's shape).
+ViewGeometryFile read_view_geometry_file(const std::filesystem::path& path);
+/// The view alone (a video mapping in the file is checked all the same).
 CArmView read_view_geometry(const std::filesystem::path& path);
-/// Its optional "video_mapping": where the detector image lies in the frames when they are
-/// a C-arm's video output (the monitor's picture), not the detector's pixels; none: the
-/// frames are the detector's. InputError naming "video_mapping.<field>", or the mapping
-/// when its rectangle does not have the (turned) detector's shape.
-std::optional<VideoMapping> read_view_video_mapping(const std::filesystem::path& path);
 /// Writes one (the projection matrix only when the view has one, the video mapping when given).
 void write_view_geometry(const std::filesystem::path& path, const CArmView& view,
                          const std::optional<VideoMapping>& video_mapping = std::nullopt);

@@ -48,14 +48,9 @@ class VideoToDetector {
   /// video = A · [detector; 1]
   const Eigen::Matrix<double, 2, 3>& detector_to_video() const { return forward_; }
   const Eigen::Matrix<double, 2, 3>& video_to_detector() const { return inverse_; }
-  /// Video pixels per detector pixel (the same along both axes, within 2 %).
-  double scale() const { return scale_; }
-  const VideoMapping& mapping() const { return mapping_; }
 
  private:
-  VideoMapping mapping_;
   Eigen::Matrix<double, 2, 3> forward_, inverse_;
-  double scale_ = 1.0;
 };
 
 /// "" when the mapping is valid, else what is wrong, naming the field: sizes of 1 to 16384
