@@ -262,6 +262,9 @@ int run_cli(const std::vector<std::string>& args) {
       ->capture_default_str();
   ss->add_option("--fps", sim_session.fluoro_fps, "pulsed fluoroscopy rate")->check(CLI::Range(1.0, 60.0))->capture_default_str();
   add_truth_options(ss, sim_session.difficulty, sim_session.physics);
+  ss->add_option("--video-out", sim_session.video_out,
+                 "a video mapping (docs/FORMATS.md, \"Video mapping\"): the frames are the C-arm monitor's picture "
+                 "through it (scaled, bordered, turned, mirrored, text burned in), as a box on the video output grabs them");
   ss->add_flag("!--no-progress", sim_session.progress, "no progress bar");
 
   ReplayCommand replay;

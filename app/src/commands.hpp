@@ -78,6 +78,7 @@ struct SimSessionCommand {
   double fluoro_fps = 15.0;
   std::string difficulty = "mild";
   std::string physics = "beam";
+  std::filesystem::path video_out;  ///< a video mapping file: frames as the C-arm monitor shows them
   bool progress = true;
 };
 int run_sim_session(const SimSessionCommand& cmd);

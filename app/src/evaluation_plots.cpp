@@ -24,7 +24,7 @@ void snapshot(const std::filesystem::path& path, const CaseEvaluation& c) {
   const session::FrameRecord& record = session.frames[c.snapshot_frame];
   const session::CArmSample* sample = session::carm_at(session, record.timestamp_ns);
   const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm, session::to_carm_state(*sample, 0));
-  const cv::Mat image = session::read_session_frame(session, c.snapshot_frame);
+  const cv::Mat image = session::read_detector_frame(session, c.snapshot_frame);
   overlay::FrameCompositor compositor({4, {}});
   const std::string line =
       "frame " + std::to_string(record.frame) + "  " + node::angulation_text(sample->primary_deg, sample->secondary_deg);

@@ -1,6 +1,5 @@
 #include "fluoro_input.hpp"
 
-#include <opencv2/core/eigen.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
@@ -9,6 +8,7 @@
 #include "evar/geometry/image_file.hpp"
 #include "evar/base/input_error.hpp"
 #include "evar/base/input_file.hpp"
+#include "evar/geometry/video_frame.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "view_input.hpp"
 
@@ -42,13 +42,7 @@ FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesyste
         throw base::InputError(geometry.string() + ": video_mapping.video_size_px is " + std::to_string(mapping->video_cols) +
                                " x " + std::to_string(mapping->video_rows) + " but " + image.string() + " is " +
                                std::to_string(in.image.cols) + " x " + std::to_string(in.image.rows));
-      const geometry::VideoToDetector map(*mapping, in.view->detector_cols, in.view->detector_rows);
-      cv::Mat to_video;
-      cv::eigen2cv(map.detector_to_video(), to_video);
-      cv::Mat detector;
-      cv::warpAffine(in.image, detector, to_video, cv::Size(in.view->detector_cols, in.view->detector_rows),
-                     cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
-      in.image = detector;
+      in.image = geometry::detector_image(in.image, geometry::VideoToDetector(*mapping, in.view->detector_cols, in.view->detector_rows));
     }
     if (in.view->detector_cols != in.image.cols || in.view->detector_rows != in.image.rows)
       throw base::InputError(geometry.string() + ": detector_size_px is " + std::to_string(in.view->detector_cols) +

@@ -10,7 +10,8 @@
 //   "carm": "serial:/dev/ttyUSB0,baud=115200",
 //   "fps": 30,
 //   "device_diameter_mm": 0.89, "min_contrast": 0.25, "min_separation_deg": 20,
-//   "geometry_stale_ms": 250, "max_view_gap_s": 120
+//   "geometry_stale_ms": 250, "max_view_gap_s": 120,
+//   "video_mapping": {"format": "evarnode-video-mapping", ...}   or   "mapping.json"
 // }
 // Everything but format and version is optional for replays (the session has the patient,
 // the registration and the detector).
@@ -21,6 +22,7 @@
 #include <Eigen/Core>
 
 #include "evar/geometry/detector.hpp"
+#include "evar/geometry/video_mapping.hpp"
 #include "source_factory.hpp"
 
 namespace evar::app {
@@ -29,6 +31,9 @@ struct NodeConfig {
   std::filesystem::path file;
   std::optional<std::filesystem::path> scene, registration;
   std::optional<geometry::DetectorSpec> detector;
+  /// The frames are the C-arm's video output (the monitor's picture): where the detector
+  /// image lies in them. Given inline or as a file (`evarnode calibrate-video` writes one).
+  std::optional<geometry::VideoMapping> video_mapping;
   std::optional<FrameSourceSpec> frames;
   std::optional<std::string> carm;
   std::optional<double> fps;

@@ -63,6 +63,7 @@ int run_node(const RunCommand& cmd) {
     if (session->frames.empty()) throw base::InputError(cmd.replay.string() + ": the session has no frames");
     scene_path = cmd.replay / session->scene;
     options.detector = session->detector;
+    options.video_mapping = session->video_mapping;  // checked against the detector when read
     options.registration = session->ct_to_carm;
     fps = session_fps(*session);
     // A C-arm that reports only when something changes leaves long gaps between samples
@@ -85,6 +86,15 @@ int run_node(const RunCommand& cmd) {
     scene_path = *config->scene;
     options.registration = geometry::read_registration(*config->registration);
     options.detector = *config->detector;
+    options.video_mapping = config->video_mapping;
+    if (options.video_mapping) {
+      try {
+        const geometry::VideoToDetector fits(*options.video_mapping, options.detector.cols, options.detector.rows);
+      } catch (const std::invalid_argument& e) {
+        throw base::InputError(config->file.string() + ": video_mapping: " + e.what() + " (detector " +
+                               std::to_string(options.detector.cols) + " x " + std::to_string(options.detector.rows) + ")");
+      }
+    }
     // The video file runs at the rate asked for, else at the rate asked of the source.
     fps = config->fps.value_or(config->frames->fps.value_or(30.0));
   }
@@ -125,7 +135,12 @@ int run_node(const RunCommand& cmd) {
     overlay::IgtlServerOptions o;
     o.bind_address = cmd.igtl_bind;
     o.port = cmd.igtl_port;
-    auto s = std::make_unique<node::IgtlSink>(o, scene, options.detector.col_spacing_mm, 15.0);
+    // The image sent is the frame as shown: under a video mapping its pixels are the monitor's.
+    const double video_px_per_detector_px =
+        options.video_mapping
+            ? geometry::VideoToDetector(*options.video_mapping, options.detector.cols, options.detector.rows).video_px_per_detector_px()
+            : 1.0;
+    auto s = std::make_unique<node::IgtlSink>(o, scene, options.detector.col_spacing_mm / video_px_per_detector_px, 15.0);
     node::log().info("OpenIGTLink server on {}:{} (3D Slicer: OpenIGTLinkIF, client to this port)", cmd.igtl_bind, s->port());
     igtl = s.get();
     sinks.push_back(std::move(s));
@@ -169,9 +184,10 @@ int run_node(const RunCommand& cmd) {
   } else {
     FrameSourceSpec spec = *config->frames;
     if (!spec.width && !spec.height) {
-      // Ask the grabber for the detector's size (a camera's current region may be another).
-      spec.width = options.detector.cols;
-      spec.height = options.detector.rows;
+      // Ask the grabber for the frames' size (a camera's current region may be another): the
+      // detector's, or the video output's.
+      spec.width = options.video_mapping ? options.video_mapping->video_cols : options.detector.cols;
+      spec.height = options.video_mapping ? options.video_mapping->video_rows : options.detector.rows;
     }
     live_frames = make_frame_source(spec);
     live_carm = make_carm_source(*config->carm);

@@ -135,7 +135,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     }
     const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm,
                                       session::to_carm_state(*sample, 0));
-    const cv::Mat image = session::read_session_frame(session, i);
+    const cv::Mat image = session::read_detector_frame(session, i);
     node::FrameAnalysis analysis = node::analyse_frame(image, view, options.candidate);
     if (analysis.candidate) {
       ++result.candidates;
@@ -202,10 +202,14 @@ EvaluationSink::EvaluationSink(const session::Session& session, const geometry::
     : session_(session), errors_(scene.landmarks, ostia_of(session)) {}
 
 void EvaluationSink::write(const node::ComposedFrame& e) {
-  if (e.held || !e.P_ct || !e.model || !e.model->adapted || e.sequence == 0) return;
+  if (e.held || !e.detector_view || !e.model || !e.model->adapted || e.sequence == 0) return;
   const session::FrameRecord& record = session_.frames[(e.sequence - 1) % session_.frames.size()];
   std::lock_guard lock(mutex_);
-  if (errors_.add(record.frame, *e.P_ct, e.mm_per_px, e.model->adapted->deformation.landmarks)) ++frames_;
+  // On the detector, as the truth is: the same figures whether the frames were the
+  // detector's or the monitor's picture of it.
+  const node::FrameView& view = *e.detector_view;
+  if (errors_.add(record.frame, view.P_ct, node::mm_at_isocenter_per_px(view.view), e.model->adapted->deformation.landmarks))
+    ++frames_;
 }
 
 std::vector<LandmarkError> EvaluationSink::result() const {

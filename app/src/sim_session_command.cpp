@@ -1,5 +1,7 @@
 // `evarnode sim session`: a whole simulated intervention as a recorded session.
 #include "commands.hpp"
+#include "evar/base/input_error.hpp"
+#include "evar/geometry/video_mapping.hpp"
 #include "evar/node/logging.hpp"
 #include "evar/sim/session_generator.hpp"
 #include "progress_bar.hpp"
@@ -15,11 +17,24 @@ int run_sim_session(const SimSessionCommand& cmd) {
   plan.fluoro_fps = cmd.fluoro_fps;
   plan.difficulty = sim::parse_difficulty(cmd.difficulty);
   plan.physics = sim::parse_truth_physics(cmd.physics);
+  if (!cmd.video_out.empty()) {
+    plan.video_out = geometry::read_video_mapping(cmd.video_out);
+    try {
+      const geometry::VideoToDetector fits(*plan.video_out, plan.detector_px, plan.detector_px);
+    } catch (const std::invalid_argument& e) {
+      throw base::InputError(cmd.video_out.string() + ": " + e.what() + " (the detector is " +
+                             std::to_string(plan.detector_px) + " x " + std::to_string(plan.detector_px) + ")");
+    }
+  }
   ProgressBar bar("frames", cmd.progress);
   const auto generated = sim::generate_session(plan, cmd.out, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
   bar.finish();
   const auto& s = generated.session;
-  node::log().info("session seed {}: {} frames ({}x{} px), {} C-arm samples, device in the {}, {} true ostium positions; {:.1f} s",
+  if (s.video_mapping)
+    node::log().info("frames are the monitor's picture: {} x {}, the detector image in [{}, {}, {}, {}]", s.video_mapping->video_cols,
+                     s.video_mapping->video_rows, s.video_mapping->image_rect.x, s.video_mapping->image_rect.y,
+                     s.video_mapping->image_rect.width, s.video_mapping->image_rect.height);
+  node::log().info("session seed {}: {} frames (detector {}x{} px), {} C-arm samples, device in the {}, {} true ostium positions; {:.1f} s",
              cmd.seed, s.frames.size(), s.detector.cols, s.detector.rows, s.carm.size(), generated.carrier,
              s.truth ? s.truth->ostia.size() : 0, generated.render_seconds);
   if (!generated.residual.is_identity()) {

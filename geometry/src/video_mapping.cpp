@@ -61,7 +61,11 @@ std::string video_mapping_problem(const VideoMapping& m) {
   return "";
 }
 
-VideoToDetector::VideoToDetector(const VideoMapping& mapping, int detector_cols, int detector_rows) {
+VideoToDetector::VideoToDetector(const VideoMapping& mapping, int detector_cols, int detector_rows)
+    : detector_cols_(detector_cols),
+      detector_rows_(detector_rows),
+      video_cols_(mapping.video_cols),
+      video_rows_(mapping.video_rows) {
   if (const auto p = video_mapping_problem(mapping); !p.empty()) throw std::invalid_argument("video mapping: " + p);
   if (detector_cols < 1 || detector_rows < 1) throw std::invalid_argument("video mapping: the detector has no pixels");
   const double W = detector_cols, H = detector_rows;
@@ -95,6 +99,10 @@ VideoToDetector::VideoToDetector(const VideoMapping& mapping, int detector_cols,
   forward_ << L, t;
   const Eigen::Matrix2d Li = L.inverse();
   inverse_ << Li, -Li * t;
+}
+
+double VideoToDetector::video_px_per_detector_px() const {
+  return std::sqrt(std::abs(forward_.leftCols<2>().determinant()));
 }
 
 Eigen::Vector2d VideoToDetector::to_video(const Eigen::Vector2d& p) const {

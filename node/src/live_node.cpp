@@ -11,6 +11,7 @@
 #include <opencv2/core.hpp>
 
 #include "alert_board.hpp"
+#include "evar/geometry/video_frame.hpp"
 #include "held_frame_policy.hpp"
 #include "evar/node/logging.hpp"
 #include "latency_window.hpp"
@@ -64,6 +65,7 @@ class LiveNode::Impl {
   void watch_frame_loss(acquisition::FrameLossMonitor& monitor);
 
   NodeOptions options_;
+  std::optional<geometry::VideoToDetector> video_;  // set: frames are the C-arm's video output
   std::vector<std::unique_ptr<OutputSink>> sinks_;
   std::unique_ptr<deform::SceneDeformer> deformer_;
   std::shared_ptr<const overlay::RoadmapModel> initial_roadmap_;
@@ -109,6 +111,9 @@ class LiveNode::Impl {
 
 LiveNode::Impl::Impl(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks)
     : options_((check_options(options), std::move(options))),
+      video_(options_.video_mapping ? std::optional<geometry::VideoToDetector>(std::in_place, *options_.video_mapping,
+                                                                               options_.detector.cols, options_.detector.rows)
+                                    : std::nullopt),
       sinks_(std::move(sinks)),
       mode_(options_.mode),
       input_(options_.input_queue),
@@ -291,12 +296,15 @@ void LiveNode::Impl::compose_loop() {
       g = holding.held().geometry;
       view = holding.held().view;
     } else {
-      size_ok = f->width == options_.detector.cols && f->height == options_.detector.rows;
+      // Under a video mapping a frame is the monitor's picture, of the video size.
+      const int cols = video_ ? video_->video_cols() : options_.detector.cols;
+      const int rows = video_ ? video_->video_rows() : options_.detector.rows;
+      size_ok = f->width == cols && f->height == rows;
       if (!size_ok)
         alerts_.set("frame-size",
-                  "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the detector's " +
-                      std::to_string(options_.detector.cols) + " x " + std::to_string(options_.detector.rows) +
-                      ": no roadmap",
+                  "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the " +
+                      (video_ ? "video mapping's " : "detector's ") + std::to_string(cols) + " x " +
+                      std::to_string(rows) + ": no roadmap",
                   options_.alert_hold);
       {
         std::lock_guard lock(timeline_mutex_);
@@ -339,8 +347,12 @@ void LiveNode::Impl::compose_loop() {
       out.status.alerts.insert(out.status.alerts.begin(), held_frame_line(holding.showing_fails(), *held_s));
       out.held = true;
     }
-    out.P_ct = view ? std::optional<geometry::ProjectionMatrix>(view->P_ct) : std::nullopt;
-    out.mm_per_px = view ? mm_at_isocenter_per_px(view->view) : 0.0;
+    if (view) {
+      // The roadmap is drawn where the frame shows the detector's pixels.
+      out.P_ct = video_ ? geometry::projection_on_video(view->P_ct, *video_) : view->P_ct;
+      out.mm_per_px = mm_at_isocenter_per_px(view->view) / (video_ ? video_->video_px_per_detector_px() : 1.0);
+      out.detector_view = view;
+    }
     try {
       // Before anything reads its rows (a held frame passed it when it came).
       if (!held_s) acquisition::check_layout(*f);
@@ -421,7 +433,10 @@ void LiveNode::Impl::analysis_loop() {
       if (outcome) outcome->used ? selector.succeeded(outcome->earlier) : selector.failed(outcome->earlier);
     }
     const auto analysis_start = Clock::now();
-    FrameAnalysis r = analyse_frame(wrap(a->frame), a->view, options_.candidate);
+    // The device is found on the detector's pixels: under a video mapping they are read
+    // back out of the frame's image rectangle.
+    const cv::Mat detector = video_ ? geometry::detector_image(wrap(a->frame), *video_) : wrap(a->frame);
+    FrameAnalysis r = analyse_frame(detector, a->view, options_.candidate);
     const double waited_ms = ms_between(a->frame.host_arrival, analysis_start), took_ms = ms_between(analysis_start, Clock::now());
     {
       std::lock_guard lock(stats_mutex_);

@@ -18,6 +18,7 @@
 #include "evar/base/input_error.hpp"
 #include "evar/base/input_file.hpp"
 #include "evar/geometry/json_fields.hpp"
+#include "evar/geometry/video_frame.hpp"
 
 namespace evar::session {
 
@@ -180,6 +181,14 @@ Session read_session(const std::filesystem::path& directory) {
   s.detector = {det["cols"].get<int>(), det["rows"].get<int>(), det["row_spacing_mm"].get<double>(),
                 det["col_spacing_mm"].get<double>()};
   if (const auto problem = detector_problem(s.detector); !problem.empty()) fail(json_path, 0, problem);
+  if (j.contains("video_mapping")) {
+    s.video_mapping = geometry::parse_video_mapping(j["video_mapping"], json_path, "video_mapping.");
+    try {
+      const geometry::VideoToDetector fits(*s.video_mapping, s.detector.cols, s.detector.rows);
+    } catch (const std::invalid_argument& e) {
+      fail(json_path, 0, std::string("video_mapping: does not fit the detector: ") + e.what());
+    }
+  }
   const auto& streams = field("streams");
   if (!streams.is_object() || !streams.contains("frames") || !streams.contains("carm"))
     fail(json_path, 0, "streams: expected {\"frames\": \"frames/index.csv\", \"carm\": \"carm.csv\"} (relative paths inside the session)");
@@ -259,10 +268,23 @@ cv::Mat read_session_frame(const Session& session, std::size_t index) {
     fail(file, 0, "leads out of the session directory (a symbolic link)");
   const cv::Mat image = geometry::read_image_file(file, "PNG");
   if (image.type() != CV_16UC1) fail(file, 0, "expected a 16-bit single-channel PNG");
-  if (image.cols != session.detector.cols || image.rows != session.detector.rows)
-    fail(file, 0, std::to_string(image.cols) + " x " + std::to_string(image.rows) + " pixels, but the detector is " +
-                      std::to_string(session.detector.cols) + " x " + std::to_string(session.detector.rows));
+  if (const auto [cols, rows] = frame_size_px(session); image.cols != cols || image.rows != rows)
+    fail(file, 0, std::to_string(image.cols) + " x " + std::to_string(image.rows) + " pixels, but " +
+                      (session.video_mapping ? "the video mapping's frames are " : "the detector is ") +
+                      std::to_string(cols) + " x " + std::to_string(rows));
   return image;
+}
+
+cv::Mat read_detector_frame(const Session& session, std::size_t index) {
+  cv::Mat frame = read_session_frame(session, index);
+  if (!session.video_mapping) return frame;
+  return geometry::detector_image(frame, geometry::VideoToDetector(*session.video_mapping, session.detector.cols,
+                                                                   session.detector.rows));
+}
+
+std::pair<int, int> frame_size_px(const Session& session) {
+  if (session.video_mapping) return {session.video_mapping->video_cols, session.video_mapping->video_rows};
+  return {session.detector.cols, session.detector.rows};
 }
 
 void write_session_frame(const std::filesystem::path& directory, const FrameRecord& f, const cv::Mat& image) {
@@ -279,6 +301,13 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
   // Everything is checked before anything is written, by the reader's own rules.
   const auto refuse = [](const std::string& what) { throw std::invalid_argument("write_session: " + what); };
   if (const auto problem = detector_problem(session.detector); !problem.empty()) refuse(problem);
+  if (session.video_mapping) {
+    try {
+      const geometry::VideoToDetector fits(*session.video_mapping, session.detector.cols, session.detector.rows);
+    } catch (const std::invalid_argument& e) {
+      refuse(std::string("video_mapping: does not fit the detector: ") + e.what());
+    }
+  }
   if (!(session.device_thickness_mm >= 0.0 && session.device_thickness_mm <= 15.0))
     refuse("device_thickness_mm: must be 0 to 15 (mm)");
   if (const auto problem = relative_path_problem(session.scene.generic_string()); !problem.empty())
@@ -346,6 +375,8 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
                            {"detector",
                             {{"cols", d.cols}, {"rows", d.rows}, {"row_spacing_mm", d.row_spacing_mm}, {"col_spacing_mm", d.col_spacing_mm}}},
                            {"streams", {{"frames", "frames/index.csv"}, {"carm", "carm.csv"}}}};
+  if (session.video_mapping)
+    j["video_mapping"] = nlohmann::ordered_json::parse(geometry::video_mapping_json(*session.video_mapping).dump());
   if (session.truth) {
     const SessionTruth& t = *session.truth;
     std::string ostia = std::string(kOstiaHeader) + "\n";
@@ -364,8 +395,9 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
   if (images.size() != session.frames.size())
     throw std::invalid_argument("write_session: one image per frame record is required");
   for (const auto& image : images)
-    if (image.cols != session.detector.cols || image.rows != session.detector.rows)
-      throw std::invalid_argument("write_session: every image must have the detector's size");
+    if (const auto [cols, rows] = frame_size_px(session); image.cols != cols || image.rows != rows)
+      throw std::invalid_argument(std::string("write_session: every image must have the ") +
+                                  (session.video_mapping ? "video mapping's" : "detector's") + " size");
   for (std::size_t i = 0; i < session.frames.size(); ++i) write_session_frame(directory, session.frames[i], images[i]);
   write_session_files(directory, session);
 }
@@ -397,7 +429,8 @@ ExportSummary export_plus_sequence(const Session& session, const std::filesystem
     if (const auto problem = frame_record_problem(f); !problem.empty())
       throw std::invalid_argument("export_plus_sequence: frame " + std::to_string(f.frame) + ": " + problem);
   // The frames are streamed one at a time (an hour's recording does not fit in memory);
-  // read_session_frame refuses any frame that is not the detector's size.
+  // Detector images (read_detector_frame): a video-out session's frames are resampled, so
+  // the sequence's pixels have the detector's spacing.
   const int W = session.detector.cols, H = session.detector.rows;
   const auto spacing = [](double mm) { return std::isfinite(mm) && mm > 0.0 ? exact(mm) : std::string("1"); };
   // PLUS's own header, in its order (its writer keeps the fields in a sorted map). X-ray
@@ -447,7 +480,7 @@ ExportSummary export_plus_sequence(const Session& session, const std::filesystem
   out.write(h.str());
   std::vector<char> row(static_cast<std::size_t>(W) * 2);
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
-    const cv::Mat image = read_session_frame(session, i);
+    const cv::Mat image = read_detector_frame(session, i);
     for (int r = 0; r < H; ++r) {
       const auto* px = image.ptr<std::uint16_t>(r);
       for (int c = 0; c < W; ++c) {  // little endian, whatever the host

@@ -232,8 +232,9 @@ std::string SessionReplay::error() const {
 }
 
 std::uint64_t preload_bytes(const Session& session) {
-  return static_cast<std::uint64_t>(session.frames.size()) * static_cast<std::uint64_t>(session.detector.cols) *
-         static_cast<std::uint64_t>(session.detector.rows) * 2u;
+  const auto [cols, rows] = frame_size_px(session);
+  return static_cast<std::uint64_t>(session.frames.size()) * static_cast<std::uint64_t>(cols) *
+         static_cast<std::uint64_t>(rows) * 2u;
 }
 
 void SessionReplay::run() {

@@ -9,11 +9,20 @@
 #include <stdexcept>
 
 #include "evar/sim/body_phantom.hpp"
+#include "evar/sim/monitor_picture.hpp"
 #include "evar/sim/synthetic_patient.hpp"
 #include "seeded_uniform.hpp"
 
 namespace evar::sim {
 namespace {
+
+// As the C-arm's monitor writes it: "LAO 35  CAU 15".
+std::string angulation_text(double primary_deg, double secondary_deg) {
+  char b[64];
+  std::snprintf(b, sizeof b, "%s %.0f  %s %.0f", primary_deg >= 0 ? "LAO" : "RAO", std::abs(primary_deg),
+                secondary_deg >= 0 ? "CRA" : "CAU", std::abs(secondary_deg));
+  return b;
+}
 
 constexpr std::int64_t kSecond = 1'000'000'000;
 
@@ -42,6 +51,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
   s.scene = "patient/scene.json";
   s.device_thickness_mm = patient.preoperative.device_thickness_mm;
   s.detector = {plan.detector_px, plan.detector_px, plan.pixel_spacing_mm, plan.pixel_spacing_mm};
+  s.video_mapping = plan.video_out;
   // Registration: CT point (0, 0, 50) (the aneurysm, renal ostia in the field) at the
   // isocenter, turned by a degree or two as a real registration would be.
   SeededUniform uniform(plan.seed ^ 0xC0A4'5E55'1011ULL);
@@ -173,7 +183,15 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
     record.source = f.source;
     std::snprintf(name, sizeof name, "%06zu.png", i + 1);
     record.file = name;
-    session::write_session_frame(dir, record, detect(it->second.quanta, plan.xray, plan.seed * 1'000'003ULL + i));
+    cv::Mat image = detect(it->second.quanta, plan.xray, plan.seed * 1'000'003ULL + i);
+    if (plan.video_out) {
+      char counter[32];
+      std::snprintf(counter, sizeof counter, "%s %06zu", f.source == "dsa" ? "DSA" : "FL", i + 1);
+      image = monitor_picture(image, *plan.video_out,
+                              {"SIM PATIENT " + std::to_string(plan.seed),
+                               angulation_text(c.primary_deg, c.secondary_deg), counter, "80 kV  3.2 mA"});
+    }
+    session::write_session_frame(dir, record, image);
     s.frames.push_back(record);
     const geometry::ProjectionMatrix P = geometry::registered(geometry::projection_matrix(view), T);
     for (const auto& lm : patient.truth.landmarks)

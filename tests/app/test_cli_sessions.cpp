@@ -334,3 +334,54 @@ TEST_F(Cli, RecordRefusesAFrameSizeNoSessionCanHold) {
   const auto wide = evarnode(args("16384", "4096"));
   EXPECT_EQ(wide.code, 1) << wide.err;
 }
+
+// A session in video-out form (issue 31: the frames are the C-arm monitor's picture, the
+// detector image enlarged 1.25 times, turned 270° and mirrored, text burned in beside it)
+// gives `eval` the same ostium errors as its detector form, within 0.2 mm; so does the live
+// node replaying it (`run --replay`), whose frames keep their video size.
+TEST_F(Cli, AVideoOutSessionEvaluatesAsItsDetectorForm) {
+  const auto out = scratch("video_out");
+  write_text(out / "monitor.json", R"({"format": "evarnode-video-mapping", "version": 1, "video_size_px": [640, 512],
+      "image_rect_px": [100, 8, 480, 480], "mirror": true, "rotation_deg": 270,
+      "text_regions_px": [[4, 4, 90, 20], [4, 30, 90, 20], [584, 4, 52, 20], [584, 30, 52, 20]]})");
+  const std::vector<std::string> sim{"sim", "session", "--seed", "1", "--detector-px", "384", "--fluoro-seconds", "1",
+                                     "--no-progress"};
+  auto with = [](std::vector<std::string> a, std::initializer_list<std::string> more) {
+    a.insert(a.end(), more);
+    return a;
+  };
+  ASSERT_EQ(evarnode(with(sim, {"--out", (out / "detector").string()})).code, 0);
+  const auto made = evarnode(with(sim, {"--out", (out / "video").string(), "--video-out", (out / "monitor.json").string()}));
+  ASSERT_EQ(made.code, 0) << made.err;
+  EXPECT_NE(made.err.find("frames are the monitor's picture: 640 x 512"), std::string::npos) << made.err;
+  for (const char* form : {"detector", "video"})
+    ASSERT_EQ(evarnode({"eval", (out / form).string(), "--out", (out / (std::string("e-") + form)).string(), "--no-progress"}).code, 0)
+        << form;
+  const auto landmarks = [&](const fs::path& eval_json) {
+    std::map<std::string, std::pair<double, double>> by_label;  // initial, adapted
+    const auto j = nlohmann::json::parse(std::ifstream(eval_json));
+    for (const auto& l : j["cases"][0]["landmarks"]) by_label[l["label"]] = {l["initial_mm"], l["adapted_mm"]};
+    return by_label;
+  };
+  const auto detector = landmarks(out / "e-detector" / "eval.json");
+  const auto video = landmarks(out / "e-video" / "eval.json");
+  ASSERT_EQ(detector.size(), 4u) << std::ifstream(out / "e-detector" / "eval.json").rdbuf();
+  ASSERT_EQ(video.size(), detector.size());
+  for (const auto& [label, errors] : detector) {
+    ASSERT_TRUE(video.count(label)) << label;
+    EXPECT_NEAR(video.at(label).first, errors.first, 0.2) << label;
+    EXPECT_NEAR(video.at(label).second, errors.second, 0.2) << label;
+  }
+
+  const auto run = evarnode({"run", "--replay", (out / "video").string(), "--fast", "--no-video", "--out",
+                             (out / "run").string(), "--no-progress"});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto report = nlohmann::json::parse(std::ifstream(out / "run" / "run_report.json"));
+  EXPECT_EQ(report["frames"]["wrong_size"], 0) << report.dump(2);
+  EXPECT_GT(report["frames"]["with_roadmap"].get<int>(), 0);
+  for (const auto& l : report["evaluation"]["landmarks"]) {
+    const std::string label = l["label"];
+    ASSERT_TRUE(detector.count(label)) << label;
+    EXPECT_NEAR(l["adapted_mm"].get<double>(), detector.at(label).second, 0.2) << label;
+  }
+}

@@ -99,3 +99,40 @@ TEST(NodeConfig, ADetectorOfMorePixelsThanAnyImageReadIsRefused) {
   EXPECT_EQ(wide.detector->cols, 16384);
   fs::remove(file);
 }
+
+// The video mapping (issue 31) inline, or as the file `calibrate-video` writes, beside node.json.
+TEST(NodeConfig, TheVideoMappingIsGivenInlineOrAsAFileAndRefusedByField) {
+  const fs::path dir = fs::temp_directory_path() / ("evar_node_mapping_" + std::to_string(::getpid()));
+  fs::create_directories(dir);
+  const std::string mapping = R"({"format": "evarnode-video-mapping", "version": 1, "video_size_px": [1280, 1024],
+      "image_rect_px": [128, 0, 1024, 1024], "mirror": true, "rotation_deg": 90, "field_shape": "circle",
+      "text_regions_px": [[0, 0, 120, 40]]})";
+  const auto config = [&](const std::string& value) {
+    std::ofstream(dir / "node.json") << R"({"format": "evarnode-node", "version": 1, "video_mapping": )" << value << "}";
+    return dir / "node.json";
+  };
+  const auto inline_given = evar::app::read_node_config(config(mapping));
+  ASSERT_TRUE(inline_given.video_mapping);
+  EXPECT_EQ(inline_given.video_mapping->video_cols, 1280);
+  EXPECT_EQ(inline_given.video_mapping->image_rect.x, 128);
+  EXPECT_TRUE(inline_given.video_mapping->mirror);
+  EXPECT_EQ(inline_given.video_mapping->rotation_deg, 90);
+  EXPECT_EQ(inline_given.video_mapping->field_shape, evar::geometry::FieldShape::Circle);
+  ASSERT_EQ(inline_given.video_mapping->text_regions.size(), 1u);
+
+  std::ofstream(dir / "mapping.json") << mapping;
+  const auto from_file = evar::app::read_node_config(config(R"("mapping.json")"));
+  ASSERT_TRUE(from_file.video_mapping);
+  EXPECT_EQ(from_file.video_mapping->rotation_deg, 90);
+  EXPECT_EQ(from_file.video_mapping->image_rect.width, 1024);
+
+  const auto error = [&](const std::string& value) {
+    return evar::test::error_message([&] { evar::app::read_node_config(config(value)); });
+  };
+  EXPECT_THAT(error("1"), HasSubstr("node.json: video_mapping: expected the mapping's object or the name of its file"));
+  EXPECT_THAT(error(R"({"format": "evarnode-video-mapping", "version": 1, "video_size_px": [640, 480],
+                       "image_rect_px": [0, 0, 640, 480], "rotation": 90})"),
+              HasSubstr("node.json: video_mapping.rotation: not a field of a video mapping"));
+  EXPECT_THAT(error(R"("missing.json")"), HasSubstr("missing.json"));
+  fs::remove_all(dir);
+}

@@ -1,11 +1,13 @@
 #include <gtest/gtest.h>
 
 #include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
 
 #include <filesystem>
 #include <fstream>
 #include <functional>
 #include <limits>
+#include <cmath>
 #include <map>
 #include <regex>
 #include <unistd.h>
@@ -536,4 +538,72 @@ TEST(Session, TheExportRefusesAnOutputInsideTheSession) {
   EXPECT_EQ(std::string((std::istreambuf_iterator<char>(again)), {}), carm);
   EXPECT_FALSE(fs::exists(dir.path / "s" / "frames" / "run.seq.mha"));
   EXPECT_NO_THROW(session::export_plus_sequence(r, dir.path / "run.seq.mha"));
+}
+
+// A video-out session (issue 31): its frames are the C-arm monitor's picture, of the video
+// mapping's size; the mapping round-trips, the detector image is read back out of each
+// frame, a frame of the detector's size is now the wrong one, and a mapping that does not
+// fit the detector is refused by the reader and the writer alike.
+TEST(Session, AVideoOutSessionCarriesItsMappingAndReadsBackTheDetectorImage) {
+  TempDir dir;
+  std::vector<cv::Mat> detector_images;
+  auto s = small_session(detector_images);  // 60 x 40 detector
+  geometry::VideoMapping m;
+  m.video_cols = 100;
+  m.video_rows = 140;
+  m.image_rect = {10, 10, 80, 120};  // turned: 40 wide, 60 high, scaled by 2
+  m.rotation_deg = 90;
+  m.mirror = true;
+  m.text_regions = {{0, 131, 100, 9}};
+  s.video_mapping = m;
+  const geometry::VideoToDetector map(m, 60, 40);
+  std::vector<cv::Mat> smooth, video;
+  for (const auto& d : detector_images) {
+    cv::Mat picture;
+    cv::GaussianBlur(d, picture, cv::Size(), 3.0);  // resampling needs a picture, not noise
+    const auto& A = map.detector_to_video();
+    const cv::Mat to_video = (cv::Mat_<double>(2, 3) << A(0, 0), A(0, 1), A(0, 2), A(1, 0), A(1, 1), A(1, 2));
+    cv::Mat v;
+    cv::warpAffine(picture, v, to_video, cv::Size(100, 140), cv::INTER_LINEAR);
+    smooth.push_back(picture);
+    video.push_back(v);
+  }
+  EXPECT_THROW(session::write_session(dir.path, s, detector_images), std::invalid_argument);
+  session::write_session(dir.path, s, video);
+  const auto r = session::read_session(dir.path);
+  ASSERT_TRUE(r.video_mapping);
+  EXPECT_EQ(geometry::video_mapping_json(*r.video_mapping), geometry::video_mapping_json(m));
+  EXPECT_EQ(session::frame_size_px(r), std::make_pair(100, 140));
+  const cv::Mat frame = session::read_session_frame(r, 1);
+  EXPECT_EQ(frame.size(), cv::Size(100, 140));
+  const cv::Mat detector = session::read_detector_frame(r, 1);
+  ASSERT_EQ(detector.size(), cv::Size(60, 40));
+  // The detector image again (resampled twice), and not the same image turned or mirrored.
+  const auto mean_difference = [](const cv::Mat& a, const cv::Mat& b) {
+    const cv::Rect inside(2, 2, a.cols - 4, a.rows - 4);
+    cv::Mat fa, fb;
+    a(inside).convertTo(fa, CV_64F);
+    b(inside).convertTo(fb, CV_64F);
+    return cv::mean(cv::abs(fa - fb))[0];
+  };
+  cv::Mat flipped;
+  cv::flip(smooth[1], flipped, -1);
+  EXPECT_LT(mean_difference(detector, smooth[1]), 0.1 * mean_difference(flipped, smooth[1]));
+  cv::flip(smooth[1], flipped, 1);
+  EXPECT_LT(mean_difference(detector, smooth[1]), 0.1 * mean_difference(flipped, smooth[1]));
+
+  cv::imwrite((dir.path / "frames" / "f1.png").string(), detector_images[1]);
+  try {
+    session::read_session_frame(r, 1);
+    FAIL() << "no error";
+  } catch (const base::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("f1.png: 60 x 40 pixels, but the video mapping's frames are 100 x 140"),
+              std::string::npos)
+        << e.what();
+  }
+  s.video_mapping->image_rect = {10, 10, 80, 80};  // square: the turned detector is not
+  EXPECT_THROW(session::write_session(dir.path / "bad", s, video), std::invalid_argument);
+  replace_in(dir.path / "session.json", "120.0", "80.0");
+  EXPECT_NE(error_reading(dir.path).find("session.json: video_mapping: does not fit the detector"), std::string::npos)
+      << error_reading(dir.path);
 }

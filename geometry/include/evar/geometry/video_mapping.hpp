@@ -48,9 +48,17 @@ class VideoToDetector {
   /// video = A · [detector; 1]
   const Eigen::Matrix<double, 2, 3>& detector_to_video() const { return forward_; }
   const Eigen::Matrix<double, 2, 3>& video_to_detector() const { return inverse_; }
+  int detector_cols() const { return detector_cols_; }
+  int detector_rows() const { return detector_rows_; }
+  int video_cols() const { return video_cols_; }
+  int video_rows() const { return video_rows_; }
+  /// Video pixels per detector pixel along a line (the square root of the area ratio; the
+  /// two axes' scales differ by at most the 2 % the constructor allows).
+  double video_px_per_detector_px() const;
 
  private:
   Eigen::Matrix<double, 2, 3> forward_, inverse_;
+  int detector_cols_ = 0, detector_rows_ = 0, video_cols_ = 0, video_rows_ = 0;
 };
 
 /// "" when the mapping is valid, else what is wrong, naming the field: sizes of 1 to 16384

@@ -6,11 +6,13 @@
 #include <Eigen/Core>
 #include <chrono>
 #include <cstddef>
+#include <optional>
 
 #include "evar/acquisition/frame_loss_monitor.hpp"
 #include "evar/acquisition/geometry_timeline.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/detector.hpp"
+#include "evar/geometry/video_mapping.hpp"
 #include "evar/node/device_candidate.hpp"
 #include "evar/node/model_adaptation.hpp"
 #include "evar/node/view_pair_selector.hpp"
@@ -20,6 +22,10 @@ namespace evar::node {
 
 struct NodeOptions {
   geometry::DetectorSpec detector;                 ///< the frames' detector (size checked per frame)
+  /// Set: the frames are the C-arm's video output, the detector image shown in a rectangle
+  /// of them (issue 31). Frames must have its video size; the analysis reads the detector
+  /// image out of them and the roadmap is drawn through it; frames keep their video size.
+  std::optional<geometry::VideoMapping> video_mapping;
   Eigen::Matrix4d registration = Eigen::Matrix4d::Identity();  ///< CT → C-arm at table 0
   CandidateOptions candidate;
   ViewPairOptions pairs;

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "evar/geometry/carm_projection.hpp"
+#include "evar/node/frame_view.hpp"
 #include "evar/node/model_adaptation.hpp"
 #include "evar/overlay/frame_compositor.hpp"
 
@@ -32,6 +33,9 @@ struct ComposedFrame {
   /// `model`'s layer is drawn, or none (no geometry, or a new view's layer not ready yet).
   overlay::RoadmapShown roadmap = overlay::RoadmapShown::None;
   double mm_per_px = 0.0;                         ///< at the isocenter, with P_ct
+  /// The detector's view behind P_ct: its projection is P_ct itself, or under a video
+  /// mapping (NodeOptions::video_mapping) the one P_ct carries onto the video frame.
+  std::optional<FrameView> detector_view;
   std::shared_ptr<const PublishedModel> model;
   overlay::StatusBlock status;                    ///< the text drawn on the frame: state lines and alerts
   /// The last frame shown again while there is no video (NodeOptions::held_frame_interval):

@@ -24,6 +24,7 @@
 #include "evar/acquisition/carm_geometry_source.hpp"
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/detector.hpp"
+#include "evar/geometry/video_mapping.hpp"
 
 namespace evar::session {
 
@@ -70,6 +71,9 @@ struct Session {
   Eigen::Matrix4d ct_to_carm = Eigen::Matrix4d::Identity();  ///< registration at table position 0
   double device_thickness_mm = 0.9;
   geometry::DetectorSpec detector;
+  /// Set: the frames are the C-arm's video output, the detector image shown in a rectangle
+  /// of them (session.json "video_mapping"; docs/FORMATS.md). Frames then have its video size.
+  std::optional<geometry::VideoMapping> video_mapping;
   std::vector<FrameRecord> frames;
   std::vector<CArmSample> carm;
   std::optional<SessionTruth> truth;
@@ -91,8 +95,15 @@ std::string carm_sample_problem(const CArmSample& sample);
 Session read_session(const std::filesystem::path& directory);
 
 /// A frame's image (CV_16UC1), checked to be a 16-bit single-channel PNG (by its signature,
-/// whatever its name) of the detector's size, inside the session directory.
+/// whatever its name) of the frames' size, inside the session directory.
 cv::Mat read_session_frame(const Session& session, std::size_t index);
+
+/// A frame's detector image (CV_16UC1, the detector's size): the frame itself, or under a
+/// video mapping resampled out of its image rectangle (geometry::detector_image).
+cv::Mat read_detector_frame(const Session& session, std::size_t index);
+
+/// The frames' size in pixels (cols, rows): the detector's, or the video mapping's.
+std::pair<int, int> frame_size_px(const Session& session);
 
 /// Writes session.json, registration.json, frames/index.csv, carm.csv (and the ostia CSV of
 /// the ground truth, when present) into `directory` (created), and `images[i]` as

@@ -6,6 +6,7 @@
 #include <cstdint>
 #include <filesystem>
 #include <functional>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -31,6 +32,10 @@ struct SessionPlan {
   double carm_rate_hz = 10.0;       ///< geometry samples, moving or still (and at every change)
   int aorta_vertices = 7500, iliac_vertices = 3500;
   XRayOptions xray;
+  /// Set: the frames are the C-arm monitor's picture through this mapping (monitor_picture,
+  /// with the patient, the angulation and a frame counter burned into its text regions),
+  /// and session.json carries it. The true ostia stay in detector pixels.
+  std::optional<geometry::VideoMapping> video_out;
 };
 
 struct GeneratedSession {

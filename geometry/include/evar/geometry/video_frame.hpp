@@ -1,0 +1,20 @@
+#pragma once
+// A video-out frame and the detector behind it (issue 31): the detector image read back out
+// of the frame's image rectangle, and a detector projection carried onto the frame, so the
+// analysis works on detector pixels and the overlay is drawn where the monitor shows them.
+#include <opencv2/core/mat.hpp>
+
+#include "evar/geometry/carm_projection.hpp"
+#include "evar/geometry/video_mapping.hpp"
+
+namespace evar::geometry {
+
+/// The detector image (detector_cols × detector_rows, the frame's type) resampled out of a
+/// video-out frame: turned and mirrored back, bilinear, the rectangle's edge repeated past it.
+/// std::invalid_argument when the frame is not the mapping's video size.
+cv::Mat detector_image(const cv::Mat& video_frame, const VideoToDetector& map);
+
+/// The projection onto the video frame: [A; 0 0 1] · P, A the detector-to-video affine.
+ProjectionMatrix projection_on_video(const ProjectionMatrix& P_detector, const VideoToDetector& map);
+
+}  // namespace evar::geometry

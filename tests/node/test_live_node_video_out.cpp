@@ -1,0 +1,172 @@
+// The live node on a C-arm's video output (issue 31): frames are the monitor's picture, the
+// detector image scaled into a rectangle, turned and mirrored, text burned in around it.
+// With the video mapping the node finds the device on the detector's pixels, adapts the
+// model, and draws the roadmap where the monitor shows the detector; without it a frame of
+// the video's size is said to be the wrong size and gets no roadmap.
+#include <gtest/gtest.h>
+#include <unistd.h>
+
+#include <Eigen/Core>
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <mutex>
+
+#include "evar/geometry/video_frame.hpp"
+#include "evar/node/live_node.hpp"
+#include "evar/session/session_replay.hpp"
+#include "evar/sim/session_generator.hpp"
+
+namespace {
+
+using namespace evar;
+namespace fs = std::filesystem;
+
+// 384 px detector of 0.8 mm shown 1.25 times enlarged, turned 270° and mirrored, in a
+// 640 x 512 frame with text left and right of the picture.
+geometry::VideoMapping monitor() {
+  geometry::VideoMapping m;
+  m.video_cols = 640;
+  m.video_rows = 512;
+  m.image_rect = {100, 8, 480, 480};
+  m.rotation_deg = 270;
+  m.mirror = true;
+  m.text_regions = {{4, 4, 90, 20}, {4, 30, 90, 20}, {584, 4, 52, 20}, {584, 30, 52, 20}};
+  return m;
+}
+
+class VideoOutReplay : public ::testing::Test {
+ protected:
+  static void SetUpTestSuite() {
+    dir_ = fs::temp_directory_path() / ("evar-video-out-" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+    sim::SessionPlan plan;
+    plan.seed = 1;
+    plan.detector_px = 384;
+    plan.pixel_spacing_mm = 0.8;
+    plan.fluoro_seconds = 1.0;
+    plan.video_out = monitor();
+    generated_ = new sim::GeneratedSession(sim::generate_session(plan, dir_ / "session"));
+    scene_ = new geometry::Scene(geometry::load_scene(dir_ / "session" / generated_->session.scene));
+  }
+  static void TearDownTestSuite() {
+    delete scene_;
+    delete generated_;
+    fs::remove_all(dir_);
+  }
+  static node::NodeOptions options() {
+    node::NodeOptions o;
+    o.detector = generated_->session.detector;
+    o.registration = generated_->session.ct_to_carm;
+    o.video_mapping = generated_->session.video_mapping;
+    o.backpressure = true;
+    o.compositor.layer_in_background = false;  // every frame with its roadmap drawn
+    o.mode = overlay::RoadmapMode::Undeformed;
+    return o;
+  }
+  static inline fs::path dir_;
+  static inline sim::GeneratedSession* generated_ = nullptr;
+  static inline geometry::Scene* scene_ = nullptr;
+};
+
+// Each composed frame with a view: its size, its projection and where its roadmap is drawn.
+class FrameChecker final : public node::OutputSink {
+ public:
+  explicit FrameChecker(const geometry::VideoToDetector& map, const geometry::Scene& scene) : map_(map), scene_(scene) {}
+  std::string name() const override { return "frame checker"; }
+  void write(const node::ComposedFrame& f) override {
+    std::lock_guard lock(mutex_);
+    ++frames;
+    if (f.image->width != map_.video_cols() || f.image->height != map_.video_rows()) ++wrong_size;
+    if (!f.P_ct || !f.detector_view || f.held) return;
+    ++with_view;
+    const geometry::ProjectionMatrix expected = geometry::projection_on_video(f.detector_view->P_ct, map_);
+    worst_projection_difference = std::max(worst_projection_difference, (*f.P_ct - expected).cwiseAbs().maxCoeff() /
+                                                                            expected.cwiseAbs().maxCoeff());
+    scale_ratio = f.mm_per_px * map_.video_px_per_detector_px() / node::mm_at_isocenter_per_px(f.detector_view->view);
+    if (f.roadmap == overlay::RoadmapShown::None) return;
+    // Where the vessels project on the video frame, below the status block (top left).
+    Eigen::AlignedBox2d vessels;
+    for (const auto& v : scene_.vessels)
+      for (Eigen::Index i = 0; i < v.mesh.mesh.V.rows(); ++i)
+        if (const auto px = geometry::project(*f.P_ct, v.mesh.mesh.V.row(i).transpose())) vessels.extend(*px);
+    const int first_row = map_.video_rows() / 2;  // the status block ends well above
+    std::size_t inside = 0, outside = 0;
+    for (int y = first_row; y < f.image->height; ++y)
+      for (int x = 0; x < f.image->width; ++x) {
+        const auto c = f.image->at(x, y);
+        const int chroma = std::abs(int{c.b} - int{c.g}) + std::abs(int{c.g} - int{c.r});
+        if (chroma < 40) continue;  // grey: the fluoroscopy, the border, the burned-in text
+        const bool near = x >= vessels.min().x() - 4 && x <= vessels.max().x() + 4 && y >= vessels.min().y() - 4 &&
+                          y <= vessels.max().y() + 4;
+        ++(near ? inside : outside);
+      }
+    roadmap_pixels_inside += inside;
+    roadmap_pixels_outside += outside;
+  }
+  std::mutex mutex_;
+  std::size_t frames = 0, wrong_size = 0, with_view = 0, roadmap_pixels_inside = 0, roadmap_pixels_outside = 0;
+  double worst_projection_difference = 0.0, scale_ratio = 0.0;
+
+ private:
+  const geometry::VideoToDetector& map_;
+  const geometry::Scene& scene_;
+};
+
+TEST_F(VideoOutReplay, TheNodeAdaptsTheModelAndDrawsTheRoadmapWhereTheMonitorShowsTheDetector) {
+  const geometry::VideoToDetector map(monitor(), generated_->session.detector.cols, generated_->session.detector.rows);
+  auto checker = std::make_unique<FrameChecker>(map, *scene_);
+  FrameChecker& shown = *checker;
+  std::vector<std::unique_ptr<node::OutputSink>> sinks;
+  sinks.push_back(std::move(checker));
+  node::LiveNode node(*scene_, options(), std::move(sinks));
+  session::SessionReplay replay(generated_->session, {0.0, 1});
+  node.start(replay.frames(), replay.carm());
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
+  node.stop();
+  const node::NodeStatistics s = node.statistics();
+  EXPECT_EQ(s.frames_composited, generated_->session.frames.size());
+  EXPECT_EQ(s.frames_wrong_size, 0u);
+  EXPECT_GE(s.adaptations, 1u) << "the device was not found on the detector image read out of the video frames";
+  EXPECT_EQ(s.models_device_outside, 0u);
+  EXPECT_GT(s.frames_with_roadmap, 0u);
+  EXPECT_EQ(shown.wrong_size, 0u) << "frames keep their video size on screen";
+  EXPECT_GT(shown.with_view, 0u);
+  EXPECT_LT(shown.worst_projection_difference, 1e-12);
+  EXPECT_NEAR(shown.scale_ratio, 1.0, 1e-12);
+  // The roadmap lies where the vessels project through the mapping (a turn or mirror missed
+  // would put most of it elsewhere in the picture).
+  EXPECT_GT(shown.roadmap_pixels_inside, 1000u);
+  EXPECT_LT(shown.roadmap_pixels_outside, shown.roadmap_pixels_inside / 100);
+}
+
+TEST_F(VideoOutReplay, WithoutTheMappingAVideoFrameIsTheWrongSizeAndGetsNoRoadmap) {
+  node::NodeOptions o = options();
+  o.video_mapping.reset();
+  node::LiveNode node(*scene_, o, {});
+  session::SessionReplay replay(generated_->session, {0.0, 1});
+  node.start(replay.frames(), replay.carm());
+  ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
+  node.stop();
+  const node::NodeStatistics s = node.statistics();
+  EXPECT_EQ(s.frames_wrong_size, generated_->session.frames.size());
+  EXPECT_EQ(s.frames_with_roadmap, 0u);
+  EXPECT_EQ(s.adaptations, 0u);
+}
+
+TEST(VideoOutOptions, AMappingThatDoesNotFitTheDetectorIsRefusedByName) {
+  node::NodeOptions o;
+  o.detector = {384, 384, 0.8, 0.8};
+  o.video_mapping = monitor();
+  o.video_mapping->image_rect = {100, 8, 480, 400};  // not square: the detector is
+  try {
+    node::check_options(o);
+    FAIL() << "accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("node options: video_mapping: video mapping: image_rect_px [100, 8, 480, 400]"),
+              std::string::npos)
+        << e.what();
+  }
+}
+
+}  // namespace
