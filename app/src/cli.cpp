@@ -182,6 +182,28 @@ int run_cli(const std::vector<std::string>& args) {
   pr->add_option("--points", project.points, "points: any 3D Slicer markups file (.mrk.json), labels kept")->required();
   pr->add_option("--out", project.out, "also write the result as JSON");
 
+  CalibrateVideoCommand calibrate;
+  auto* cv = app.add_subcommand(
+      "calibrate-video",
+      "Find where the fluoroscopy image lies in frames grabbed from a C-arm's video output (the\n"
+      "monitor's picture): the image area, its shape (rectangle or an image intensifier's circle)\n"
+      "and the burned-in text around it. Writes the video mapping (docs/FORMATS.md, \"Video\n"
+      "mapping\") and a picture to check it by. Grab a few frames while fluoroscopy is shown.");
+  cv->add_option("--frames", calibrate.frames, "grabbed frames (PNG, TIFF, ...; 8 or 16 bit; all of one size)")
+      ->required()
+      ->check(CLI::ExistingFile);
+  cv->add_option("--out", calibrate.out, "the mapping file to write (JSON)")->required();
+  cv->add_option("--picture", calibrate.picture, "also draw what was found (PNG)");
+  cv->add_option("--node", calibrate.node, "also write the mapping into this node.json (\"video_mapping\", other fields kept)")
+      ->check(CLI::ExistingFile);
+  cv->add_option("--rotation-deg", calibrate.rotation_deg,
+                 "the display's turn, clockwise as shown (0, 90, 180, 270): from the C-arm's display settings")
+      ->check(CLI::IsMember({0, 90, 180, 270}))
+      ->capture_default_str();
+  cv->add_flag("--mirror", calibrate.mirror, "the display mirrors the image left to right (after the turn)");
+  cv->add_option("--detector-px", calibrate.detector_px, "the detector's cols and rows: check the image area's shape against it")
+      ->expected(2);
+
   const auto add_segment_params = [](CLI::App* c, SegmentParams& p) {
     c->add_option("--device-diameter-mm", p.diameter_mm, "device diameter, for its shadow width with the geometry")
         ->check(CLI::Range(0.1, 10.0))
@@ -455,6 +477,7 @@ int run_cli(const std::vector<std::string>& args) {
     if (a->parsed()) return run_arap(arap);
     if (e->parsed()) return run_example(example);
     if (pr->parsed()) return run_project(project);
+    if (cv->parsed()) return run_calibrate_video(calibrate);
     if (sg->parsed()) return run_segment(segment);
     if (rc->parsed()) return run_reconstruct(reconstruct);
     if (sp->parsed()) return run_sim_patient(sim_patient);

@@ -169,6 +169,15 @@ struct RunCommand {
 };
 int run_node(const RunCommand& cmd);
 
+struct CalibrateVideoCommand {
+  std::vector<std::filesystem::path> frames;
+  std::filesystem::path out, picture, node;
+  int rotation_deg = 0;
+  bool mirror = false;
+  std::vector<int> detector_px;  ///< empty, or cols and rows: the mapping is checked against it
+};
+int run_calibrate_video(const CalibrateVideoCommand& cmd);
+
 struct ProjectCommand {
   std::filesystem::path geometry, registration, points, out;
 };

@@ -16,6 +16,8 @@
 #include "evar/geometry/scene.hpp"
 #include "evar/geometry/xa_dicom.hpp"
 #include "evar/sim/fluoro_render.hpp"
+#include "evar/sim/monitor_picture.hpp"
+#include "evar/geometry/video_mapping.hpp"
 
 #include <opencv2/imgcodecs.hpp>
 #include <Eigen/Geometry>
@@ -384,4 +386,105 @@ TEST_F(Cli, AVideoOutSessionEvaluatesAsItsDetectorForm) {
     ASSERT_TRUE(detector.count(label)) << label;
     EXPECT_NEAR(l["adapted_mm"].get<double>(), detector.at(label).second, 0.2) << label;
   }
+}
+
+// `calibrate-video` finds the image area of the monitor's picture within 2 px for every kind
+// of display: enlarged with borders, turned and mirrored, an image intensifier's circle,
+// shrunk, filling the frame; from 16-bit frames and from 8-bit display-processed ones; the
+// burned-in text is boxed; the mapping goes into node.json on request, and a shape that does
+// not fit the detector is said with the likely fix.
+TEST_F(Cli, CalibrateVideoFindsTheImageAreaOfEveryKindOfMonitorPicture) {
+  const auto out = scratch("calibrate_video");
+  ASSERT_EQ(evarnode({"sim", "session", "--seed", "2", "--detector-px", "384", "--fluoro-seconds", "0.4", "--out",
+                      (out / "s").string(), "--no-progress"}).code, 0);
+  const auto session = evar::session::read_session(out / "s");
+  std::vector<cv::Mat> detector;
+  for (std::size_t i : {1u, 8u, 14u}) detector.push_back(evar::session::read_session_frame(session, i));
+
+  struct Kind {
+    const char* name;
+    evar::geometry::VideoMapping m;
+  };
+  const auto mapping = [](int cols, int rows, evar::geometry::PixelRect r, int turn, bool mirror,
+                          evar::geometry::FieldShape shape, std::vector<evar::geometry::PixelRect> text) {
+    evar::geometry::VideoMapping m;
+    m.video_cols = cols;
+    m.video_rows = rows;
+    m.image_rect = r;
+    m.rotation_deg = turn;
+    m.mirror = mirror;
+    m.field_shape = shape;
+    m.text_regions = std::move(text);
+    return m;
+  };
+  using evar::geometry::FieldShape;
+  const std::vector<Kind> kinds{
+      {"enlarged, bordered, text both sides",
+       mapping(1280, 1024, {128, 0, 1024, 1024}, 0, false, FieldShape::Rectangle, {{4, 10, 118, 24}, {1158, 10, 118, 24}})},
+      {"turned and mirrored", mapping(640, 512, {100, 8, 480, 480}, 270, true, FieldShape::Rectangle,
+                                      {{4, 4, 90, 20}, {4, 30, 90, 20}, {584, 470, 52, 20}})},
+      {"image intensifier", mapping(800, 600, {137, 45, 510, 510}, 90, false, FieldShape::Circle, {{10, 560, 300, 30}})},
+      {"shrunk", mapping(320, 240, {60, 21, 199, 199}, 180, false, FieldShape::Rectangle, {{2, 2, 56, 14}})},
+      {"filling the frame", mapping(384, 384, {0, 0, 384, 384}, 0, false, FieldShape::Rectangle, {})},
+  };
+  const std::vector<std::string> text{"PATIENT DOE", "LAO 35", "FL 0012", "80 kV"};
+  for (const Kind& kind : kinds) {
+    for (const bool eight_bit : {false, true}) {
+      SCOPED_TRACE(std::string(kind.name) + (eight_bit ? ", 8-bit display video" : ", 16-bit"));
+      std::vector<std::string> args{"calibrate-video", "--out", (out / "mapping.json").string(), "--picture",
+                                    (out / "found.png").string(), "--frames"};
+      for (std::size_t k = 0; k < detector.size(); ++k) {
+        cv::Mat picture = evar::sim::monitor_picture(detector[k], kind.m, text);
+        if (eight_bit) {  // what a grabber sees: log, windowed, 8 bits, black clipped
+          cv::Mat f;
+          picture.convertTo(f, CV_32F);
+          cv::log(f + 1.0f, f);
+          f.convertTo(picture, CV_8U, 255.0 / 11.1);
+        }
+        const auto file = out / ("frame" + std::to_string(k) + ".png");
+        ASSERT_TRUE(cv::imwrite(file.string(), picture));
+        args.push_back(file.string());
+      }
+      const auto r = evarnode(args);
+      ASSERT_EQ(r.code, 0) << r.err;
+      const auto found = evar::geometry::read_video_mapping(out / "mapping.json");
+      const auto& a = found.image_rect;
+      const auto& b = kind.m.image_rect;
+      EXPECT_NEAR(a.x, b.x, 2.0);
+      EXPECT_NEAR(a.y, b.y, 2.0);
+      EXPECT_NEAR(a.x + a.width, b.x + b.width, 2.0);
+      EXPECT_NEAR(a.y + a.height, b.y + b.height, 2.0);
+      EXPECT_EQ(found.field_shape, kind.m.field_shape);
+      EXPECT_EQ(found.video_cols, kind.m.video_cols);
+      // Every burned-in text pixel lies in a region found, and no region reaches into the image.
+      const cv::Mat frame = cv::imread(args.back(), cv::IMREAD_UNCHANGED);
+      for (const auto& t : kind.m.text_regions)
+        for (int y = static_cast<int>(t.y); y < t.y + t.height; ++y)
+          for (int x = static_cast<int>(t.x); x < t.x + t.width; ++x) {
+            const double v = frame.depth() == CV_8U ? frame.at<std::uint8_t>(y, x) : frame.at<std::uint16_t>(y, x);
+            if (v < (frame.depth() == CV_8U ? 200 : 60000)) continue;
+            const bool covered = std::any_of(found.text_regions.begin(), found.text_regions.end(), [&](const auto& f) {
+              return x >= f.x && x < f.x + f.width && y >= f.y && y < f.y + f.height;
+            });
+            ASSERT_TRUE(covered) << "text pixel " << x << ", " << y << " in no region found";
+          }
+      for (const auto& f : found.text_regions) {
+        const bool apart = f.x + f.width <= b.x || f.x >= b.x + b.width || f.y + f.height <= b.y || f.y >= b.y + b.height;
+        EXPECT_TRUE(apart) << "a text region inside the image";
+      }
+      EXPECT_TRUE(fs::exists(out / "found.png"));
+    }
+  }
+
+  // Into node.json, its other fields kept; and a shape that does not fit the detector.
+  write_text(out / "node.json", R"({"format": "evarnode-node", "version": 1, "min_contrast": 0})");
+  const auto into = evarnode({"calibrate-video", "--frames", (out / "frame0.png").string(), "--out",
+                              (out / "m.json").string(), "--node", (out / "node.json").string(), "--rotation-deg", "90",
+                              "--detector-px", "384", "--detector-px", "300"});
+  ASSERT_EQ(into.code, 0) << into.err;
+  EXPECT_NE(into.err.find("is 1 times as wide as high"), std::string::npos) << into.err;
+  const auto node = nlohmann::json::parse(std::ifstream(out / "node.json"));
+  EXPECT_EQ(node["min_contrast"], 0);
+  EXPECT_EQ(node["video_mapping"]["rotation_deg"], 90);
+  EXPECT_EQ(node["video_mapping"]["image_rect_px"][2], 384);
 }
