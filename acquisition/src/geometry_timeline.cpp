@@ -85,7 +85,11 @@ void GeometryTimeline::accept(const CArmState& sample) {
 std::optional<FrameGeometry> GeometryTimeline::at(Clock::time_point t) const {
   if (samples_.empty()) return std::nullopt;
   // The frame's time on the C-arm clock, by the newest offset estimate.
-  const std::int64_t tn = ns(t) - *clock_.offset_ns();
+  return at_carm_time(ns(t) - *clock_.offset_ns());
+}
+
+std::optional<FrameGeometry> GeometryTimeline::at_carm_time(std::int64_t tn) const {
+  if (samples_.empty()) return std::nullopt;
   const std::int64_t stale_ns = std::chrono::nanoseconds(options_.stale_after).count();
   auto after = std::lower_bound(samples_.begin(), samples_.end(), tn,
                                 [](const CArmState& s, std::int64_t v) { return s.device_time_ns < v; });

@@ -42,7 +42,9 @@ FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesyste
         throw base::InputError(geometry.string() + ": video_mapping.video_size_px is " + std::to_string(mapping->video_cols) +
                                " x " + std::to_string(mapping->video_rows) + " but " + image.string() + " is " +
                                std::to_string(in.image.cols) + " x " + std::to_string(in.image.rows));
-      in.image = geometry::detector_image(in.image, geometry::VideoToDetector(*mapping, in.view->detector_cols, in.view->detector_rows));
+      const geometry::VideoToDetector map(*mapping, in.view->detector_cols, in.view->detector_rows);
+      in.image = geometry::detector_image(in.image, map);
+      in.field_mask = geometry::detector_field_mask(*mapping, map);
     }
     if (in.view->detector_cols != in.image.cols || in.view->detector_rows != in.image.rows)
       throw base::InputError(geometry.string() + ": detector_size_px is " + std::to_string(in.view->detector_cols) +

@@ -14,6 +14,7 @@ struct FluoroInput {
   cv::Mat image;                               ///< CV_8UC1 or CV_16UC1, dark = attenuating; the detector's
                                                ///< pixels (a video-out frame is mapped back, view's video_mapping)
   std::optional<geometry::CArmView> view;      ///< from --geometry or the DICOM header
+  cv::Mat field_mask;                          ///< where a video-out frame shows the field; empty: everywhere
 };
 
 /// InputError naming the file when it cannot be read, is empty, or is not grey-level.

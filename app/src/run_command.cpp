@@ -64,6 +64,8 @@ int run_node(const RunCommand& cmd) {
     scene_path = cmd.replay / session->scene;
     options.detector = session->detector;
     options.video_mapping = session->video_mapping;  // checked against the detector when read
+    // Frames and C-arm samples of a session share the recording's clock, whatever the speed.
+    options.frames_on_carm_clock = true;
     options.registration = session->ct_to_carm;
     fps = session_fps(*session);
     // A C-arm that reports only when something changes leaves long gaps between samples

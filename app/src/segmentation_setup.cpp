@@ -15,6 +15,7 @@ geometry::SegmentationOptions segmentation_options(const SegmentParams& p, const
                                "(check the pixel spacing, or give --width-px)");
   if (p.seed.size() == 2) o.seed_px = Eigen::Vector2d(p.seed[0], p.seed[1]);
   o.min_contrast = p.min_contrast;
+  o.field_mask = in.field_mask;
   return o;
 }
 

@@ -8,6 +8,8 @@
 #include <numeric>
 #include <stdexcept>
 
+#include "evar/geometry/video_frame.hpp"
+
 #include <Eigen/Geometry>
 #include <numbers>
 
@@ -126,6 +128,12 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   node::ViewPairSelector selector(options.adaptation.reconstruction.min_separation_deg, options.pairs);
   std::shared_ptr<const node::AdaptedModel> model;
   OstiumErrors errors(scene.landmarks, session.truth->ostia);
+  // Frames that are the monitor's picture: the device is searched for where it shows the field.
+  node::CandidateOptions candidate = options.candidate;
+  if (session.video_mapping)
+    candidate.field_mask = geometry::detector_field_mask(
+        *session.video_mapping,
+        geometry::VideoToDetector(*session.video_mapping, session.detector.cols, session.detector.rows));
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const session::FrameRecord& record = session.frames[i];
     const session::CArmSample* sample = session::carm_at(session, record.timestamp_ns);
@@ -136,7 +144,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm,
                                       session::to_carm_state(*sample, 0));
     const cv::Mat image = session::read_detector_frame(session, i);
-    node::FrameAnalysis analysis = node::analyse_frame(image, view, options.candidate);
+    node::FrameAnalysis analysis = node::analyse_frame(image, view, candidate);
     if (analysis.candidate) {
       ++result.candidates;
       node::ViewCandidate c{static_cast<std::uint64_t>(record.frame), record.timestamp_ns, view,

@@ -54,9 +54,14 @@ cv::Mat confident_ridge_pixels(const Ridge& ridge, const cv::Rect& inner, const 
 /// pixel's neighbours are all in the image. Pixels are indices y * width + x.
 class RidgePaths {
  public:
-  RidgePaths(const Ridge& ridge, const cv::Mat& confident, const cv::Rect& inner, const SegmentationOptions& o);
+  /// `searched` (CV_8U, or empty for all of `inner`): the pixels of `inner` the path may use.
+  /// `field` (CV_8U, or empty): the field they lie in, holes (masked text) filled: its edge is
+  /// a border of the field as `inner`'s is (an image intensifier's circle); a hole's is not.
+  RidgePaths(const Ridge& ridge, const cv::Mat& confident, const cv::Rect& inner, const SegmentationOptions& o,
+             const cv::Mat& searched = {}, const cv::Mat& field = {});
 
-  /// Seeds every band pixel on the inner field's border; false when there is none.
+  /// Seeds every band pixel on the inner field's border (or the field's edge); false when
+  /// there is none.
   bool seed_border();
   bool in_band(int q) const { return band_[static_cast<std::size_t>(q)] != 0; }
   /// Settles every band pixel reachable from the seeds, nearest first.
@@ -76,6 +81,7 @@ class RidgePaths {
 
   int W_, H_;
   cv::Rect inner_;
+  cv::Mat searched_, field_;
   std::vector<std::uint8_t> band_;
   std::vector<float> band_cost_;
   std::vector<float> dist_;

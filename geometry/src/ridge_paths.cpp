@@ -11,8 +11,9 @@ namespace {
 constexpr float kInf = std::numeric_limits<float>::infinity();
 }
 
-RidgePaths::RidgePaths(const Ridge& ridge, const cv::Mat& confident, const cv::Rect& inner, const SegmentationOptions& o)
-    : W_(confident.cols), H_(confident.rows), inner_(inner) {
+RidgePaths::RidgePaths(const Ridge& ridge, const cv::Mat& confident, const cv::Rect& inner, const SegmentationOptions& o,
+                       const cv::Mat& searched, const cv::Mat& field)
+    : W_(confident.cols), H_(confident.rows), inner_(inner), searched_(searched), field_(field) {
   const cv::Mat& R = ridge.response;
   cv::Mat dist_to_confident;
   cv::Mat not_confident = confident == 0;
@@ -30,7 +31,7 @@ RidgePaths::RidgePaths(const Ridge& ridge, const cv::Mat& confident, const cv::R
   band_cost_.assign(band_.size(), 0.0f);
   for (int y = inner.y; y < inner.y + inner.height; ++y)
     for (int x = inner.x; x < inner.x + inner.width; ++x)
-      if (dist_to_confident.at<float>(y, x) <= o.gap_radius_px) {
+      if (dist_to_confident.at<float>(y, x) <= o.gap_radius_px && (searched_.empty() || searched_.at<std::uint8_t>(y, x))) {
         const auto q = static_cast<std::size_t>(y) * static_cast<std::size_t>(W_) + static_cast<std::size_t>(x);
         band_[q] = 1;
         band_cost_[q] = cost(y, x);
@@ -48,7 +49,9 @@ bool RidgePaths::seed_border() {
   for (int y = inner_.y; y < inner_.y + inner_.height; ++y)
     for (int x = inner_.x; x < inner_.x + inner_.width; ++x) {
       const bool on_border =
-          x == inner_.x || y == inner_.y || x == inner_.x + inner_.width - 1 || y == inner_.y + inner_.height - 1;
+          x == inner_.x || y == inner_.y || x == inner_.x + inner_.width - 1 || y == inner_.y + inner_.height - 1 ||
+          (!field_.empty() && (!field_.at<std::uint8_t>(y - 1, x) || !field_.at<std::uint8_t>(y + 1, x) ||
+                               !field_.at<std::uint8_t>(y, x - 1) || !field_.at<std::uint8_t>(y, x + 1)));
       if (on_border && band_[static_cast<std::size_t>(y * W_ + x)]) {
         dist_[static_cast<std::size_t>(y * W_ + x)] = 0.0f;
         push(0.0f, y * W_ + x);

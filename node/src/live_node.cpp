@@ -119,6 +119,8 @@ LiveNode::Impl::Impl(const geometry::Scene& scene, NodeOptions options, std::vec
       input_(options_.input_queue),
       output_(options_.output_queue),
       timeline_(options_.timeline) {
+  // Under a video mapping the device is searched for only where the monitor shows the field.
+  if (video_) options_.candidate.field_mask = geometry::detector_field_mask(*options_.video_mapping, *video_);
   deformer_ = std::make_unique<deform::SceneDeformer>(scene, options_.deform);
   initial_roadmap_ = std::make_shared<const overlay::RoadmapModel>(roadmap_model(scene, nullptr));
   auto m = std::make_shared<PublishedModel>();
@@ -308,7 +310,7 @@ void LiveNode::Impl::compose_loop() {
                   options_.alert_hold);
       {
         std::lock_guard lock(timeline_mutex_);
-        g = timeline_.at(f->device_time_on_host);
+        g = options_.frames_on_carm_clock ? timeline_.at_carm_time(f->device_time_ns) : timeline_.at(f->device_time_on_host);
       }
       if (!g) {
         alerts_.set("geometry", "no C-arm geometry yet: roadmap hidden", std::nullopt);

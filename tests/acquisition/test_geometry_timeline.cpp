@@ -73,6 +73,31 @@ TEST(GeometryTimeline, InterpolatesTheGeometryAtAFramesTimeDespiteLinkJitter) {
   EXPECT_LE(settled->age_ns, 51'000'000);
 }
 
+// A replay faster than recorded: samples arrive on the host ten times faster than their
+// C-arm times go on, so the host-to-C-arm offset fits no part of the history. A frame
+// stamped on the C-arm's clock (a session's frames) is looked up there and gets its own
+// geometry exactly; through the host time it would get another.
+TEST(GeometryTimeline, AFrameOnTheCArmsClockGetsItsGeometryWhateverTheHostsRate) {
+  Scenario sc;
+  acq::GeometryTimeline tl;
+  auto samples = sc.samples(3.0);
+  const auto first = samples.front().device_time_ns;
+  for (auto& c : samples) c.host_arrival = sc.t0 + std::chrono::nanoseconds((c.device_time_ns - first) / 10);
+  for (const auto& c : samples) tl.add(c);
+  for (double s : {0.5, 1.5, 2.55}) {
+    const auto g = tl.at_carm_time(first + static_cast<std::int64_t>(s * 1e9));
+    ASSERT_TRUE(g);
+    EXPECT_NEAR(g->state.primary_deg, Scenario::primary_at(s), 1e-9) << s;
+    EXPECT_EQ(g->moving, s > 1.0 && s < 2.1) << s;
+    EXPECT_FALSE(g->stale) << s;
+  }
+  // The frame at 0.5 s by its host arrival (a tenth of the way in host time) is placed
+  // after the turn.
+  const auto by_host = tl.at(sc.t0 + std::chrono::nanoseconds(50'000'000));
+  ASSERT_TRUE(by_host);
+  EXPECT_GT(std::abs(by_host->state.primary_deg - Scenario::primary_at(0.5)), 5.0);
+}
+
 TEST(GeometryTimeline, AFrameAfterTheLinkWentSilentHasStaleGeometry) {
   Scenario sc;
   acq::GeometryTimeline tl;

@@ -54,6 +54,11 @@ class GeometryTimeline {
   void add(const CArmState& sample);
   /// The geometry at host time `t` (a frame's device_time_on_host); empty before any sample.
   std::optional<FrameGeometry> at(Clock::time_point t) const;
+  /// The geometry at `carm_time_ns` on the C-arm's own clock: for frames stamped on that
+  /// clock (a replayed session's frames and C-arm samples share the recording's clock, and a
+  /// replay faster than recorded runs the host clock at another rate, which the host-time
+  /// mapping cannot follow). Empty before any sample.
+  std::optional<FrameGeometry> at_carm_time(std::int64_t carm_time_ns) const;
   /// host steady clock − C-arm clock, as estimated from the samples so far.
   std::optional<std::int64_t> carm_clock_offset_ns() const { return clock_.offset_ns(); }
   std::size_t size() const { return samples_.size(); }

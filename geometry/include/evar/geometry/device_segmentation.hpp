@@ -50,6 +50,11 @@ struct SegmentationOptions {
   double seed_radius_px = 20.0;
   double sample_step_px = 1.0;    ///< spacing of the output points
   double smoothing_px = 2.0;      ///< Gaussian σ along arc length
+  /// Empty, or CV_8U of the image's size: where the image shows the detector's field (an
+  /// image intensifier's circle, less burned-in text; video_frame.hpp's detector_field_mask).
+  /// Only there is a device searched for, and its edge is a border of the field as the
+  /// shutters' are (the same rim kept clear).
+  cv::Mat field_mask;
 };
 
 struct DeviceCurve2D {

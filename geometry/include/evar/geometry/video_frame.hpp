@@ -14,6 +14,11 @@ namespace evar::geometry {
 /// std::invalid_argument when the frame is not the mapping's video size.
 cv::Mat detector_image(const cv::Mat& video_frame, const VideoToDetector& map);
 
+/// Where the detector image shows the field (CV_8U, the detector's size, 255 there): inside
+/// an image intensifier's circle and outside burned-in text regions, as the frame shows
+/// them. Empty when that is the whole detector image (a rectangle without text over it).
+cv::Mat detector_field_mask(const VideoMapping& mapping, const VideoToDetector& map);
+
 /// The projection onto the video frame: [A; 0 0 1] · P, A the detector-to-video affine.
 ProjectionMatrix projection_on_video(const ProjectionMatrix& P_detector, const VideoToDetector& map);
 

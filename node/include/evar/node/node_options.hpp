@@ -35,6 +35,10 @@ struct NodeOptions {
   overlay::CompositorOptions compositor{.supersample = 2, .window_level = {}, .layer_in_background = true};
   overlay::RoadmapMode mode = overlay::RoadmapMode::Both;
   acquisition::GeometryTimelineOptions timeline;
+  /// Frames' device_time_ns is on the C-arm's clock (a replayed session: one recording clock
+  /// for both), so each frame's geometry is looked up at it instead of through the estimated
+  /// host-to-C-arm offset, which a replay faster or slower than recorded would not fit.
+  bool frames_on_carm_clock = false;
   std::chrono::milliseconds video_stall{1000};  ///< no frame for this long: "no video"
   /// The source losing this share of its frames or more (a GigE link dropping packets,
   /// a grabber dropping buffers) is an alert while it lasts: the image is live but jerky.
