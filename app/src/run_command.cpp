@@ -237,6 +237,7 @@ int run_node(const RunCommand& cmd) {
                   {"held_while_no_video", s.frames_held},
                   {"stale_geometry", s.stale_geometry_frames}, {"c_arm_moving", s.moving_frames}}},
       {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped},
+                    {"not_fluoroscopy", s.frames_not_fluoroscopy},
                     {"waited_for_adaptation", s.analysis_waited}, {"candidates", s.candidates},
                     {"pairs", s.pairs}, {"pairs_superseded", s.pairs_superseded}}},
       {"adaptation", {{"models", s.adaptations}, {"failures", s.adaptation_failures}, {"last_failure", s.last_failure},

@@ -438,6 +438,19 @@ void LiveNode::Impl::analysis_loop() {
     // The device is found on the detector's pixels: under a video mapping they are read
     // back out of the frame's image rectangle.
     const cv::Mat detector = video_ ? geometry::detector_image(wrap(a->frame), *video_) : wrap(a->frame);
+    // The monitor may show something else than fluoroscopy (a menu, a dialog, nothing):
+    // not searched for a device, and said while it lasts.
+    if (video_) {
+      if (const std::string why = geometry::not_fluoroscopy(detector, options_.candidate.field_mask); !why.empty()) {
+        alerts_.set("not-fluoroscopy", "video: not fluoroscopy: " + why, options_.alert_hold);
+        log().debug("frame {}: not fluoroscopy: {}", a->frame.sequence, why);
+        std::lock_guard lock(stats_mutex_);
+        ++stats_.analysed;
+        ++stats_.frames_not_fluoroscopy;
+        continue;
+      }
+      alerts_.clear("not-fluoroscopy");
+    }
     FrameAnalysis r = analyse_frame(detector, a->view, options_.candidate);
     const double waited_ms = ms_between(a->frame.host_arrival, analysis_start), took_ms = ms_between(analysis_start, Clock::now());
     {

@@ -3,12 +3,15 @@
 // rectangle of the video frame, as a C-arm's display does), its JSON form, and its refusals.
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <fstream>
 #include <opencv2/core.hpp>
 #include <opencv2/imgproc.hpp>
 
 #include "evar/geometry/carm_projection.hpp"
+#include "evar/geometry/video_frame.hpp"
 #include "evar/geometry/video_mapping.hpp"
+#include "geometry/synthetic_fluoro.hpp"
 #include "support/error_message.hpp"
 #include "support/temp_dir.hpp"
 #include "support/video_out.hpp"
@@ -182,4 +185,34 @@ TEST(VideoMapping, AViewGeometryCarriesItAndNamesItsFields) {
   EXPECT_NE(why.find("shape.json: video_mapping: image_rect_px [0, 0, 1280, 1024] is 1.25 times as wide as high"),
             std::string::npos)
       << why;
+}
+
+// Fluoroscopy, raw or as a windowed 8-bit display shows it (clipped blacks and whites), is
+// never taken for anything else; a blank monitor and a menu over the image are.
+TEST(NotFluoroscopy, TellsAMenuOrABlankMonitorFromFluoroscopy) {
+  const auto view = evar::test::detector_view(0, 0, 512, 0.6);
+  const auto frame = evar::sim::render_fluoro(evar::geometry::projection_matrix(view), view, {evar::test::iliac_guidewire()}, {});
+  EXPECT_EQ(evar::geometry::not_fluoroscopy(frame.image), "");
+  cv::Mat f, display;
+  frame.image.convertTo(f, CV_32F);
+  cv::log(f + 1.0f, f);
+  // A narrow window, from the 15th to the 85th percentile: much clipped to black and white.
+  std::vector<float> v(f.begin<float>(), f.end<float>());
+  std::sort(v.begin(), v.end());
+  const double lo = v[v.size() * 15 / 100], hi = v[v.size() * 85 / 100];
+  f.convertTo(display, CV_8U, 255.0 / (hi - lo), -255.0 * lo / (hi - lo));
+  EXPECT_GT(cv::countNonZero(display == 0) + cv::countNonZero(display == 255), display.total() / 10);
+  EXPECT_EQ(evar::geometry::not_fluoroscopy(display), "");
+
+  const cv::Mat blank(512, 512, CV_8U, cv::Scalar(12));
+  EXPECT_NE(evar::geometry::not_fluoroscopy(blank).find("one flat grey"), std::string::npos);
+  cv::Mat menu = display.clone();
+  menu(cv::Rect(40, 40, 420, 300)).setTo(cv::Scalar(180));
+  cv::putText(menu, "PROTOCOL  ABDOMEN", {60, 100}, cv::FONT_HERSHEY_SIMPLEX, 1.0, cv::Scalar(30), 2);
+  EXPECT_NE(evar::geometry::not_fluoroscopy(menu).find("a menu or a graphic over the image"), std::string::npos)
+      << evar::geometry::not_fluoroscopy(menu);
+  // Only the field counts: the same menu outside a field mask is not seen.
+  cv::Mat mask(512, 512, CV_8U, cv::Scalar(255));
+  mask(cv::Rect(30, 30, 440, 320)).setTo(0);
+  EXPECT_EQ(evar::geometry::not_fluoroscopy(menu, mask), "");
 }

@@ -11,6 +11,7 @@
 #include <cmath>
 #include <filesystem>
 #include <mutex>
+#include <opencv2/imgproc.hpp>
 
 #include "evar/geometry/video_frame.hpp"
 #include "evar/node/live_node.hpp"
@@ -138,6 +139,75 @@ TEST_F(VideoOutReplay, TheNodeAdaptsTheModelAndDrawsTheRoadmapWhereTheMonitorSho
   // would put most of it elsewhere in the picture).
   EXPECT_GT(shown.roadmap_pixels_inside, 1000u);
   EXPECT_LT(shown.roadmap_pixels_outside, shown.roadmap_pixels_inside / 100);
+}
+
+// A frame source whose frames `from` to `to` show a menu over the image area instead of
+// fluoroscopy: a flat grey panel with dark lines of text, as a C-arm's setup screen.
+class MenuFrames final : public acquisition::FrameSource {
+ public:
+  MenuFrames(acquisition::FrameSource& inner, std::uint64_t from, std::uint64_t to) : inner_(inner), from_(from), to_(to) {}
+  void start(FrameCallback on_frame, StateCallback on_state) override {
+    inner_.start(
+        [this, on_frame](const acquisition::Frame& f) {
+          if (f.sequence < from_ || f.sequence >= to_) return on_frame(f);
+          acquisition::Frame menu = f;
+          cv::Mat picture(f.height, f.width, CV_16UC1, menu.pixels.data(), static_cast<std::size_t>(f.stride_bytes));
+          picture.setTo(cv::Scalar(21000));
+          for (int line = 0; line < 12; ++line)
+            cv::putText(picture, "SETUP  PROTOCOL " + std::to_string(line) + "  ABDOMEN  15 P/S", {120, 60 + 36 * line},
+                        cv::FONT_HERSHEY_SIMPLEX, 0.8, cv::Scalar(2000), 2);
+          on_frame(menu);
+        },
+        std::move(on_state));
+  }
+  void stop() override { inner_.stop(); }
+  acquisition::StreamState state() const override { return inner_.state(); }
+  acquisition::SequenceStats statistics() const override { return inner_.statistics(); }
+  std::string description() const override { return "a menu shown for a while"; }
+
+ private:
+  acquisition::FrameSource& inner_;
+  std::uint64_t from_, to_;
+};
+
+// What each frame said on screen.
+class AlertRecorder final : public node::OutputSink {
+ public:
+  std::string name() const override { return "alert recorder"; }
+  void write(const node::ComposedFrame& f) override {
+    for (const auto& a : f.status.alerts)
+      if (a.find("not fluoroscopy") != std::string::npos) said.push_back(f.sequence);
+  }
+  std::vector<std::uint64_t> said;
+};
+
+// The live fluoroscopy is never taken for anything else; a menu over the image area is not
+// searched for a device, and the screen says so while it lasts.
+TEST_F(VideoOutReplay, AMenuOverTheImageIsNotSearchedForADeviceAndIsSaidOnScreen) {
+  for (const bool menu : {false, true}) {
+    SCOPED_TRACE(menu ? "frames 5-14 a menu" : "all fluoroscopy");
+    auto recorder = std::make_unique<AlertRecorder>();
+    AlertRecorder& shown = *recorder;
+    std::vector<std::unique_ptr<node::OutputSink>> sinks;
+    sinks.push_back(std::move(recorder));
+    node::LiveNode node(*scene_, options(), std::move(sinks));
+    session::SessionReplay replay(generated_->session, {0.0, 1});
+    MenuFrames frames(replay.frames(), menu ? 5 : 0, menu ? 15 : 0);
+    node.start(frames, replay.carm());
+    ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
+    node.stop();
+    const node::NodeStatistics s = node.statistics();
+    if (!menu) {
+      EXPECT_EQ(s.frames_not_fluoroscopy, 0u) << "fluoroscopy (and DSA) taken for something else";
+      EXPECT_TRUE(shown.said.empty());
+      continue;
+    }
+    // The first view's fluoroscopy is frames 1-15: the menu frames among those analysed.
+    EXPECT_GE(s.frames_not_fluoroscopy, 1u);
+    ASSERT_FALSE(shown.said.empty());
+    EXPECT_GE(shown.said.front(), 5u);
+    EXPECT_GE(s.adaptations, 1u) << "the fluoroscopy around the menu still adapts the model";
+  }
 }
 
 TEST_F(VideoOutReplay, WithoutTheMappingAVideoFrameIsTheWrongSizeAndGetsNoRoadmap) {

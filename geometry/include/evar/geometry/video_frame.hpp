@@ -3,6 +3,7 @@
 // of the frame's image rectangle, and a detector projection carried onto the frame, so the
 // analysis works on detector pixels and the overlay is drawn where the monitor shows them.
 #include <opencv2/core/mat.hpp>
+#include <string>
 
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/video_mapping.hpp"
@@ -18,6 +19,13 @@ cv::Mat detector_image(const cv::Mat& video_frame, const VideoToDetector& map);
 /// an image intensifier's circle and outside burned-in text regions, as the frame shows
 /// them. Empty when that is the whole detector image (a rectangle without text over it).
 cv::Mat detector_field_mask(const VideoMapping& mapping, const VideoToDetector& map);
+
+/// Why a detector image read out of a video-out frame is not live fluoroscopy, or "" when
+/// nothing says so: the field (where `field_mask` is set, all of it when empty) shows one
+/// flat grey (no image on the monitor), or more than 40 % of it is one grey level other
+/// than black and full white (a menu, a dialog or a graphic over the image; a windowed
+/// display clips to those two). 8- or 16-bit grey.
+std::string not_fluoroscopy(const cv::Mat& detector_image, const cv::Mat& field_mask = {});
 
 /// The projection onto the video frame: [A; 0 0 1] · P, A the detector-to-video affine.
 ProjectionMatrix projection_on_video(const ProjectionMatrix& P_detector, const VideoToDetector& map);

@@ -18,6 +18,9 @@ struct NodeStatistics {
   std::uint64_t frames_in = 0, frames_composited = 0, frames_with_roadmap = 0;
   std::uint64_t dropped_input = 0, dropped_output = 0, frames_lost_by_source = 0;
   std::uint64_t frames_wrong_size = 0;
+  /// Analysed frames whose image area did not show fluoroscopy (under a video mapping:
+  /// geometry::not_fluoroscopy), not searched for a device.
+  std::uint64_t frames_not_fluoroscopy = 0;
   std::uint64_t frames_held = 0;     ///< the last frame shown again while there was no video (not in frames_composited)
   /// Frames and pairs handed on but never analysed or adapted: replaced by a newer one, or
   /// left when the node stopped (so pairs = adaptations + adaptation_failures + pairs_superseded).
