@@ -382,6 +382,11 @@ int run_cli(const std::vector<std::string>& args) {
       cam, v4l,
       rd->add_option("--device-thickness", record.device_thickness_mm, "device thickness (mm); default: the scene's")
           ->check(CLI::Range(0.0, 15.0)),
+      rd->add_option("--video-mapping", record.video_mapping,
+                     "the frames are the C-arm's video output: where the detector image lies in them\n"
+                     "(`evarnode calibrate-video`; needs --detector-px); the session carries it")
+          ->check(CLI::ExistingFile),
+      rd->add_option("--detector-px", record.detector_px, "with --video-mapping: the detector's cols and rows")->expected(2),
       rd->add_option("--seconds", record.seconds, "stop after this long")->check(CLI::PositiveNumber),
       rd->add_option("--frames", record.frames_to_write, "stop after this many frames are written")->check(CLI::PositiveNumber)};
   auto* recover = rd->add_option("--recover", record.recover,

@@ -113,6 +113,8 @@ struct RecordCommand {
   std::string carm;                   ///< serial:PATH[,baud=N,...] or usb:VID:PID[:SERIAL]
   std::filesystem::path out, scene, registration;
   double pixel_spacing_mm = 0.0;
+  std::filesystem::path video_mapping;  ///< the frames are a C-arm's video output (with detector_px)
+  std::vector<int> detector_px;         ///< cols and rows of the detector behind the video output
   std::optional<double> device_thickness_mm;
   std::optional<double> seconds;
   std::optional<int> frames_to_write;

@@ -9,6 +9,8 @@
 #include <thread>
 
 #include "commands.hpp"
+#include "evar/base/input_error.hpp"
+#include "evar/geometry/video_mapping.hpp"
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/node/logging.hpp"
 #include "evar/session/session_recorder.hpp"
@@ -55,6 +57,14 @@ int run_record(const RecordCommand& cmd) {
   o.scene = cmd.scene;
   o.ct_to_carm = geometry::read_registration(cmd.registration);
   o.pixel_spacing_mm = cmd.pixel_spacing_mm;
+  if (!cmd.video_mapping.empty()) {
+    if (cmd.detector_px.size() != 2)
+      throw base::InputError("record: --video-mapping needs --detector-px COLS ROWS (the detector behind the video output)");
+    o.video_mapping = geometry::read_video_mapping(cmd.video_mapping);
+    o.detector_px = {cmd.detector_px[0], cmd.detector_px[1]};
+  } else if (!cmd.detector_px.empty()) {
+    throw base::InputError("record: --detector-px goes with --video-mapping (without it the frames are the detector's own)");
+  }
   o.device_thickness_mm = cmd.device_thickness_mm;
   session::SessionRecorder recorder(o, *frames, *carm);
   node::log().info("recording {} and {} into {}", frames->description(), carm->description(), cmd.out.string());

@@ -46,8 +46,12 @@ Session assemble(const fs::path& out, const RecordingSettings& settings, const R
     else
       ++dropped;
   }
-  if (streams.size)
+  if (settings.video_mapping) {
+    s.detector = {settings.detector_px.first, settings.detector_px.second, settings.pixel_spacing_mm, settings.pixel_spacing_mm};
+    s.video_mapping = settings.video_mapping;
+  } else if (streams.size) {
     s.detector = {streams.size->first, streams.size->second, settings.pixel_spacing_mm, settings.pixel_spacing_mm};
+  }
   return s;
 }
 

@@ -51,6 +51,16 @@ RecordingSettings read_settings(const fs::path& file) {
       geometry::detail::number_field(file, member(file, j, "device_thickness_mm", "device_thickness_mm"), "device_thickness_mm", 0.0, 15.0, "mm");
   s.pixel_spacing_mm =
       geometry::detail::number_field(file, member(file, j, "pixel_spacing_mm", "pixel_spacing_mm"), "pixel_spacing_mm", 1e-9, 10.0, "mm");
+  if (j.contains("video_mapping")) {
+    s.video_mapping = geometry::parse_video_mapping(j["video_mapping"], file, "video_mapping.");
+    const Eigen::VectorXd d = geometry::detail::number_array(file, member(file, j, "detector_px", "detector_px"), "detector_px", 2);
+    s.detector_px = {static_cast<int>(d(0)), static_cast<int>(d(1))};
+    try {
+      const geometry::VideoToDetector fits(*s.video_mapping, s.detector_px.first, s.detector_px.second);
+    } catch (const std::invalid_argument& e) {
+      bad_field(file, "video_mapping", e.what());
+    }
+  }
   return s;
 }
 

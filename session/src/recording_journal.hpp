@@ -46,6 +46,8 @@ struct RecordingSettings {
   Eigen::Matrix4d ct_to_carm = Eigen::Matrix4d::Identity();
   double device_thickness_mm = 0.0;
   double pixel_spacing_mm = 0.0;  // at the detector, square pixels
+  std::optional<geometry::VideoMapping> video_mapping;  // frames are the video output
+  std::pair<int, int> detector_px{0, 0};                 // with a video mapping: the detector's size
 };
 
 // A recording's streams as they arrived, before they become a session.

@@ -71,7 +71,10 @@ struct SessionRecorder::Impl {
   void on_frame(const Frame& f) {
     std::lock_guard lock(mutex);
     ++stats.frames_received;
-    if (!streams.size) streams.size = std::make_pair(f.width, f.height);
+    // Under a video mapping every frame has its video size; else the first frame's is the session's.
+    if (!streams.size)
+      streams.size = options.video_mapping ? std::make_pair(options.video_mapping->video_cols, options.video_mapping->video_rows)
+                                           : std::make_pair(f.width, f.height);
     if (streams.size->first != f.width || streams.size->second != f.height) {
       ++stats.frames_refused;
       stats.last_error = "frame of " + std::to_string(f.width) + "x" + std::to_string(f.height) + " in a session of " +
@@ -244,11 +247,16 @@ struct SessionRecorder::Impl {
     nlohmann::ordered_json rows = nlohmann::ordered_json::array();
     for (int r = 0; r < 4; ++r)
       rows.push_back({settings.ct_to_carm(r, 0), settings.ct_to_carm(r, 1), settings.ct_to_carm(r, 2), settings.ct_to_carm(r, 3)});
-    write_json_file(dir / "recording.json", {{"format", kJournalFormat},
-                                             {"version", 1},
-                                             {"registration", rows},
-                                             {"device_thickness_mm", settings.device_thickness_mm},
-                                             {"pixel_spacing_mm", settings.pixel_spacing_mm}});
+    nlohmann::ordered_json j{{"format", kJournalFormat},
+                             {"version", 1},
+                             {"registration", rows},
+                             {"device_thickness_mm", settings.device_thickness_mm},
+                             {"pixel_spacing_mm", settings.pixel_spacing_mm}};
+    if (settings.video_mapping) {
+      j["video_mapping"] = nlohmann::ordered_json::parse(geometry::video_mapping_json(*settings.video_mapping).dump());
+      j["detector_px"] = {settings.detector_px.first, settings.detector_px.second};
+    }
+    write_json_file(dir / "recording.json", j);
     journal_frames.open(dir / "frames.csv", std::ios::binary | std::ios::trunc);
     journal_carm.open(dir / "carm.csv", std::ios::binary | std::ios::trunc);
     journal_frames << kJournalFramesHeader << "\n" << std::flush;
@@ -273,8 +281,17 @@ SessionRecorder::SessionRecorder(RecorderOptions options, acquisition::FrameSour
   impl_->scene = geometry::load_scene(impl_->options.scene);
   if (impl_->options.device_thickness_mm && !(*impl_->options.device_thickness_mm >= 0.0 && *impl_->options.device_thickness_mm <= 15.0))
     throw std::invalid_argument("record: device thickness must be 0 to 15 mm");
+  if (impl_->options.video_mapping) {
+    const auto [cols, rows] = impl_->options.detector_px;
+    try {
+      const geometry::VideoToDetector fits(*impl_->options.video_mapping, cols, rows);
+    } catch (const std::invalid_argument& e) {
+      throw std::invalid_argument(std::string("record: ") + e.what() + " (detector " + std::to_string(cols) + " x " +
+                                  std::to_string(rows) + ")");
+    }
+  }
   impl_->settings = {impl_->options.ct_to_carm, impl_->options.device_thickness_mm.value_or(impl_->scene.device_thickness_mm),
-                     impl_->options.pixel_spacing_mm};
+                     impl_->options.pixel_spacing_mm, impl_->options.video_mapping, impl_->options.detector_px};
 }
 
 SessionRecorder::~SessionRecorder() {

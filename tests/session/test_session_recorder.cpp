@@ -392,6 +392,56 @@ TEST_F(Recording, RefusesAnOutputThatHoldsSomethingAndReportsAnEmptyRecording) {
   EXPECT_TRUE(fs::exists(root_ / "recorded" / "record_report.json"));
 }
 
+// A box on a C-arm's video output records the monitor's picture: the session carries the
+// video mapping and the detector behind it, whether it is finished or recovered from the
+// journal of a killed recorder; a mapping that does not fit the detector is refused first.
+TEST_F(Recording, AVideoOutputIsRecordedWithItsMappingAndRecoveredWithIt) {
+  RecorderOptions o = options();
+  geometry::VideoMapping m;  // the 40 x 30 frames show a 64 x 64 detector in [5, 0, 30, 30]
+  m.video_cols = 40;
+  m.video_rows = 30;
+  m.image_rect = {5, 0, 30, 30};
+  m.mirror = true;
+  o.video_mapping = m;
+  o.detector_px = {64, 48};
+  {
+    SessionReplay unused(original_, {0.0, 1});
+    try {
+      SessionRecorder refused(o, unused.frames(), unused.carm());
+      ADD_FAILURE() << "a mapping that does not fit the detector was taken";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("record: video mapping: image_rect_px [5, 0, 30, 30]"), std::string::npos)
+          << e.what();
+    }
+  }
+  o.detector_px = {64, 64};
+  {
+    SessionReplay replay(original_, {0.0, 1});
+    SessionRecorder recorder(o, replay.frames(), replay.carm());
+    recorder.start();
+    ASSERT_TRUE(replay.wait(20s));
+    recorder.finish();
+  }
+  const Session back = read_session(o.out);
+  ASSERT_TRUE(back.video_mapping);
+  EXPECT_EQ(geometry::video_mapping_json(*back.video_mapping), geometry::video_mapping_json(m));
+  EXPECT_EQ(back.detector.cols, 64);
+  EXPECT_EQ(back.detector.rows, 64);
+  EXPECT_DOUBLE_EQ(back.detector.col_spacing_mm, 0.154);
+  ASSERT_EQ(back.frames.size(), 12u);
+  EXPECT_EQ(read_session_frame(back, 3).size(), cv::Size(40, 30));
+  EXPECT_EQ(read_detector_frame(back, 3).size(), cv::Size(64, 64));
+
+  fs::remove_all(o.out);
+  const int status = evar::test::record_then_kill(o, original_);
+  ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "child status " << status;
+  recover_recording(o.out);
+  const Session recovered = read_session(o.out);
+  ASSERT_TRUE(recovered.video_mapping);
+  EXPECT_EQ(geometry::video_mapping_json(*recovered.video_mapping), geometry::video_mapping_json(m));
+  EXPECT_EQ(recovered.detector.cols, 64);
+}
+
 TEST(CArmOnHostClock, FollowsADriftingCArmClockThroughJumpsAndRestarts) {
   // Ten minutes at 10 Hz from a C-arm whose crystal runs 100 ppm fast (60 ms over the run,
   // what one offset for the whole recording would get wrong), arriving 1 to 25 ms late; the

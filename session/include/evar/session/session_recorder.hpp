@@ -32,6 +32,11 @@ struct RecorderOptions {
   std::filesystem::path scene;                ///< the patient's scene.json, copied into out/patient/
   Eigen::Matrix4d ct_to_carm = Eigen::Matrix4d::Identity();  ///< the registration at table 0
   double pixel_spacing_mm = 0.0;              ///< at the detector (square pixels)
+  /// Set: the frames are a C-arm's video output, the detector image shown in this mapping's
+  /// rectangle; frames must have its video size and the session carries it (session.json
+  /// "video_mapping"). `detector_px` is then the detector's cols and rows.
+  std::optional<geometry::VideoMapping> video_mapping;
+  std::pair<int, int> detector_px{0, 0};
   std::optional<double> device_thickness_mm;  ///< default: the scene's
   std::string source = "fluoro";              ///< frames/index.csv source column
   std::size_t max_queued_frames = 64;         ///< waiting for the disk; beyond, frames are not recorded
