@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <cmath>
 #include <fstream>
+#include <optional>
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
@@ -103,16 +104,49 @@ cv::Mat calibration_picture(const std::vector<cv::Mat>& frames, const geometry::
   return out;
 }
 
-// node.json with its "video_mapping" set, every other field kept in its order.
-void write_into_node_config(const std::filesystem::path& node_json, const geometry::VideoMapping& mapping) {
-  // Read as written, in order (the parser checks the file as every reader of it does).
+// node.json, read in its order.
+nlohmann::ordered_json read_node_json(const std::filesystem::path& node_json) {
+  geometry::detail::parse_json_file(node_json);  // checked as every reader of it does
   std::ifstream in(node_json);
-  geometry::detail::parse_json_file(node_json);
   nlohmann::ordered_json j = nlohmann::ordered_json::parse(in);
   if (!j.is_object() || j.value("format", "") != "evarnode-node")
-    throw base::InputError(node_json.string() + ": format: expected \"evarnode-node\" (a node configuration to write the mapping into)");
-  j["video_mapping"] = nlohmann::ordered_json::parse(geometry::video_mapping_json(mapping).dump());
+    throw base::InputError(node_json.string() +
+                           ": format: expected \"evarnode-node\" (a node configuration to write the mapping into)");
+  return j;
+}
+
+// node.json's "video_mapping" set to the mapping file's name (relative to node.json where it
+// can be), so corrections to that file reach the node; every other field kept in its order.
+void point_node_config_at(const std::filesystem::path& node_json, nlohmann::ordered_json j,
+                          const std::filesystem::path& mapping_file) {
+  std::error_code ec;
+  const auto base = std::filesystem::absolute(node_json).parent_path();
+  std::filesystem::path name = std::filesystem::relative(std::filesystem::absolute(mapping_file), base, ec);
+  if (ec || name.empty()) name = std::filesystem::absolute(mapping_file);
+  j["video_mapping"] = name.generic_string();
   write_text(node_json, j.dump(2) + "\n");
+}
+
+// Why the mapping does not fit the detector, with the turn that would make it fit; "" when it fits.
+std::string misfit(const geometry::VideoMapping& mapping, int cols, int rows) {
+  try {
+    const geometry::VideoToDetector fits(mapping, cols, rows);
+    node::log().info("fits the {} x {} detector: {:.3f} video pixels per detector pixel", cols, rows,
+                     fits.video_px_per_detector_px());
+    return "";
+  } catch (const std::invalid_argument& e) {
+    geometry::VideoMapping turned = mapping;
+    turned.rotation_deg = (mapping.rotation_deg + 90) % 360;
+    try {
+      const geometry::VideoToDetector fits(turned, cols, rows);
+      return std::string(e.what()) + "; the image is shown turned: give --rotation-deg " + std::to_string(turned.rotation_deg) +
+             " or " + std::to_string((turned.rotation_deg + 180) % 360) + " as the display settings say";
+    } catch (const std::invalid_argument&) {
+      return std::string(e.what()) +
+             "; no turn makes it fit: the area found may include a shutter or miss a dark edge (see the picture), or "
+             "the detector size is not this display's";
+    }
+  }
 }
 
 }  // namespace
@@ -140,29 +174,34 @@ int run_calibrate_video(const CalibrateVideoCommand& cmd) {
                    rect_text(area.image_rect),
                    area.field_shape == geometry::FieldShape::Circle ? "a circle: image intensifier" : "a rectangle: flat detector",
                    100.0 * area.fill, area.text_regions.size());
-  if (cmd.detector_px.size() == 2) {
-    try {
-      const geometry::VideoToDetector fits(mapping, cmd.detector_px[0], cmd.detector_px[1]);
-      node::log().info("fits the {} x {} detector: {:.3f} video pixels per detector pixel", cmd.detector_px[0],
-                       cmd.detector_px[1], fits.video_px_per_detector_px());
-    } catch (const std::invalid_argument& e) {
-      // Said, and the found mapping written anyway for the operator to correct.
-      const bool wide = area.image_rect.width > area.image_rect.height * 1.02, detector_wide = cmd.detector_px[0] > cmd.detector_px[1] * 1.02;
-      node::log().warn("{}{}", e.what(),
-                       wide != detector_wide && (cmd.rotation_deg == 0 || cmd.rotation_deg == 180)
-                           ? "; the image is shown turned: try --rotation-deg 90 or 270"
-                           : "; the image area found may include a shutter or miss a dark edge: check the picture");
+  // The detector to check against: as given, else node.json's.
+  std::optional<std::pair<int, int>> detector;
+  if (cmd.detector_px.size() == 2) detector = {cmd.detector_px[0], cmd.detector_px[1]};
+  std::optional<nlohmann::ordered_json> node_json;
+  if (!cmd.node.empty()) {
+    node_json = read_node_json(cmd.node);
+    if (!detector && node_json->contains("detector") && (*node_json)["detector"].is_object()) {
+      const auto& d = (*node_json)["detector"];
+      if (d.contains("cols") && d.contains("rows") && d["cols"].is_number_integer() && d["rows"].is_number_integer())
+        detector = {d["cols"].get<int>(), d["rows"].get<int>()};
     }
   }
+  const std::string problem = detector ? misfit(mapping, detector->first, detector->second) : std::string();
+  // Written either way, for the operator to look at and correct.
   geometry::write_video_mapping(cmd.out, mapping);
   node::log().info("wrote {}", cmd.out.string());
-  if (!cmd.node.empty()) {
-    write_into_node_config(cmd.node, mapping);
-    node::log().info("wrote it into {} (\"video_mapping\")", cmd.node.string());
-  }
   if (!cmd.picture.empty()) {
     geometry::write_image_file(cmd.picture, calibration_picture(frames, area, mapping, frames.size()));
     node::log().info("picture: {}", cmd.picture.string());
+  }
+  if (!problem.empty()) {
+    node::log().error("the mapping does not fit the {} x {} detector: {}{}", detector->first, detector->second, problem,
+                      node_json ? "; " + cmd.node.string() + " left as it was" : "");
+    return 1;
+  }
+  if (node_json) {
+    point_node_config_at(cmd.node, *node_json, cmd.out);
+    node::log().info("{} now names {} as its \"video_mapping\"", cmd.node.string(), cmd.out.string());
   }
   return 0;
 }

@@ -45,6 +45,7 @@ FluoroInput load_fluoro(const std::filesystem::path& image, const std::filesyste
       const geometry::VideoToDetector map(*mapping, in.view->detector_cols, in.view->detector_rows);
       in.image = geometry::detector_image(in.image, map);
       in.field_mask = geometry::detector_field_mask(*mapping, map);
+      in.hidden_mask = geometry::detector_text_mask(*mapping, map);
     }
     if (in.view->detector_cols != in.image.cols || in.view->detector_rows != in.image.rows)
       throw base::InputError(geometry.string() + ": detector_size_px is " + std::to_string(in.view->detector_cols) +

@@ -15,6 +15,7 @@ struct FluoroInput {
                                                ///< pixels (a video-out frame is mapped back, view's video_mapping)
   std::optional<geometry::CArmView> view;      ///< from --geometry or the DICOM header
   cv::Mat field_mask;                          ///< where a video-out frame shows the field; empty: everywhere
+  cv::Mat hidden_mask;                         ///< where its burned-in text covers the field; empty: nowhere
 };
 
 /// InputError naming the file when it cannot be read, is empty, or is not grey-level.

@@ -76,7 +76,13 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
     else if (key == "min_separation_deg") c.min_separation_deg = number_field(path, value, key, 5, 80, "degrees");
     else if (key == "max_view_gap_s") c.max_view_gap_s = number_field(path, value, key, 1, 3600, "s");
     else if (key == "video_mapping") {
-      if (value.is_string()) c.video_mapping = geometry::read_video_mapping(dir / value.get<std::string>());
+      if (value.is_string()) {
+        try {
+          c.video_mapping = geometry::read_video_mapping(dir / value.get<std::string>());
+        } catch (const base::InputError& e) {
+          bad_field(path, key, std::string("the mapping it names: ") + e.what());
+        }
+      }
       else if (value.is_object()) c.video_mapping = geometry::parse_video_mapping(value, path, "video_mapping.");
       else bad_field(path, key, "expected the mapping's object or the name of its file");
     } else if (key == "geometry_stale_ms") c.geometry_stale_ms = number_field(path, value, key, 10, 600000, "ms");

@@ -16,6 +16,7 @@ geometry::SegmentationOptions segmentation_options(const SegmentParams& p, const
   if (p.seed.size() == 2) o.seed_px = Eigen::Vector2d(p.seed[0], p.seed[1]);
   o.min_contrast = p.min_contrast;
   o.field_mask = in.field_mask;
+  o.hidden_mask = in.hidden_mask;
   return o;
 }
 

@@ -130,10 +130,11 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   OstiumErrors errors(scene.landmarks, session.truth->ostia);
   // Frames that are the monitor's picture: the device is searched for where it shows the field.
   node::CandidateOptions candidate = options.candidate;
-  if (session.video_mapping)
-    candidate.field_mask = geometry::detector_field_mask(
-        *session.video_mapping,
-        geometry::VideoToDetector(*session.video_mapping, session.detector.cols, session.detector.rows));
+  if (session.video_mapping) {
+    const geometry::VideoToDetector map(*session.video_mapping, session.detector.cols, session.detector.rows);
+    candidate.field_mask = geometry::detector_field_mask(*session.video_mapping, map);
+    candidate.hidden_mask = geometry::detector_text_mask(*session.video_mapping, map);
+  }
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const session::FrameRecord& record = session.frames[i];
     const session::CArmSample* sample = session::carm_at(session, record.timestamp_ns);
@@ -144,7 +145,10 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm,
                                       session::to_carm_state(*sample, 0));
     const cv::Mat image = session::read_detector_frame(session, i);
-    node::FrameAnalysis analysis = node::analyse_frame(image, view, candidate);
+    // As the node: a video-out frame whose image area is not fluoroscopy is not searched.
+    node::FrameAnalysis analysis;
+    if (session.video_mapping) analysis.reason = geometry::not_fluoroscopy(image, candidate.field_mask);
+    if (analysis.reason.empty()) analysis = node::analyse_frame(image, view, candidate);
     if (analysis.candidate) {
       ++result.candidates;
       node::ViewCandidate c{static_cast<std::uint64_t>(record.frame), record.timestamp_ns, view,

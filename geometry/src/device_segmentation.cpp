@@ -55,7 +55,7 @@ cv::Rect exposed_field(const cv::Mat& f) {
 // The whole search on one grid (the frame, or the frame at half resolution).
 // `k`: the grid's pixel in frame pixels (messages speak in frame pixels).
 DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const SegmentationOptions& o, const cv::Mat& field_mask,
-                              int k = 1) {
+                              const cv::Mat& hidden_mask, int k = 1) {
   using namespace segmentation;
   DeviceCurve2D result;
   result.field = field;
@@ -76,18 +76,23 @@ DeviceCurve2D segment_on_grid(const cv::Mat& f, const cv::Rect& field, const Seg
   Ridge ridge = compute_ridge(f, inner, o);
   // Inside a field that is not a rectangle only what lies the rim's width inside its edge
   // is searched, as inside the shutters.
-  // The field's outer edge is where a device leaves it; a masked hole inside (burned-in
-  // text) hides part of the image but is no way out of it.
+  // The field's edge is where a device leaves it; graphics over the field hide what they
+  // cover but are no way out of it. Both are kept clear by the rim.
   cv::Mat searched, field_edge;
-  if (!field_mask.empty()) {
+  if (!field_mask.empty() || !hidden_mask.empty()) {
     const cv::Mat disc = cv::getStructuringElement(cv::MORPH_ELLIPSE, {2 * rim + 1, 2 * rim + 1});
-    cv::erode(field_mask, searched, disc, {-1, -1}, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+    if (!field_mask.empty()) {
+      cv::erode(field_mask, field_edge, disc, {-1, -1}, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
+      searched = field_edge.clone();
+    } else {
+      searched = cv::Mat(f.size(), CV_8U, cv::Scalar(255));
+    }
+    if (!hidden_mask.empty()) {
+      cv::Mat hidden;
+      cv::dilate(hidden_mask, hidden, disc);
+      searched.setTo(0, hidden);
+    }
     ridge.response.setTo(0.0f, searched == 0);
-    std::vector<std::vector<cv::Point>> outlines;
-    cv::findContours(field_mask.clone(), outlines, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_NONE);
-    cv::Mat filled = cv::Mat::zeros(field_mask.size(), CV_8U);
-    cv::drawContours(filled, outlines, -1, cv::Scalar(255), cv::FILLED);
-    cv::erode(filled, field_edge, disc, {-1, -1}, 1, cv::BORDER_CONSTANT, cv::Scalar(0));
   }
   const auto t1 = Clock::now();
   result.ridge_ms = std::chrono::duration<double, std::milli>(t1 - t0).count();
@@ -203,11 +208,10 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
   if (!(o.gap_radius_px >= 0.0 && std::isfinite(o.gap_radius_px)))
     throw std::invalid_argument("segment_device: the gap radius must be a finite length of 0 px or more");
   cv::Rect field = exposed_field(f);
-  if (!o.field_mask.empty()) {
-    if (o.field_mask.type() != CV_8UC1 || o.field_mask.size() != f.size())
-      throw std::invalid_argument("segment_device: the field mask must be 8-bit, of the image's size");
-    field &= cv::boundingRect(o.field_mask);
-  }
+  for (const cv::Mat* m : {&o.field_mask, &o.hidden_mask})
+    if (!m->empty() && (m->type() != CV_8UC1 || m->size() != f.size()))
+      throw std::invalid_argument("segment_device: the field and hidden masks must be 8-bit, of the image's size");
+  if (!o.field_mask.empty()) field &= cv::boundingRect(o.field_mask);
   // Integer frames are quantised: in −log units a grey level near k is a step of 1/(k+1),
   // as large as a device's contrast below about 8. A processed video's window clips its
   // dark anatomy to black there, and the clipped region's ragged edge then outshone the
@@ -217,7 +221,7 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
   // Shadows 4 px and wider are searched at half resolution (2 px and wider there: enough
   // for the ridge measure), four times fewer pixels; the result is refined on the frame.
   const int k = o.device_width_px >= 4.0 && f.cols >= 64 && f.rows >= 64 ? 2 : 1;
-  if (k == 1) return segment_on_grid(f, field, o, o.field_mask);
+  if (k == 1) return segment_on_grid(f, field, o, o.field_mask, o.hidden_mask);
   cv::Mat half;
   // Even size, so each half-resolution pixel is exactly 2 x 2 frame pixels: x = 2x' + 0.5.
   cv::resize(f(cv::Rect(0, 0, f.cols & ~1, f.rows & ~1)), half, cv::Size(f.cols / 2, f.rows / 2), 0, 0, cv::INTER_AREA);
@@ -234,14 +238,19 @@ DeviceCurve2D segment_device(const cv::Mat& image, const SegmentationOptions& o)
   const int hx0 = (field.x + 1) / k, hy0 = (field.y + 1) / k;
   const int hx1 = (field.x + field.width) / k, hy1 = (field.y + field.height) / k;
   const cv::Rect half_field(hx0, hy0, std::max(0, hx1 - hx0), std::max(0, hy1 - hy0));
-  // A half pixel is in the field mask when all four of its frame pixels are.
-  cv::Mat half_mask;
+  // A half pixel is in the field when all four of its frame pixels are, hidden when any is.
+  cv::Mat half_field_mask, half_hidden;
+  const cv::Rect even(0, 0, f.cols & ~1, f.rows & ~1);
   if (!o.field_mask.empty()) {
-    cv::resize(o.field_mask(cv::Rect(0, 0, f.cols & ~1, f.rows & ~1)), half_mask, half.size(), 0, 0, cv::INTER_AREA);
-    half_mask = half_mask == 255;
+    cv::resize(o.field_mask(even), half_field_mask, half.size(), 0, 0, cv::INTER_AREA);
+    half_field_mask = half_field_mask == 255;
   }
-  h.field_mask = cv::Mat();
-  DeviceCurve2D r = segment_on_grid(half, half_field, h, half_mask, k);
+  if (!o.hidden_mask.empty()) {
+    cv::resize(o.hidden_mask(even), half_hidden, half.size(), 0, 0, cv::INTER_AREA);
+    half_hidden = half_hidden > 0;
+  }
+  h.field_mask = h.hidden_mask = cv::Mat();
+  DeviceCurve2D r = segment_on_grid(half, half_field, h, half_field_mask, half_hidden, k);
   r.field = field;
   r.length_px *= k;
   if (!r.found) return r;

@@ -9,6 +9,7 @@ FrameAnalysis analyse_frame(const cv::Mat& image, const FrameView& view, const C
   s.device_width_px = geometry::device_shadow_width_px(view.view, options.device_diameter_mm);
   s.min_contrast = options.min_contrast;
   s.field_mask = options.field_mask;
+  s.hidden_mask = options.hidden_mask;
   FrameAnalysis a;
   if (!(s.device_width_px > 0.5 && s.device_width_px < 100.0)) {
     a.reason = "the device's shadow would be " + std::to_string(s.device_width_px) + " px wide in this geometry";

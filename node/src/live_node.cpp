@@ -120,7 +120,10 @@ LiveNode::Impl::Impl(const geometry::Scene& scene, NodeOptions options, std::vec
       output_(options_.output_queue),
       timeline_(options_.timeline) {
   // Under a video mapping the device is searched for only where the monitor shows the field.
-  if (video_) options_.candidate.field_mask = geometry::detector_field_mask(*options_.video_mapping, *video_);
+  if (video_) {
+    options_.candidate.field_mask = geometry::detector_field_mask(*options_.video_mapping, *video_);
+    options_.candidate.hidden_mask = geometry::detector_text_mask(*options_.video_mapping, *video_);
+  }
   deformer_ = std::make_unique<deform::SceneDeformer>(scene, options_.deform);
   initial_roadmap_ = std::make_shared<const overlay::RoadmapModel>(roadmap_model(scene, nullptr));
   auto m = std::make_shared<PublishedModel>();

@@ -7,6 +7,7 @@
 #include <fstream>
 #include <nlohmann/json.hpp>
 
+#include "node_config.hpp"
 #include "support/cli_fixture.hpp"
 #include "evar/geometry/closest_point.hpp"
 #include "evar/geometry/markups.hpp"
@@ -476,15 +477,33 @@ TEST_F(Cli, CalibrateVideoFindsTheImageAreaOfEveryKindOfMonitorPicture) {
     }
   }
 
-  // Into node.json, its other fields kept; and a shape that does not fit the detector.
+  const auto with = [](std::vector<std::string> a, std::initializer_list<std::string> more) {
+    a.insert(a.end(), more);
+    return a;
+  };
+  // node.json is pointed at the mapping file, its other fields kept; a shape that does not
+  // fit the detector (given, or node.json's own) leaves node.json alone and exits 1.
   write_text(out / "node.json", R"({"format": "evarnode-node", "version": 1, "min_contrast": 0})");
-  const auto into = evarnode({"calibrate-video", "--frames", (out / "frame0.png").string(), "--out",
-                              (out / "m.json").string(), "--node", (out / "node.json").string(), "--rotation-deg", "90",
-                              "--detector-px", "384", "--detector-px", "300"});
+  const std::vector<std::string> calibrate{"calibrate-video", "--frames", (out / "frame0.png").string(), "--out",
+                                           (out / "m.json").string(), "--node", (out / "node.json").string()};
+  const auto misfit = evarnode(with(calibrate, {"--detector-px", "384", "300"}));
+  EXPECT_EQ(misfit.code, 1) << misfit.err;
+  EXPECT_NE(misfit.err.find("no turn makes it fit"), std::string::npos) << misfit.err;
+  EXPECT_EQ(nlohmann::json::parse(std::ifstream(out / "node.json")).count("video_mapping"), 0u);
+  EXPECT_TRUE(fs::exists(out / "m.json")) << "written for the operator to correct";
+
+  const auto into = evarnode(with(calibrate, {"--detector-px", "384", "384"}));
   ASSERT_EQ(into.code, 0) << into.err;
-  EXPECT_NE(into.err.find("is 1 times as wide as high"), std::string::npos) << into.err;
   const auto node = nlohmann::json::parse(std::ifstream(out / "node.json"));
   EXPECT_EQ(node["min_contrast"], 0);
-  EXPECT_EQ(node["video_mapping"]["rotation_deg"], 90);
-  EXPECT_EQ(node["video_mapping"]["image_rect_px"][2], 384);
+  EXPECT_EQ(node["video_mapping"], "m.json");
+  const auto config = evar::app::read_node_config(out / "node.json");
+  ASSERT_TRUE(config.video_mapping);
+  EXPECT_EQ(config.video_mapping->image_rect.width, 384);
+
+  write_text(out / "node.json", R"({"format": "evarnode-node", "version": 1,
+      "detector": {"cols": 300, "rows": 384, "row_spacing_mm": 0.3, "col_spacing_mm": 0.3}})");
+  const auto against_node = evarnode(calibrate);
+  EXPECT_EQ(against_node.code, 1) << against_node.err;
+  EXPECT_NE(against_node.err.find("the 300 x 384 detector"), std::string::npos) << against_node.err;
 }

@@ -133,6 +133,7 @@ TEST(NodeConfig, TheVideoMappingIsGivenInlineOrAsAFileAndRefusedByField) {
   EXPECT_THAT(error(R"({"format": "evarnode-video-mapping", "version": 1, "video_size_px": [640, 480],
                        "image_rect_px": [0, 0, 640, 480], "rotation": 90})"),
               HasSubstr("node.json: video_mapping.rotation: not a field of a video mapping"));
+  EXPECT_THAT(error(R"("missing.json")"), HasSubstr("node.json: video_mapping: the mapping it names:"));
   EXPECT_THAT(error(R"("missing.json")"), HasSubstr("missing.json"));
   fs::remove_all(dir);
 }

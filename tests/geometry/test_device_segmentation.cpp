@@ -313,52 +313,57 @@ TEST(DeviceSegmentation, OptionsThatLeaveNoBandAreRefused) {
 // without it the circle's black edge and the ruler are there to be taken for a device.
 TEST(DeviceSegmentation, AFieldMaskKeepsTheSearchInsideACircleAndOffBurnedInGraphics) {
   const Case c;
-  auto frame = sim::render_fluoro(geometry::projection_matrix(c.view), c.view, c.wires, c.render);
-  cv::Mat image = frame.image.clone();
-  const cv::Point centre(image.cols / 2, image.rows / 2);
-  const int radius = image.cols * 45 / 100;
-  cv::Mat mask(image.size(), CV_8U, cv::Scalar(0));
-  cv::circle(mask, centre, radius, cv::Scalar(255), cv::FILLED);
-  image.setTo(0, mask == 0);
-  // A cross-hair burned into the image, lined up with the wire beyond its tip (a dark line as
-  // wide as the wire, 20 px short of the tip): without the mask the path runs on into it.
+  const auto frame = sim::render_fluoro(geometry::projection_matrix(c.view), c.view, c.wires, c.render);
+  const cv::Point centre(frame.image.cols / 2, frame.image.rows / 2);
+  const int radius = frame.image.cols * 45 / 100;
+  cv::Mat field(frame.image.size(), CV_8U, cv::Scalar(0));
+  cv::circle(field, centre, radius, cv::Scalar(255), cv::FILLED);
   const Eigen::Vector2d tip = frame.truth.front().front();
   const Eigen::Vector2d along = (tip - frame.truth.front()[20]).normalized();
-  const Eigen::Vector2d from = tip + 20.0 * along, to = tip + 140.0 * along;  // inside the circle: a hole in the field
-  cv::line(image, cv::Point2d(from.x(), from.y()), cv::Point2d(to.x(), to.y()), cv::Scalar(5), 4, cv::LINE_AA);
-  const cv::Rect ruler = cv::Rect(cv::Point2d(std::min(from.x(), to.x()) - 6, std::min(from.y(), to.y()) - 6),
-                                  cv::Point2d(std::max(from.x(), to.x()) + 7, std::max(from.y(), to.y()) + 7));
-  mask(ruler).setTo(0);
-  {
-    SegmentationOptions unmasked;
-    unmasked.device_width_px = test::shadow_width_px(c.view);
-    const auto f = geometry::segment_device(image, unmasked);
-    ASSERT_TRUE(f.found) << f.reason;
-    EXPECT_GT((f.points.front() - tip).norm(), 50.0) << "without the mask the cross-hair is taken for the wire's end";
+  // A cross-hair burned into the image, lined up with the wire beyond its tip (a dark line as
+  // wide as the wire, 20 px short of the tip): wholly inside the circle, and reaching out of it
+  // (its box then notches the circle's edge, and is still no way out of the field).
+  for (const double length : {120.0, 260.0}) {
+    SCOPED_TRACE(length > 200 ? "the cross-hair reaches out of the circle" : "the cross-hair inside the circle");
+    cv::Mat image = frame.image.clone();
+    image.setTo(0, field == 0);
+    const Eigen::Vector2d from = tip + 20.0 * along, to = tip + (20.0 + length) * along;
+    cv::line(image, cv::Point2d(from.x(), from.y()), cv::Point2d(to.x(), to.y()), cv::Scalar(5), 4, cv::LINE_AA);
+    const cv::Rect ruler = cv::Rect(cv::Point2d(std::min(from.x(), to.x()) - 6, std::min(from.y(), to.y()) - 6),
+                                    cv::Point2d(std::max(from.x(), to.x()) + 7, std::max(from.y(), to.y()) + 7)) &
+                           cv::Rect(0, 0, image.cols, image.rows);
+    cv::Mat hidden(image.size(), CV_8U, cv::Scalar(0));
+    hidden(ruler).setTo(255);
+    SegmentationOptions so;
+    so.device_width_px = test::shadow_width_px(c.view);
+    {
+      const auto f = geometry::segment_device(image, so);
+      ASSERT_TRUE(f.found) << f.reason;
+      EXPECT_GT((f.points.front() - tip).norm(), 50.0) << "without the masks the cross-hair is taken for the wire's end";
+    }
+    so.field_mask = field;
+    so.hidden_mask = hidden;
+    const auto found = geometry::segment_device(image, so);
+    ASSERT_TRUE(found.found) << found.reason;
+    for (const auto& p : found.points) {
+      ASSERT_LT(std::hypot(p.x() - centre.x, p.y() - centre.y), radius) << "a point outside the circle";
+      ASSERT_FALSE(ruler.contains(cv::Point(static_cast<int>(p.x()), static_cast<int>(p.y())))) << "a point on the ruler";
+    }
+    // The wire inside the circle, clear of its rim, is found.
+    std::vector<Eigen::Vector2d> inside;
+    const double rim = 3.0 * so.device_width_px;
+    for (const auto& t : frame.truth.front())
+      if (std::hypot(t.x() - centre.x, t.y() - centre.y) < radius - rim && !ruler.contains(cv::Point(t.x(), t.y())))
+        inside.push_back(t);
+    ASSERT_GT(inside.size(), 100u);
+    const auto m = test::match(found.points, inside, cv::Rect2d(0, 0, image.cols, image.rows));
+    EXPECT_LT(m.mean_distance_px, 1.0);
+    EXPECT_TRUE(found.reaches_border) << "the wire leaves the field at the circle's edge";
+    // Its tip is the wire's, up to the rim kept clear of the cross-hair's box.
+    EXPECT_LT((found.points.front() - tip).norm(), 0.5 * rim + 2.0) << found.points.front().transpose();
   }
-
   SegmentationOptions so;
   so.device_width_px = test::shadow_width_px(c.view);
-  so.field_mask = mask;
-  const auto found = geometry::segment_device(image, so);
-  ASSERT_TRUE(found.found) << found.reason;
-  for (const auto& p : found.points) {
-    ASSERT_LT(std::hypot(p.x() - centre.x, p.y() - centre.y), radius) << "a point outside the circle";
-    ASSERT_FALSE(ruler.contains(cv::Point(static_cast<int>(p.x()), static_cast<int>(p.y())))) << "a point on the ruler";
-  }
-  // The wire inside the circle, clear of its rim, is found.
-  std::vector<Eigen::Vector2d> inside;
-  const double rim = 3.0 * so.device_width_px;
-  for (const auto& t : frame.truth.front())
-    if (std::hypot(t.x() - centre.x, t.y() - centre.y) < radius - rim && !ruler.contains(cv::Point(t.x(), t.y())))
-      inside.push_back(t);
-  ASSERT_GT(inside.size(), 100u);
-  const auto m = test::match(found.points, inside, cv::Rect2d(0, 0, image.cols, image.rows));
-  EXPECT_LT(m.mean_distance_px, 1.0);
-  EXPECT_TRUE(found.reaches_border) << "the wire leaves the field at the circle's edge";
-  // Its tip is the wire's, up to the rim kept clear of the cross-hair's masked box.
-  EXPECT_LT((found.points.front() - tip).norm(), 0.5 * rim + 2.0) << found.points.front().transpose();
-
-  so.field_mask = cv::Mat(3, 3, CV_8U, cv::Scalar(255));
-  EXPECT_THROW(geometry::segment_device(image, so), std::invalid_argument) << "a mask of another size";
+  so.hidden_mask = cv::Mat(3, 3, CV_8U, cv::Scalar(255));
+  EXPECT_THROW(geometry::segment_device(frame.image, so), std::invalid_argument) << "a mask of another size";
 }

@@ -203,6 +203,14 @@ TEST(NotFluoroscopy, TellsAMenuOrABlankMonitorFromFluoroscopy) {
   f.convertTo(display, CV_8U, 255.0 / (hi - lo), -255.0 * lo / (hi - lo));
   EXPECT_GT(cv::countNonZero(display == 0) + cv::countNonZero(display == 255), display.total() / 10);
   EXPECT_EQ(evar::geometry::not_fluoroscopy(display), "");
+  // Limited-range video: black at 16, white at 235.
+  cv::Mat limited;
+  display.convertTo(limited, CV_8U, 219.0 / 255.0, 16.0);
+  EXPECT_EQ(evar::geometry::not_fluoroscopy(limited), "");
+  // Raw 14-bit frames with 45 % of the field saturated (direct exposure beside the body).
+  cv::Mat raw = frame.image * 4.0;
+  raw(cv::Rect(0, raw.rows * 55 / 100, raw.cols, raw.rows - raw.rows * 55 / 100)).setTo(cv::Scalar(16383));
+  EXPECT_EQ(evar::geometry::not_fluoroscopy(raw), "");
 
   const cv::Mat blank(512, 512, CV_8U, cv::Scalar(12));
   EXPECT_NE(evar::geometry::not_fluoroscopy(blank).find("one flat grey"), std::string::npos);

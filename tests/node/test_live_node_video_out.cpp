@@ -61,6 +61,7 @@ class VideoOutReplay : public ::testing::Test {
     o.registration = generated_->session.ct_to_carm;
     o.video_mapping = generated_->session.video_mapping;
     o.backpressure = true;
+    o.frames_on_carm_clock = true;  // a replay: frames and C-arm samples on the session's clock
     o.compositor.layer_in_background = false;  // every frame with its roadmap drawn
     o.mode = overlay::RoadmapMode::Undeformed;
     return o;

@@ -10,12 +10,15 @@
 namespace evar::test {
 
 inline cv::Mat shown_on_monitor(const cv::Mat& detector, const geometry::VideoMapping& m) {
-  cv::Mat turned = detector;
+  // Fresh outputs: OpenCV writes into a destination that shares the input's buffer.
+  cv::Mat turned;
   if (m.rotation_deg == 90) cv::rotate(detector, turned, cv::ROTATE_90_CLOCKWISE);
-  if (m.rotation_deg == 180) cv::rotate(detector, turned, cv::ROTATE_180);
-  if (m.rotation_deg == 270) cv::rotate(detector, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
-  cv::Mat mirrored = turned;
+  else if (m.rotation_deg == 180) cv::rotate(detector, turned, cv::ROTATE_180);
+  else if (m.rotation_deg == 270) cv::rotate(detector, turned, cv::ROTATE_90_COUNTERCLOCKWISE);
+  else turned = detector;
+  cv::Mat mirrored;
   if (m.mirror) cv::flip(turned, mirrored, 1);
+  else mirrored = turned;
   const cv::Rect rect(static_cast<int>(m.image_rect.x), static_cast<int>(m.image_rect.y),
                       static_cast<int>(m.image_rect.width), static_cast<int>(m.image_rect.height));
   cv::Mat resized;

@@ -51,10 +51,13 @@ struct SegmentationOptions {
   double sample_step_px = 1.0;    ///< spacing of the output points
   double smoothing_px = 2.0;      ///< Gaussian σ along arc length
   /// Empty, or CV_8U of the image's size: where the image shows the detector's field (an
-  /// image intensifier's circle, less burned-in text; video_frame.hpp's detector_field_mask).
-  /// Only there is a device searched for, and its edge is a border of the field as the
-  /// shutters' are (the same rim kept clear).
+  /// image intensifier's circle; video_frame.hpp's detector_field_mask). Only there is a
+  /// device searched for, and its edge is a border of the field as the shutters' are (the
+  /// same rim kept clear): a device may leave the field there.
   cv::Mat field_mask;
+  /// Empty, or CV_8U of the image's size: graphics burned in over the field (text, a ruler;
+  /// detector_text_mask). Not searched (nor a rim round them), and no way out of the field.
+  cv::Mat hidden_mask;
 };
 
 struct DeviceCurve2D {

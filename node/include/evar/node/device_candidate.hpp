@@ -17,9 +17,10 @@ struct CandidateOptions {
   /// (log or windowed) video (geometry::SegmentationOptions::min_contrast).
   double min_contrast = 0.25;
   double min_confidence = 0.5;       ///< geometry::DeviceCurve2D::confidence
-  /// Empty, or where the detector image shows the field (geometry::SegmentationOptions::field_mask):
-  /// set from a video mapping with an image intensifier's circle or text over the image.
-  cv::Mat field_mask;
+  /// Empty, or where the detector image shows the field and where graphics hide it
+  /// (geometry::SegmentationOptions::field_mask, hidden_mask): set from a video mapping with
+  /// an image intensifier's circle or text over the image.
+  cv::Mat field_mask, hidden_mask;
 };
 
 struct FrameAnalysis {
