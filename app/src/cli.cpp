@@ -194,14 +194,18 @@ int run_cli(const std::vector<std::string>& args) {
       ->check(CLI::ExistingFile);
   cv->add_option("--out", calibrate.out, "the mapping file to write (JSON)")->required();
   cv->add_option("--picture", calibrate.picture, "also draw what was found (PNG)");
-  cv->add_option("--node", calibrate.node, "also write the mapping into this node.json (\"video_mapping\", other fields kept)")
+  cv->add_option("--node", calibrate.node,
+                 "also point this node.json's \"video_mapping\" at the mapping file (other fields kept;\n"
+                 "left alone when the shape does not fit the detector)")
       ->check(CLI::ExistingFile);
   cv->add_option("--rotation-deg", calibrate.rotation_deg,
                  "the display's turn, clockwise as shown (0, 90, 180, 270): from the C-arm's display settings")
       ->check(CLI::IsMember({0, 90, 180, 270}))
       ->capture_default_str();
   cv->add_flag("--mirror", calibrate.mirror, "the display mirrors the image left to right (after the turn)");
-  cv->add_option("--detector-px", calibrate.detector_px, "the detector's cols and rows: check the image area's shape against it")
+  cv->add_option("--detector-px", calibrate.detector_px,
+                 "the detector's cols and rows: check the image area's shape against it (default: node.json's\n"
+                 "detector with --node); exit 1 when it does not fit")
       ->expected(2);
 
   const auto add_segment_params = [](CLI::App* c, SegmentParams& p) {
