@@ -129,24 +129,16 @@ void point_node_config_at(const std::filesystem::path& node_json, nlohmann::orde
 
 // Why the mapping does not fit the detector, with the turn that would make it fit; "" when it fits.
 std::string misfit(const geometry::VideoMapping& mapping, int cols, int rows) {
-  try {
-    const geometry::VideoToDetector fits(mapping, cols, rows);
-    node::log().info("fits the {} x {} detector: {:.3f} video pixels per detector pixel", cols, rows,
-                     fits.video_px_per_detector_px());
-    return "";
-  } catch (const std::invalid_argument& e) {
-    geometry::VideoMapping turned = mapping;
-    turned.rotation_deg = (mapping.rotation_deg + 90) % 360;
-    try {
-      const geometry::VideoToDetector fits(turned, cols, rows);
-      return std::string(e.what()) + "; the image is shown turned: give --rotation-deg " + std::to_string(turned.rotation_deg) +
-             " or " + std::to_string((turned.rotation_deg + 180) % 360) + " as the display settings say";
-    } catch (const std::invalid_argument&) {
-      return std::string(e.what()) +
-             "; no turn makes it fit: the area found may include a shutter or miss a dark edge (see the picture), or "
-             "the detector size is not this display's";
-    }
-  }
+  const std::string problem = geometry::video_mapping_fit_problem(mapping, cols, rows);
+  if (problem.empty()) return "";
+  geometry::VideoMapping turned = mapping;
+  turned.rotation_deg = (mapping.rotation_deg + 90) % 360;
+  if (geometry::video_mapping_fit_problem(turned, cols, rows).empty())
+    return problem + "; the image is shown turned: give --rotation-deg " + std::to_string(turned.rotation_deg) + " or " +
+           std::to_string((turned.rotation_deg + 180) % 360) + " as the display settings say";
+  return problem +
+         "; no turn makes it fit: the area found may include a shutter or miss a dark edge (see the picture), or "
+         "the detector size is not this display's";
 }
 
 }  // namespace
@@ -187,6 +179,9 @@ int run_calibrate_video(const CalibrateVideoCommand& cmd) {
     }
   }
   const std::string problem = detector ? misfit(mapping, detector->first, detector->second) : std::string();
+  if (detector && problem.empty())
+    node::log().info("fits the {} x {} detector: {:.3f} video pixels per detector pixel", detector->first, detector->second,
+                     geometry::VideoToDetector(mapping, detector->first, detector->second).video_px_per_detector_px());
   // Written either way, for the operator to look at and correct.
   geometry::write_video_mapping(cmd.out, mapping);
   node::log().info("wrote {}", cmd.out.string());

@@ -89,14 +89,12 @@ int run_node(const RunCommand& cmd) {
     options.registration = geometry::read_registration(*config->registration);
     options.detector = *config->detector;
     options.video_mapping = config->video_mapping;
-    if (options.video_mapping) {
-      try {
-        const geometry::VideoToDetector fits(*options.video_mapping, options.detector.cols, options.detector.rows);
-      } catch (const std::invalid_argument& e) {
-        throw base::InputError(config->file.string() + ": video_mapping: " + e.what() + " (detector " +
+    if (options.video_mapping)
+      if (const auto problem = geometry::video_mapping_fit_problem(*options.video_mapping, options.detector.cols,
+                                                                   options.detector.rows);
+          !problem.empty())
+        throw base::InputError(config->file.string() + ": video_mapping: " + problem + " (detector " +
                                std::to_string(options.detector.cols) + " x " + std::to_string(options.detector.rows) + ")");
-      }
-    }
     // The video file runs at the rate asked for, else at the rate asked of the source.
     fps = config->fps.value_or(config->frames->fps.value_or(30.0));
   }

@@ -19,12 +19,10 @@ int run_sim_session(const SimSessionCommand& cmd) {
   plan.physics = sim::parse_truth_physics(cmd.physics);
   if (!cmd.video_out.empty()) {
     plan.video_out = geometry::read_video_mapping(cmd.video_out);
-    try {
-      const geometry::VideoToDetector fits(*plan.video_out, plan.detector_px, plan.detector_px);
-    } catch (const std::invalid_argument& e) {
-      throw base::InputError(cmd.video_out.string() + ": " + e.what() + " (the detector is " +
+    if (const auto problem = geometry::video_mapping_fit_problem(*plan.video_out, plan.detector_px, plan.detector_px);
+        !problem.empty())
+      throw base::InputError(cmd.video_out.string() + ": " + problem + " (the detector is " +
                              std::to_string(plan.detector_px) + " x " + std::to_string(plan.detector_px) + ")");
-    }
   }
   ProgressBar bar("frames", cmd.progress);
   const auto generated = sim::generate_session(plan, cmd.out, [&](std::size_t done, std::size_t total) { bar.update(done, total); });

@@ -65,17 +65,19 @@ std::string not_fluoroscopy(const cv::Mat& image, const cv::Mat& field_mask) {
     throw std::invalid_argument("not_fluoroscopy: expected an 8- or 16-bit grey image");
   if (!field_mask.empty() && (field_mask.size() != image.size() || field_mask.type() != CV_8UC1))
     throw std::invalid_argument("not_fluoroscopy: the field mask must be 8-bit, of the image's size");
-  cv::Mat values;
-  image.convertTo(values, CV_32S);
-  // The grey levels' counts over the field (16 bits: 65536 bins).
+  // The grey levels' counts over the field (16 bits: 65536 bins), read in place.
   std::vector<std::size_t> count(image.depth() == CV_8U ? 256 : 65536, 0);
   std::size_t total = 0;
-  for (int y = 0; y < values.rows; ++y) {
-    const auto* v = values.ptr<std::int32_t>(y);
-    const auto* m = field_mask.empty() ? nullptr : field_mask.ptr<std::uint8_t>(y);
-    for (int x = 0; x < values.cols; ++x)
-      if (m == nullptr || m[x]) ++count[static_cast<std::size_t>(v[x])], ++total;
-  }
+  const auto tally = [&]<class Pixel>(Pixel) {
+    for (int y = 0; y < image.rows; ++y) {
+      const auto* v = image.ptr<Pixel>(y);
+      const auto* m = field_mask.empty() ? nullptr : field_mask.ptr<std::uint8_t>(y);
+      for (int x = 0; x < image.cols; ++x)
+        if (m == nullptr || m[x]) ++count[v[x]], ++total;
+    }
+  };
+  if (image.depth() == CV_8U) tally(std::uint8_t{});
+  else tally(std::uint16_t{});
   if (total == 0) return "the field shows nothing (the field mask is empty)";
   std::size_t lowest = 0, highest = count.size() - 1;
   while (count[lowest] == 0) ++lowest;

@@ -101,6 +101,15 @@ VideoToDetector::VideoToDetector(const VideoMapping& mapping, int detector_cols,
   inverse_ << Li, -Li * t;
 }
 
+std::string video_mapping_fit_problem(const VideoMapping& mapping, int detector_cols, int detector_rows) {
+  try {
+    const VideoToDetector fits(mapping, detector_cols, detector_rows);
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
 double VideoToDetector::video_px_per_detector_px() const {
   return std::sqrt(std::abs(forward_.leftCols<2>().determinant()));
 }

@@ -36,13 +36,9 @@ void check_options(const NodeOptions& o) {
     bad("detector", std::to_string(d.cols) + " x " + std::to_string(d.rows) + " pixels; the detector needs a size");
   positive("detector.row_spacing_mm", d.row_spacing_mm, "mm");
   positive("detector.col_spacing_mm", d.col_spacing_mm, "mm");
-  if (o.video_mapping) {
-    try {
-      const geometry::VideoToDetector fits(*o.video_mapping, d.cols, d.rows);
-    } catch (const std::invalid_argument& e) {
-      bad("video_mapping", e.what());
-    }
-  }
+  if (o.video_mapping)
+    if (const auto problem = geometry::video_mapping_fit_problem(*o.video_mapping, d.cols, d.rows); !problem.empty())
+      bad("video_mapping", problem);
 
   if (!o.registration.allFinite()) bad("registration", "not finite");
   if ((o.registration.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9)

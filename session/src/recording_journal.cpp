@@ -55,11 +55,9 @@ RecordingSettings read_settings(const fs::path& file) {
     s.video_mapping = geometry::parse_video_mapping(j["video_mapping"], file, "video_mapping.");
     const Eigen::VectorXd d = geometry::detail::number_array(file, member(file, j, "detector_px", "detector_px"), "detector_px", 2);
     s.detector_px = {static_cast<int>(d(0)), static_cast<int>(d(1))};
-    try {
-      const geometry::VideoToDetector fits(*s.video_mapping, s.detector_px.first, s.detector_px.second);
-    } catch (const std::invalid_argument& e) {
-      bad_field(file, "video_mapping", e.what());
-    }
+    if (const auto problem = geometry::video_mapping_fit_problem(*s.video_mapping, s.detector_px.first, s.detector_px.second);
+        !problem.empty())
+      bad_field(file, "video_mapping", problem);
   }
   return s;
 }

@@ -183,11 +183,9 @@ Session read_session(const std::filesystem::path& directory) {
   if (const auto problem = detector_problem(s.detector); !problem.empty()) fail(json_path, 0, problem);
   if (j.contains("video_mapping")) {
     s.video_mapping = geometry::parse_video_mapping(j["video_mapping"], json_path, "video_mapping.");
-    try {
-      const geometry::VideoToDetector fits(*s.video_mapping, s.detector.cols, s.detector.rows);
-    } catch (const std::invalid_argument& e) {
-      fail(json_path, 0, std::string("video_mapping: does not fit the detector: ") + e.what());
-    }
+    if (const auto problem = geometry::video_mapping_fit_problem(*s.video_mapping, s.detector.cols, s.detector.rows);
+        !problem.empty())
+      fail(json_path, 0, "video_mapping: does not fit the detector: " + problem);
   }
   const auto& streams = field("streams");
   if (!streams.is_object() || !streams.contains("frames") || !streams.contains("carm"))
@@ -301,13 +299,11 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
   // Everything is checked before anything is written, by the reader's own rules.
   const auto refuse = [](const std::string& what) { throw std::invalid_argument("write_session: " + what); };
   if (const auto problem = detector_problem(session.detector); !problem.empty()) refuse(problem);
-  if (session.video_mapping) {
-    try {
-      const geometry::VideoToDetector fits(*session.video_mapping, session.detector.cols, session.detector.rows);
-    } catch (const std::invalid_argument& e) {
-      refuse(std::string("video_mapping: does not fit the detector: ") + e.what());
-    }
-  }
+  if (session.video_mapping)
+    if (const auto problem =
+            geometry::video_mapping_fit_problem(*session.video_mapping, session.detector.cols, session.detector.rows);
+        !problem.empty())
+      refuse("video_mapping: does not fit the detector: " + problem);
   if (!(session.device_thickness_mm >= 0.0 && session.device_thickness_mm <= 15.0))
     refuse("device_thickness_mm: must be 0 to 15 (mm)");
   if (const auto problem = relative_path_problem(session.scene.generic_string()); !problem.empty())

@@ -283,12 +283,8 @@ SessionRecorder::SessionRecorder(RecorderOptions options, acquisition::FrameSour
     throw std::invalid_argument("record: device thickness must be 0 to 15 mm");
   if (impl_->options.video_mapping) {
     const auto [cols, rows] = impl_->options.detector_px;
-    try {
-      const geometry::VideoToDetector fits(*impl_->options.video_mapping, cols, rows);
-    } catch (const std::invalid_argument& e) {
-      throw std::invalid_argument(std::string("record: ") + e.what() + " (detector " + std::to_string(cols) + " x " +
-                                  std::to_string(rows) + ")");
-    }
+    if (const auto problem = geometry::video_mapping_fit_problem(*impl_->options.video_mapping, cols, rows); !problem.empty())
+      throw std::invalid_argument("record: " + problem + " (detector " + std::to_string(cols) + " x " + std::to_string(rows) + ")");
   }
   impl_->settings = {impl_->options.ct_to_carm, impl_->options.device_thickness_mm.value_or(impl_->scene.device_thickness_mm),
                      impl_->options.pixel_spacing_mm, impl_->options.video_mapping, impl_->options.detector_px};

@@ -55,11 +55,12 @@ class VideoOutReplay : public ::testing::Test {
     delete generated_;
     fs::remove_all(dir_);
   }
-  static node::NodeOptions options() {
+  // With the session's video mapping, or (`mapped` false) as if the frames were the detector's.
+  static node::NodeOptions options(bool mapped = true) {
     node::NodeOptions o;
     o.detector = generated_->session.detector;
     o.registration = generated_->session.ct_to_carm;
-    o.video_mapping = generated_->session.video_mapping;
+    if (mapped) o.video_mapping = generated_->session.video_mapping;
     o.backpressure = true;
     o.frames_on_carm_clock = true;  // a replay: frames and C-arm samples on the session's clock
     o.compositor.layer_in_background = false;  // every frame with its roadmap drawn
@@ -212,9 +213,7 @@ TEST_F(VideoOutReplay, AMenuOverTheImageIsNotSearchedForADeviceAndIsSaidOnScreen
 }
 
 TEST_F(VideoOutReplay, WithoutTheMappingAVideoFrameIsTheWrongSizeAndGetsNoRoadmap) {
-  node::NodeOptions o = options();
-  o.video_mapping.reset();
-  node::LiveNode node(*scene_, o, {});
+  node::LiveNode node(*scene_, options(false), {});
   session::SessionReplay replay(generated_->session, {0.0, 1});
   node.start(replay.frames(), replay.carm());
   ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));

@@ -86,7 +86,9 @@ TEST(MonitorPicture, ReadBackThroughItsMappingGivesTheDetectorImage) {
     // And read back: the detector image again (resampled twice, bilinear).
     EXPECT_LT(mean_abs_difference_inside(back, detector, 3), scale < 1.0 ? 250.0 : 60.0) << c.what;
     // Black around the image rectangle.
-    if (c.m.image_rect.x >= 1) EXPECT_EQ(video.at<std::uint16_t>(video.rows / 2, 0), 0) << c.what;
+    if (c.m.image_rect.x >= 1) {
+      EXPECT_EQ(video.at<std::uint16_t>(video.rows / 2, 0), 0) << c.what;
+    }
   }
 }
 

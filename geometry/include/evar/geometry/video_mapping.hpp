@@ -61,6 +61,11 @@ class VideoToDetector {
   int detector_cols_ = 0, detector_rows_ = 0, video_cols_ = 0, video_rows_ = 0;
 };
 
+/// "" when VideoToDetector takes the mapping for a detector of `detector_cols` ×
+/// `detector_rows`, else its reason (the mapping's own problem, or a rectangle that is not the
+/// turned detector's shape).
+std::string video_mapping_fit_problem(const VideoMapping& mapping, int detector_cols, int detector_rows);
+
 /// "" when the mapping is valid, else what is wrong, naming the field: sizes of 1 to 16384
 /// px, the image rectangle and every text region inside the frame with a positive size,
 /// the rotation a multiple of 90 in 0 … 270.
