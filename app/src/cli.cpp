@@ -63,6 +63,11 @@ int run_cli(const std::vector<std::string>& args) {
                 "result of the paper's resolution); 0 = every mesh solved as it is")
       ->check(CLI::NonNegativeNumber)
       ->capture_default_str();
+  d->add_option("--pelvis-shift-mm", deform.pelvis_shift_mm,
+                "X Y Z: how far the pelvis lies from where the registration put it (scene LPS mm), as a bony\n"
+                "2D/3D registration measures it: the models are moved before they are bent, nothing at the renal\n"
+                "level, all of it from the aortic bifurcation down, a smooth ramp between (docs/DEFORMATION.md)")
+      ->expected(3);
   d->add_flag("!--no-coarse-rotations", deform.coarse_rotations,
               "plain local/global on the iliacs too, without turning their rotations by the coarse space "
               "(for comparison; docs/DEFORMATION.md)");

@@ -23,6 +23,9 @@ struct DeformCommand {
   bool coarse_rotations = true;
   bool ordered_pairing = true;
   double proxy_edge_mm = 1.4;
+  /// The pelvis's displacement against the registered models (scene LPS mm), measured
+  /// otherwise (a bony 2D/3D registration); empty: none (deform/pelvis_shift.hpp).
+  std::vector<double> pelvis_shift_mm;
   /// Exit kExitDeviceOutside when the deformed vessels leave the device outside by more
   /// than the warning threshold (the outputs are written either way).
   bool strict = false;

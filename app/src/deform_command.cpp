@@ -2,9 +2,11 @@
 #include <algorithm>
 #include <filesystem>
 #include <fstream>
+#include <optional>
 #include <nlohmann/json.hpp>
 
 #include "commands.hpp"
+#include "evar/deform/pelvis_shift.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/base/input_error.hpp"
 #include "evar/base/quantity_text.hpp"
@@ -90,9 +92,21 @@ int run_deform(const DeformCommand& cmd) {
   options.arap.coarse_rotations = cmd.coarse_rotations;
   options.control.pair_in_order = cmd.ordered_pairing;
   options.proxy_edge_mm = cmd.proxy_edge_mm;
+  // The pelvis moved against the registered models: the models go with it before bending.
+  std::optional<deform::PelvisShift> pelvis;
+  geometry::Scene shifted;
+  if (!cmd.pelvis_shift_mm.empty()) {
+    pelvis = deform::pelvis_shift_for(
+        scene, Eigen::Vector3d(cmd.pelvis_shift_mm[0], cmd.pelvis_shift_mm[1], cmd.pelvis_shift_mm[2]));
+    shifted = scene;
+    deform::apply(*pelvis, shifted);
+    node::log().info("pelvis shifted by {} (LPS): the models moved with it from the aortic bifurcation down, "
+                     "ramping from the renal level", fmt::format("({:.1f}, {:.1f}, {:.1f}) mm", pelvis->shift_mm.x(),
+                                                                  pelvis->shift_mm.y(), pelvis->shift_mm.z()));
+  }
   deform::SceneDeformation result;
   try {
-    result = deform::deform_scene(scene, device, options);
+    result = deform::deform_scene(pelvis ? shifted : scene, device, options);
   } catch (const base::InputError& e) {
     const std::string what = e.what();
     if (what.rfind("device:", 0) == 0) throw base::InputError(cmd.device.string() + ": " + what.substr(8));
@@ -133,6 +147,10 @@ int run_deform(const DeformCommand& cmd) {
                            {"coarse_rotations", cmd.coarse_rotations},
                            {"pairing", cmd.ordered_pairing ? "ordered" : "nearest"},
                            {"proxy_edge_mm", cmd.proxy_edge_mm},
+                           {"pelvis_shift", pelvis ? nlohmann::json{{"shift_mm", vec(pelvis->shift_mm)},
+                                                                    {"renal_point_mm", vec(pelvis->renal_point_mm)},
+                                                                    {"bifurcation_point_mm", vec(pelvis->bifurcation_point_mm)}}
+                                                   : nlohmann::json()},
                            {"vessels", nlohmann::json::array()},
                            {"landmarks", nlohmann::json::array()}};
   // The command that keeps this scene's proxies for later loads, at this call's edge.

@@ -36,4 +36,9 @@ void apply(const PostureChange& change, ExampleScene& scene) {
   for (auto& d : scene.device) move(d);
 }
 
+void apply(const PostureChange& change, BodyPhantom& body) {
+  if (change.is_none()) return;
+  for (auto& part : body.parts) part.centre_mm += change.shift_at(part.centre_mm);
+}
+
 }  // namespace evar::sim

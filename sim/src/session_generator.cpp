@@ -84,7 +84,9 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
                                     {35.0, 0.0, Eigen::Vector3d::Zero()},
                                     {right ? 25.0 : -25.0, -15.0, -R * (bifurcation_ct - centre_ct)}};
 
-  const BodyPhantom body = default_body_phantom(static_cast<unsigned>(plan.seed));
+  // The skeleton lies as the anatomy on the table does: shifted with the pelvis.
+  BodyPhantom body = default_body_phantom(static_cast<unsigned>(plan.seed));
+  apply(patient.posture, body);
   std::vector<const geometry::TriangleMesh*> vessels;
   for (const auto& v : patient.truth.vessels) vessels.push_back(&v.mesh);
 

@@ -100,6 +100,40 @@ TEST_F(Cli, DeformWritesMeshesLandmarksReportAndPreview) {
   EXPECT_EQ(before.V.rows(), after.V.rows());
 }
 
+// --pelvis-shift-mm moves the models with the pelvis before they are bent: the report says by
+// how much and between which points it ramped, "before" stays the registered landmark, and
+// the internal iliac ostium of the iliac without the device (held by the tether to its
+// shifted pose, its top following the aorta) lands about the shift further down than without.
+TEST_F(Cli, DeformMovesTheModelsWithAGivenPelvisShiftBeforeBendingThem) {
+  const auto plain = scratch("deform_no_pelvis_shift");
+  const auto shifted = scratch("deform_pelvis_shift");
+  ASSERT_EQ(evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", plain.string(), "--no-preview"}).code, 0);
+  const auto r = evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", shifted.string(),
+                           "--no-preview", "--pelvis-shift-mm", "0", "0", "-8"});
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("pelvis shifted by (0.0, 0.0, -8.0) mm"), std::string::npos) << r.err;
+  const auto read = [](const fs::path& f) { std::ifstream in(f); return nlohmann::json::parse(in); };
+  const auto a = read(plain / "report.json"), b = read(shifted / "report.json");
+  EXPECT_TRUE(a["pelvis_shift"].is_null());
+  ASSERT_TRUE(b["pelvis_shift"].is_object());
+  EXPECT_EQ(b["pelvis_shift"]["shift_mm"], nlohmann::json({0.0, 0.0, -8.0}));
+  EXPECT_GT(b["pelvis_shift"]["renal_point_mm"][2].get<double>(), b["pelvis_shift"]["bifurcation_point_mm"][2].get<double>());
+  const auto find = [](const nlohmann::json& report, const std::string& label) {
+    for (const auto& lm : report["landmarks"])
+      if (lm["label"] == label) return lm;
+    return nlohmann::json();
+  };
+  for (const char* label : {"renal_left", "renal_right", "internal_iliac_left", "internal_iliac_right"})
+    EXPECT_EQ(find(a, label)["before_lps_mm"], find(b, label)["before_lps_mm"]) << label;
+  const double dz = find(b, "internal_iliac_left")["after_lps_mm"][2].get<double>() -
+                    find(a, "internal_iliac_left")["after_lps_mm"][2].get<double>();
+  EXPECT_NEAR(dz, -8.0, 2.0);
+  EXPECT_NEAR(find(b, "renal_left")["after_lps_mm"][2].get<double>(), find(a, "renal_left")["after_lps_mm"][2].get<double>(), 0.5);
+  // Three numbers or none.
+  EXPECT_NE(evarnode({"deform", "--scene", scene().string(), "--device", device().string(), "--out", shifted.string(),
+                      "--pelvis-shift-mm", "0", "-8"}).code, 0);
+}
+
 // A vessel too thin for the asked proxy edge, and for the finer ones tried after it, is solved
 // on its own mesh; the run says so in the log and in report.json, and still writes every
 // vessel. At a 14 mm proxy edge the suite's small example scene gets the aorta's proxy at that edge

@@ -307,5 +307,34 @@ TEST(PostureChange, NothingAboveTheRenalLevelAllBelowTheBifurcation) {
     ASSERT_LT((patient.preoperative.device[k] - plain.device[k] - patient.posture.shift_at(plain.device[k])).norm(), 1e-9) << k;
 }
 
+// The skeleton follows the posture as the vessels at its height do: the pelvis's bones (the
+// femoral heads, 150 mm below the bifurcation) by the whole shift, a vertebra above the renal
+// level not at all, one on the ramp by the ramp's share; sizes and densities unchanged.
+TEST(PostureChange, MovesTheBonesWithTheAnatomyAtTheirHeight) {
+  PostureChange c;
+  c.pelvis_shift_mm = {1.0, -2.0, 9.0};
+  c.renal_z_mm = 120.0;
+  const BodyPhantom before = default_body_phantom(4);
+  BodyPhantom after = before;
+  apply(c, after);
+  ASSERT_EQ(after.parts.size(), before.parts.size());
+  int pelvis = 0, above = 0, ramp = 0;
+  for (std::size_t k = 0; k < before.parts.size(); ++k) {
+    const Eigen::Vector3d x = before.parts[k].centre_mm;
+    EXPECT_LT((after.parts[k].centre_mm - x - c.shift_at(x)).norm(), 1e-12) << k;
+    EXPECT_EQ(after.parts[k].semi_axes_mm, before.parts[k].semi_axes_mm);
+    EXPECT_EQ(after.parts[k].mu_per_mm, before.parts[k].mu_per_mm);
+    if (x.z() <= 0.0) pelvis += (after.parts[k].centre_mm - x - c.pelvis_shift_mm).norm() < 1e-12;
+    if (x.z() >= 120.0) above += after.parts[k].centre_mm == x;
+    if (x.z() > 10.0 && x.z() < 110.0) ramp += (after.parts[k].centre_mm - x).norm() > 0.1 && (after.parts[k].centre_mm - x).norm() < 9.2;
+  }
+  EXPECT_GE(pelvis, 8);  // sacrum, two iliac wings (two shells each), two femoral heads, two rami
+  EXPECT_GE(above, 1);   // L2 and L1 lie at 124 and 157 mm
+  EXPECT_GE(ramp, 1);
+  BodyPhantom unmoved = before;
+  apply(PostureChange{}, unmoved);
+  for (std::size_t k = 0; k < before.parts.size(); ++k) EXPECT_EQ(unmoved.parts[k].centre_mm, before.parts[k].centre_mm);
+}
+
 }  // namespace
 }  // namespace evar::sim

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <cstdint>
 
+#include "evar/sim/body_phantom.hpp"
 #include "evar/sim/example_scene.hpp"
 #include "evar/sim/patient_plan.hpp"
 
@@ -31,5 +32,11 @@ PostureChange draw_posture_change(std::uint64_t seed, Difficulty difficulty, dou
 /// Moves every mesh vertex, centerline point, landmark and device point of `scene` by the
 /// change (radii unchanged).
 void apply(const PostureChange& change, ExampleScene& scene);
+
+/// Moves every part of the body phantom (bones, gas) by the change at its centre, so the
+/// skeleton in the fluoroscopy lies where the vessels at its height went: the pelvis and
+/// the sacrum by the whole shift, the lumbar vertebrae along the ramp. A bony landmark
+/// then shows the pelvis's place as the vessels it holds have it.
+void apply(const PostureChange& change, BodyPhantom& body);
 
 }  // namespace evar::sim

@@ -1,0 +1,71 @@
+#include "evar/deform/pelvis_shift.hpp"
+
+#include <algorithm>
+#include <limits>
+#include <string>
+
+#include "evar/base/input_error.hpp"
+#include "evar/base/quantity_text.hpp"
+
+namespace evar::deform {
+namespace {
+
+// The point of polyline `c` nearest to `p`.
+Eigen::Vector3d nearest_on(const std::vector<Eigen::Vector3d>& c, const Eigen::Vector3d& p) {
+  Eigen::Vector3d best = c.front();
+  double best_d2 = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i + 1 < c.size(); ++i) {
+    const Eigen::Vector3d e = c[i + 1] - c[i];
+    const double len2 = e.squaredNorm();
+    const double t = len2 > 0.0 ? std::clamp((p - c[i]).dot(e) / len2, 0.0, 1.0) : 0.0;
+    const Eigen::Vector3d q = c[i] + t * e;
+    if ((q - p).squaredNorm() < best_d2) best_d2 = (q - p).squaredNorm(), best = q;
+  }
+  return best;
+}
+
+}  // namespace
+
+Eigen::Vector3d PelvisShift::displacement_at(const Eigen::Vector3d& x_mm) const {
+  const Eigen::Vector3d axis = bifurcation_point_mm - renal_point_mm;
+  const double f = std::clamp((x_mm - renal_point_mm).dot(axis) / axis.squaredNorm(), 0.0, 1.0);
+  return f * f * (3.0 - 2.0 * f) * shift_mm;
+}
+
+PelvisShift pelvis_shift_for(const geometry::Scene& scene, const Eigen::Vector3d& shift_mm) {
+  if (!shift_mm.allFinite()) throw base::InputError("pelvis shift: not a finite displacement");
+  const auto aorta = std::find_if(scene.vessels.begin(), scene.vessels.end(),
+                                  [](const geometry::Vessel& v) { return v.kind == geometry::VesselKind::Aorta; });
+  if (aorta == scene.vessels.end() || aorta->centerline.size() < 2)
+    throw base::InputError(scene.file.string() + ": a pelvis shift needs the aorta's centerline (renal level to bifurcation)");
+  PelvisShift out;
+  out.shift_mm = shift_mm;
+  Eigen::Vector3d renal_sum = Eigen::Vector3d::Zero();
+  int renal_count = 0;
+  for (const auto& lm : scene.landmarks)
+    if (lm.label.rfind("renal", 0) == 0) renal_sum += lm.position_lps, ++renal_count;
+  out.renal_point_mm = renal_count > 0 ? nearest_on(aorta->centerline, renal_sum / renal_count) : aorta->centerline.front();
+  out.bifurcation_point_mm = aorta->centerline.back();
+  const double span_mm = (out.bifurcation_point_mm - out.renal_point_mm).norm();
+  if (span_mm < 10.0)
+    throw base::InputError(scene.file.string() + ": the renal level and the aortic bifurcation are " +
+                           base::quantity_text(span_mm, "mm") +
+                           " apart along the aorta's centerline; a pelvis shift needs at least 10 mm to ramp over "
+                           "(check the renal landmarks and that the centerline ends at the bifurcation)");
+  return out;
+}
+
+void apply(const PelvisShift& shift, geometry::Scene& scene) {
+  for (auto& v : scene.vessels) {
+    auto& V = v.mesh.mesh.V;
+    for (Eigen::Index i = 0; i < V.rows(); ++i) {
+      const Eigen::Vector3d x = V.row(i).transpose();
+      V.row(i) = (x + shift.displacement_at(x)).transpose();
+    }
+    for (auto& c : v.centerline) c += shift.displacement_at(c);
+    v.proxy_path.clear();
+  }
+  for (auto& lm : scene.landmarks) lm.position_lps += shift.displacement_at(lm.position_lps);
+}
+
+}  // namespace evar::deform
