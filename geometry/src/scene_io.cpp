@@ -190,6 +190,21 @@ Scene load_scene(const std::filesystem::path& scene_json) {
 
   detail::check_vessels_apart(scene);
 
+  const auto pelvis = root.find("pelvis");
+  if (pelvis != root.end() && !pelvis->is_null()) {
+    scene.pelvis_path = dir / string_field(file, root, "pelvis", "pelvis");
+    scene.pelvis = loading(file, "pelvis", [&] {
+      LoadedMesh loaded = read_mesh(scene.pelvis_path);
+      validate_mesh(loaded.mesh, scene.pelvis_path.string());
+      return loaded.mesh;
+    });
+    if (!is_closed(scene.pelvis))
+      bad(file, "pelvis", scene.pelvis_path.string() +
+                              ": the bones' surface is not closed (an edge not shared by exactly two faces); the pelvis's "
+                              "image is made of the bone's thickness along each ray, which needs closed surfaces: export "
+                              "the bone segmentation as a closed surface (3D Slicer: Segmentations > Export to models)");
+  }
+
   if (!scene.landmarks_path.empty()) {
     scene.landmarks = loading(file, "landmarks", [&] { return read_fiducials(scene.landmarks_path); });
     if (scene.landmarks.empty()) {
@@ -234,6 +249,7 @@ void write_scene_manifest(const std::filesystem::path& scene_json, const SceneMa
                   {"units", "mm"},
                   {"vessels", std::move(vessels)}};
   if (!manifest.landmarks.empty()) root["landmarks"] = manifest.landmarks;
+  if (!manifest.pelvis.empty()) root["pelvis"] = manifest.pelvis;
   root["device_thickness_mm"] = manifest.device_thickness_mm;
   base::write_file_atomically(scene_json, root.dump(2, ' ', false, ordered::error_handler_t::replace) + "\n");
 }
@@ -274,6 +290,7 @@ std::filesystem::path copy_scene(const Scene& scene, const std::filesystem::path
     if (!v.proxy_path.empty() && fs::exists(v.proxy_path)) m.vessels.back().proxy = copy(v.proxy_path, stem + ".proxy");
   }
   if (!scene.landmarks_path.empty()) m.landmarks = copy(scene.landmarks_path, std::string("landmarks").append(markup_suffix(scene.landmarks_path)));
+  if (!scene.pelvis_path.empty()) m.pelvis = copy(scene.pelvis_path, "pelvis" + scene.pelvis_path.extension().string());
   const fs::path json = directory / "scene.json";
   write_scene_manifest(json, m);
   return json;

@@ -2,6 +2,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <utility>
 
 #include "evar/geometry/carm_projection.hpp"
 #include "seeded_uniform.hpp"
@@ -49,6 +51,7 @@ BodyPhantom default_body_phantom(unsigned seed) {
       p.parts.push_back({{side * 28.0, 70.0, z}, {9.0, 5.0, 5.0}, kCancellous});  // transverse process
     }
   }
+  p.pelvis_begin = p.parts.size();
   p.parts.push_back({{0.0, 55.0, -40.0}, {45.0, 22.0, 45.0}, kCancellous});  // sacrum
   for (const double side : {-1.0, 1.0}) {
     // Iliac wing: a thin, wide plate (outer minus inner) with a dense rim.
@@ -57,6 +60,7 @@ BodyPhantom default_body_phantom(unsigned seed) {
     p.parts.push_back({{side * 90.0, 5.0, -150.0}, {24.0, 24.0, 24.0}, kCortical});  // femoral head
     p.parts.push_back({{side * 55.0, 10.0, -115.0}, {30.0, 15.0, 12.0}, kCancellous});  // pubic ramus
   }
+  p.pelvis_end = p.parts.size();
   // Bowel gas: a few pockets in front of the spine, placed by the seed, all inside the body
   // (its front is at y = -90).
   SeededUniform uniform(seed);
@@ -65,6 +69,46 @@ BodyPhantom default_body_phantom(unsigned seed) {
                        {uniform(12.0, 35.0), uniform(8.0, 15.0), uniform(10.0, 25.0)},
                        -p.tissue_mu_per_mm});
   return p;
+}
+
+geometry::TriangleMesh pelvis_mesh(const BodyPhantom& phantom) {
+  // A unit icosphere: the icosahedron, each face split in four three times, pushed out.
+  const double g = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Eigen::Vector3d> v{{-1, g, 0}, {1, g, 0}, {-1, -g, 0}, {1, -g, 0}, {0, -1, g}, {0, 1, g},
+                                 {0, -1, -g}, {0, 1, -g}, {g, 0, -1}, {g, 0, 1}, {-g, 0, -1}, {-g, 0, 1}};
+  std::vector<Eigen::Vector3i> f{{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11}, {1, 5, 9}, {5, 11, 4},
+                                 {11, 10, 2}, {10, 7, 6}, {7, 1, 8}, {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8},
+                                 {3, 8, 9}, {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+  for (auto& x : v) x.normalize();
+  for (int level = 0; level < 3; ++level) {
+    std::map<std::pair<int, int>, int> midpoint;
+    const auto mid = [&](int a, int b) {
+      const auto key = std::minmax(a, b);
+      const auto [it, added] = midpoint.try_emplace(key, static_cast<int>(v.size()));
+      if (added) v.push_back((v[static_cast<std::size_t>(a)] + v[static_cast<std::size_t>(b)]).normalized());
+      return it->second;
+    };
+    std::vector<Eigen::Vector3i> finer;
+    for (const auto& t : f) {
+      const int ab = mid(t[0], t[1]), bc = mid(t[1], t[2]), ca = mid(t[2], t[0]);
+      finer.insert(finer.end(), {{t[0], ab, ca}, {t[1], bc, ab}, {t[2], ca, bc}, {ab, bc, ca}});
+    }
+    f = std::move(finer);
+  }
+  std::vector<const Ellipsoid*> bones;
+  for (std::size_t k = phantom.pelvis_begin; k < phantom.pelvis_end && k < phantom.parts.size(); ++k)
+    if (phantom.parts[k].mu_per_mm > 0.0) bones.push_back(&phantom.parts[k]);
+  geometry::TriangleMesh mesh;
+  mesh.V.resize(static_cast<Eigen::Index>(bones.size() * v.size()), 3);
+  mesh.F.resize(static_cast<Eigen::Index>(bones.size() * f.size()), 3);
+  for (std::size_t b = 0; b < bones.size(); ++b) {
+    const auto base = static_cast<Eigen::Index>(b * v.size());
+    for (std::size_t i = 0; i < v.size(); ++i)
+      mesh.V.row(base + static_cast<Eigen::Index>(i)) = (bones[b]->centre_mm + v[i].cwiseProduct(bones[b]->semi_axes_mm)).transpose();
+    for (std::size_t i = 0; i < f.size(); ++i)
+      mesh.F.row(static_cast<Eigen::Index>(b * f.size() + i)) = (f[i].array() + static_cast<int>(base)).matrix().transpose();
+  }
+  return mesh;
 }
 
 void add_line_integrals(const BodyPhantom& phantom, const Eigen::Matrix4d& patient_to_world,

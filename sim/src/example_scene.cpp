@@ -361,6 +361,10 @@ void write_example_scene(const ExampleScene& scene, const std::filesystem::path&
   geometry::write_markups(dir / "landmarks.mrk.json", {geometry::Markup{"Fiducial", "landmarks", scene.landmarks}});
   geometry::write_markups(dir / "device.mrk.json", {curve_markup("device", scene.device)});
   manifest.landmarks = "landmarks.mrk.json";
+  if (scene.pelvis.V.rows() > 0) {
+    manifest.pelvis = "pelvis" + ext;
+    geometry::write_mesh(dir / manifest.pelvis, scene.pelvis, format);
+  }
   manifest.device_thickness_mm = scene.device_thickness_mm;
   // The manifest last: a reader never finds a scene.json naming files not yet written.
   geometry::write_scene_manifest(dir / "scene.json", manifest);
@@ -382,6 +386,8 @@ geometry::Scene to_scene(const ExampleScene& ex) {
   s.landmarks_path = "example/landmarks.mrk.json";
   s.landmarks = ex.landmarks;
   s.device_thickness_mm = ex.device_thickness_mm;
+  if (ex.pelvis.V.rows() > 0) s.pelvis_path = "example/pelvis.stl";
+  s.pelvis = ex.pelvis;
   return s;
 }
 

@@ -34,6 +34,11 @@ void apply(const PostureChange& change, ExampleScene& scene) {
   }
   for (auto& lm : scene.landmarks) move(lm.position_lps);
   for (auto& d : scene.device) move(d);
+  for (Eigen::Index i = 0; i < scene.pelvis.V.rows(); ++i) {
+    Eigen::Vector3d x = scene.pelvis.V.row(i).transpose();
+    move(x);
+    scene.pelvis.V.row(i) = x.transpose();
+  }
 }
 
 void apply(const PostureChange& change, BodyPhantom& body) {

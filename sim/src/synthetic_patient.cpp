@@ -64,6 +64,8 @@ SyntheticPatient make_patient(const PatientPlan& plan) {
   patient.params.aorta_vertices = plan.aorta_vertices;
   patient.params.iliac_vertices = plan.iliac_vertices;
   patient.preoperative = make_example_scene(patient.params);
+  // The CT's bones: the pelvis the fluoroscopy shows (the phantom's bones do not depend on the seed).
+  patient.preoperative.pelvis = pelvis_mesh(default_body_phantom());
   // On the table (at the paper's difficulty) the pelvis is shifted against the renal
   // level; the device is inserted into that anatomy, and the physics distorts it.
   patient.posture = draw_posture_change(seed, plan.difficulty, patient.params.renal_z_mm);
@@ -93,6 +95,9 @@ void write_patient(const SyntheticPatient& patient, const std::filesystem::path&
     truth.vessels[i].centerline = patient.truth.vessels[i].centerline;
   }
   truth.landmarks = patient.truth.landmarks;
+  ExampleScene on_table = patient.preoperative;
+  apply(patient.posture, on_table);
+  truth.pelvis = on_table.pelvis;  // the pelvis on the table: the bones the fluoroscopy shows
   write_example_scene(truth, dir / "truth", format);
 
   const ExampleSceneParams& p = patient.params;

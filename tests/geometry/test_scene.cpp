@@ -384,3 +384,31 @@ TEST(LoadScene, AMeshCoordinateSystemThatContradictsTheFileOrIsUnknownIsRefusedB
   bad_space.vessels = {{"a", "aorta", "a.stl", "a.mrk.json", "XYZ"}};
   EXPECT_THROW(write_scene_manifest(dir / "scene.json", bad_space), std::invalid_argument);
 }
+
+// The optional "pelvis": the pelvis's bones from the same CT, closed surfaces, loaded with the
+// scene and carried by copy_scene; an open surface is refused with the field and the fix.
+TEST(LoadScene, LoadsThePelvisItNamesAndRefusesAnOpenOne) {
+  const fs::path dir = test_dir();
+  const fs::path file = make_scene(dir);
+  EXPECT_TRUE(load_scene(file).pelvis_path.empty());
+  EXPECT_EQ(load_scene(file).pelvis.V.rows(), 0);
+  write_mesh(file.parent_path() / "pelvis.ply", tetrahedron(-80), MeshFormat::PlyBinary);
+  json j = read_json(file);
+  j["pelvis"] = "pelvis.ply";
+  write_json(file, j);
+  const Scene scene = load_scene(file);
+  EXPECT_EQ(scene.pelvis_path, file.parent_path() / "pelvis.ply");
+  EXPECT_EQ(scene.pelvis.V, tetrahedron(-80).V);
+  const Scene copied = load_scene(evar::geometry::copy_scene(scene, dir / "copy"));
+  EXPECT_EQ(copied.pelvis.V, tetrahedron(-80).V);
+  EXPECT_EQ(copied.pelvis_path.filename(), "pelvis.ply");
+
+  TriangleMesh open = tetrahedron(-80);
+  open.F.conservativeResize(3, 3);  // one face gone: three edges with one face each
+  write_mesh(file.parent_path() / "pelvis.ply", open, MeshFormat::PlyBinary);
+  const std::string error = scene_error(file);
+  EXPECT_THAT(error, HasSubstr("scene.json"));
+  EXPECT_THAT(error, HasSubstr("pelvis"));
+  EXPECT_THAT(error, HasSubstr("not closed"));
+  EXPECT_THAT(error, HasSubstr("closed surface"));
+}

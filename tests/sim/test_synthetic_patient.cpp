@@ -336,5 +336,41 @@ TEST(PostureChange, MovesTheBonesWithTheAnatomyAtTheirHeight) {
   for (std::size_t k = 0; k < before.parts.size(); ++k) EXPECT_EQ(unmoved.parts[k].centre_mm, before.parts[k].centre_mm);
 }
 
+// The CT's pelvis as a bone segmentation gives it: closed, outward, each bone's volume that of
+// its ellipsoid (to the icosphere's 1 %), written beside the patient's vessels and named by its
+// scene; the truth's pelvis lies where the posture put it.
+TEST(PelvisMesh, ClosedOutwardBonesWrittenWithThePatient) {
+  const BodyPhantom body = default_body_phantom();
+  const geometry::TriangleMesh bones = pelvis_mesh(body);
+  EXPECT_TRUE(geometry::is_closed(bones));
+  double volume = 0.0, expected = 0.0;
+  for (Eigen::Index f = 0; f < bones.F.rows(); ++f) {
+    const Eigen::Vector3d a = bones.V.row(bones.F(f, 0)), b = bones.V.row(bones.F(f, 1)), c = bones.V.row(bones.F(f, 2));
+    volume += a.dot(b.cross(c)) / 6.0;
+  }
+  int parts = 0;
+  for (std::size_t k = body.pelvis_begin; k < body.pelvis_end; ++k)
+    if (body.parts[k].mu_per_mm > 0.0) expected += 4.0 / 3.0 * std::numbers::pi * body.parts[k].semi_axes_mm.prod(), ++parts;
+  EXPECT_EQ(parts, 7);  // sacrum, and per side the iliac wing, femoral head and pubic ramus
+  EXPECT_EQ(bones.V.rows(), parts * 642);
+  EXPECT_NEAR(volume, expected, 0.015 * expected);
+
+  const auto patient = make_patient(PatientPlan{9, Difficulty::Paper, TruthPhysics::Beam, kAorta, kIliac});
+  const auto dir = std::filesystem::path(testing::TempDir()) / ("evar_pelvis_" + std::to_string(::getpid()));
+  std::filesystem::remove_all(dir);
+  write_patient(patient, dir);
+  const geometry::Scene scene = geometry::load_scene(dir / "scene.json");
+  ASSERT_EQ(scene.pelvis.V.rows(), bones.V.rows());
+  // STL welds (its own vertex order) and keeps single precision: compare where the bones lie.
+  const Eigen::RowVector3d centre = bones.V.colwise().mean();
+  EXPECT_LT((scene.pelvis.V.colwise().mean() - centre).norm(), 1e-3);
+  EXPECT_LT((scene.pelvis.V.colwise().maxCoeff() - bones.V.colwise().maxCoeff()).norm(), 1e-3);
+  const geometry::Scene truth = geometry::load_scene(dir / "truth" / "scene.json");
+  ASSERT_EQ(truth.pelvis.V.rows(), bones.V.rows());
+  const Eigen::RowVector3d moved = truth.pelvis.V.colwise().mean() - centre;
+  EXPECT_LT((moved.transpose() - patient.posture.pelvis_shift_mm).norm(), 1e-3);
+  std::filesystem::remove_all(dir);
+}
+
 }  // namespace
 }  // namespace evar::sim

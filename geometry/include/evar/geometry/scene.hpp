@@ -37,13 +37,19 @@ struct Scene {
   std::filesystem::path landmarks_path;   ///< empty when the scene has no landmarks
   std::vector<ControlPoint> landmarks;    ///< LPS mm, labels kept
   double device_thickness_mm = 0.0;
+  /// scene.json's optional "pelvis": the pelvis's bones from the same CT (sacrum, hip bones,
+  /// femoral heads; closed surfaces, one file, any mesh format), so the pelvis can be found
+  /// in the fluoroscopy (geometry/pelvis_registration.hpp). Empty path and mesh when none.
+  std::filesystem::path pelvis_path;
+  TriangleMesh pelvis;                    ///< LPS mm
 };
 
 /// Loads scene.json and everything it names. Throws InputError naming the file and field.
 /// Checks: format/version, coordinate_system "LPS", units "mm", at least one vessel,
 /// exactly one of kind "aorta", unique names, device_thickness_mm finite and >= 0,
 /// centerlines with at least 2 points, a vessel's optional "mesh_coordinate_system" ("LPS"
-/// or "RAS") agreeing with what its mesh file declares, if it declares anything.
+/// or "RAS") agreeing with what its mesh file declares, if it declares anything, and an
+/// optional "pelvis" mesh made of closed surfaces.
 Scene load_scene(const std::filesystem::path& scene_json);
 
 /// Plain description used to write a scene.json (paths relative to the scene file).
@@ -62,6 +68,7 @@ struct SceneManifest {
   };
   std::vector<Entry> vessels;
   std::string landmarks;  ///< may be empty
+  std::string pelvis;     ///< the pelvis's bones; may be empty
   double device_thickness_mm = 0.9;
 };
 void write_scene_manifest(const std::filesystem::path& scene_json, const SceneManifest& manifest);

@@ -10,6 +10,8 @@
 
 #include <opencv2/core.hpp>
 
+#include "evar/geometry/triangle_mesh.hpp"
+
 namespace evar::sim {
 
 struct Ellipsoid {
@@ -24,12 +26,20 @@ struct BodyPhantom {
   Eigen::Vector2d body_semi_axes_mm{165.0, 115.0};
   double tissue_mu_per_mm = 0.019;  ///< water at about 65 keV effective
   std::vector<Ellipsoid> parts;     ///< bone and gas, added to the tissue
+  /// parts[pelvis_begin, pelvis_end) are the pelvis's bones (sacrum, hip bones, femoral heads).
+  std::size_t pelvis_begin = 0, pelvis_end = 0;
 };
 
 /// The default phantom for a patient whose aortic bifurcation is at the origin: L1–L5
 /// above it (bodies 25 mm tall, 8 mm discs) behind the aorta, the sacrum, pelvis and hips
 /// below, a few gas pockets. `seed` varies gas pockets only.
 BodyPhantom default_body_phantom(unsigned seed = 1);
+
+/// The pelvis's bones as a CT bone segmentation would give them: the outer surface of each
+/// of its denser-than-tissue parts, a closed ellipsoid of 642 vertices each (outward faces),
+/// in the phantom's coordinates. The hollows inside the iliac wings are not surfaces of their
+/// own (a segmentation of bone takes the marrow in).
+geometry::TriangleMesh pelvis_mesh(const BodyPhantom& phantom);
 
 /// Adds the phantom's line integral ∫μ dl for every pixel ray of P (detector cols x rows)
 /// to `A` (CV_64F, rows x cols), the phantom placed by `patient_to_world` (world = C-arm

@@ -88,6 +88,9 @@ struct ExampleScene {
   std::vector<Eigen::Vector3d> device;          ///< tip (in the aorta) first, access point
                                                 ///< (that iliac's distal end) last; 1 mm apart
   double device_thickness_mm = 0.9;
+  /// The pelvis's bones (body_phantom.hpp's pelvis_mesh), written as the scene's "pelvis"
+  /// when it has vertices; none in the example scene.
+  geometry::TriangleMesh pelvis;
   std::vector<DeviceClearance> device_clearance;  ///< one per vessel, same order; for a
                                                   ///< vessel the device does not run in
                                                   ///< (iliac_left) the figures are large

@@ -1,0 +1,68 @@
+#pragma once
+// Where the pelvis lies in the fluoroscopy against where the registration puts it. The models
+// are registered to the renal arteries (paper 2.3); the pelvis, and the iliacs it holds, may
+// lie elsewhere on the table (deform/pelvis_shift.hpp). Its bones are in every fluoroscopy
+// frame: the CT's pelvis (a closed bone surface) is projected as the bone's thickness along
+// each ray, the image of that thickness is matched to the frame by gradient correlation
+// (Penney et al. 1998: edges, not grey levels, so soft tissue, gas and exposure do not
+// matter), each view giving the 2D shift of the bones, and the views together the 3D
+// translation. A view whose match is weak (no bones in its field, or something else there)
+// is not used, and with fewer than two views, or views too close to fix the depth, the
+// registration is refused: a guess would move the iliacs by its error.
+#include <Eigen/Core>
+#include <string>
+#include <vector>
+
+#include <opencv2/core.hpp>
+
+#include "evar/geometry/carm_projection.hpp"
+#include "evar/geometry/ray_caster.hpp"
+
+namespace evar::geometry {
+
+/// The bone's thickness (mm) along the ray of every `step_px`-th detector pixel of P
+/// (bones' coordinates → detector pixels): the chords of the ray inside each closed surface
+/// of `bones`, summed. A cols/step x rows/step CV_32F image (rounded up); its pixel (i, j)
+/// is the ray through detector pixel (j·step + (step−1)/2, i·step + (step−1)/2), the centre of
+/// the step x step block it stands for.
+cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, int cols, int rows, int step_px);
+
+struct PelvisView {
+  ProjectionMatrix P_ct;  ///< CT LPS mm → detector pixels: the view with the registration (and table) in it
+  cv::Mat frame;       ///< the detector image (one channel, any depth), as the detector gave it: brighter where less is absorbed
+  std::string name;    ///< how the view is named in reasons ("frame 12, LAO 35")
+};
+
+struct PelvisRegistrationOptions {
+  int step_px = 4;                  ///< detector pixels per pixel of the matched images
+  double max_shift_mm = 30.0;       ///< searched in each direction (at the bones, in the detector's plane)
+  double min_correlation = 0.5;     ///< gradient correlation a view's match needs to count
+  double min_bone_fraction = 0.03;  ///< of a view's matched pixels, the share over the bones
+  double min_separation_deg = 15.0; ///< between two views' rays to the bones, to fix the depth
+  int max_rounds = 4;               ///< render, match, solve; stops when a round moves < 0.1 mm
+};
+
+struct PelvisViewMatch {
+  std::string name;
+  bool used = false;
+  double correlation = 0.0;      ///< gradient correlation at the match (last round)
+  Eigen::Vector2d shift_px{0, 0};  ///< last round's measured shift (detector pixels)
+  std::string reason;            ///< why a view was not used ("" when used)
+};
+
+struct PelvisRegistration {
+  bool found = false;
+  Eigen::Vector3d shift_mm = Eigen::Vector3d::Zero();  ///< CT LPS: where the pelvis lies − where the registration put it
+  std::vector<PelvisViewMatch> views;
+  double residual_px = 0.0;  ///< RMS of the used views' last shifts (what the translation does not explain)
+  int rounds = 0;
+  std::string refused;       ///< why nothing was found ("" when found)
+};
+
+/// Registers the pelvis `bones_ct` (CT LPS) to the views by a translation in the CT's axes
+/// (what deform/pelvis_shift.hpp takes). Never throws for what the images show: a refusal
+/// says why. std::invalid_argument for an empty bone mesh, a step under 1 or no views.
+PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vector<PelvisView>& views,
+                                   const PelvisRegistrationOptions& options = {});
+
+}  // namespace evar::geometry

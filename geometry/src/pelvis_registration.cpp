@@ -1,0 +1,230 @@
+#include "evar/geometry/pelvis_registration.hpp"
+
+#include <Eigen/Dense>
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <numbers>
+#include <stdexcept>
+
+#include <opencv2/imgproc.hpp>
+
+#include "evar/base/quantity_text.hpp"
+
+namespace evar::geometry {
+namespace {
+
+// Gradients of a smoothed image: the part of an X-ray picture that bones decide.
+void smoothed_gradients(const cv::Mat& image, cv::Mat& gx, cv::Mat& gy) {
+  cv::Mat smooth;
+  cv::GaussianBlur(image, smooth, cv::Size(0, 0), 1.0);
+  cv::Sobel(smooth, gx, CV_32F, 1, 0, 3);
+  cv::Sobel(smooth, gy, CV_32F, 0, 1, 3);
+}
+
+// −log of the frame's grey level, at the matched images' size: the line integral of the
+// attenuation up to a constant, where bone adds its thickness times its density.
+cv::Mat attenuation_image(const cv::Mat& frame, cv::Size size) {
+  cv::Mat grey;
+  frame.convertTo(grey, CV_32F);
+  cv::Mat small;
+  cv::resize(grey, small, size, 0, 0, cv::INTER_AREA);
+  cv::max(small, 1.0, small);
+  cv::log(small, small);
+  return -small;
+}
+
+struct ViewMatch {
+  bool ok = false;
+  double correlation = 0.0;
+  Eigen::Vector2d shift_cells{0, 0};
+  std::string reason;
+};
+
+// The shift (matched-image pixels) that best lays the bones' gradients over the frame's,
+// searched over ±reach pixels.
+ViewMatch match_bones(const cv::Mat& attenuation, const cv::Mat& bone, int reach, const PelvisRegistrationOptions& options) {
+  ViewMatch m;
+  const cv::Rect image(0, 0, bone.cols, bone.rows);
+  const cv::Rect inner(reach, reach, bone.cols - 2 * reach, bone.rows - 2 * reach);
+  cv::Mat mask = bone > 0.5f;
+  if (inner.width < 8 || inner.height < 8) {
+    m.reason = "the searched range is as large as the image";
+    return m;
+  }
+  const cv::Rect bones_box = cv::boundingRect(mask);
+  const cv::Rect templ = (bones_box + cv::Size(4, 4) - cv::Point(2, 2)) & inner;
+  if (templ.area() < 64 || cv::countNonZero(mask(templ)) < options.min_bone_fraction * templ.area()) {
+    m.reason = "too little of the pelvis in the field";
+    return m;
+  }
+  const cv::Rect search = (templ + cv::Size(2 * reach, 2 * reach) - cv::Point(reach, reach)) & image;
+  cv::Mat fx, fy, bx, by;
+  smoothed_gradients(attenuation, fx, fy);
+  smoothed_gradients(bone, bx, by);
+  cv::Mat rx, ry;
+  cv::matchTemplate(fx(search), bx(templ), rx, cv::TM_CCOEFF_NORMED);
+  cv::matchTemplate(fy(search), by(templ), ry, cv::TM_CCOEFF_NORMED);
+  const cv::Mat r = 0.5 * (rx + ry);
+  double best = 0.0;
+  cv::Point at;
+  cv::minMaxLoc(r, nullptr, &best, nullptr, &at);
+  m.correlation = best;
+  if (at.x == 0 || at.y == 0 || at.x == r.cols - 1 || at.y == r.rows - 1) {
+    m.reason = "the best match lies at the end of the searched range";
+    return m;
+  }
+  // The peak to a fraction of a pixel: a parabola through it and its neighbours, per axis.
+  const auto vertex = [](float a, float b, float c) {
+    const double d = a - 2.0 * b + c;
+    return d < 0.0 ? std::clamp(0.5 * (a - c) / d, -0.5, 0.5) : 0.0;
+  };
+  const double dx = vertex(r.at<float>(at.y, at.x - 1), r.at<float>(at.y, at.x), r.at<float>(at.y, at.x + 1));
+  const double dy = vertex(r.at<float>(at.y - 1, at.x), r.at<float>(at.y, at.x), r.at<float>(at.y + 1, at.x));
+  m.shift_cells = {at.x + dx - (templ.x - search.x), at.y + dy - (templ.y - search.y)};
+  if (best < options.min_correlation) {
+    m.reason = "the bones match the frame with a gradient correlation of only " + base::quantity_text(best, "", 2) +
+               " (needs " + base::quantity_text(options.min_correlation, "", 2) + ")";
+    return m;
+  }
+  m.ok = true;
+  return m;
+}
+
+// d(pixel)/d(X) of P at X: the 2x3 Jacobian of the projection.
+Eigen::Matrix<double, 2, 3> projection_jacobian(const ProjectionMatrix& P, const Eigen::Vector3d& X) {
+  const Eigen::Vector3d h = P.leftCols<3>() * X + P.col(3);
+  const double u = h.x() / h.z(), v = h.y() / h.z();
+  Eigen::Matrix<double, 2, 3> J;
+  J.row(0) = (P.row(0).head<3>() - u * P.row(2).head<3>()) / h.z();
+  J.row(1) = (P.row(1).head<3>() - v * P.row(2).head<3>()) / h.z();
+  return J;
+}
+
+}  // namespace
+
+cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, int cols, int rows, int step_px) {
+  if (step_px < 1 || cols < 1 || rows < 1) throw std::invalid_argument("bone_thickness_image: sizes and step must be positive");
+  const PinholeCamera camera = pinhole_camera(P);
+  const TriangleMesh& mesh = bones.mesh();
+  const int w = (cols + step_px - 1) / step_px, h = (rows + step_px - 1) / step_px;
+  cv::Mat out(h, w, CV_32F, cv::Scalar(0.0f));
+  const double centre = 0.5 * (step_px - 1);
+  cv::Mat valid(h, w, CV_8U, cv::Scalar(1));
+  for (int i = 0; i < h; ++i)
+    for (int j = 0; j < w; ++j) {
+      const Eigen::Vector3d d = back_projected_ray(camera, {j * step_px + centre, i * step_px + centre});
+      // Σ over crossings of ±t (leaving a surface +t, entering −t): the chords inside.
+      // Embree works in single precision: 800 mm from the source a crossing is found again
+      // unless the next search starts clear of it (0.01 mm; bone surfaces lie further apart),
+      // and a ray through an edge or a vertex may report it once per face there: a
+      // crossing the same way within 0.05 mm of the last is that one again.
+      double sum = 0.0, t_min = 0.0, last_t = -1.0;
+      int depth = 0, last_side = 0;
+      for (int k = 0; k < 64; ++k) {
+        const auto hit = bones.first_hit(camera.source_mm, d, std::numeric_limits<double>::infinity(), t_min);
+        if (!hit) break;
+        t_min = hit->t_mm + 0.01;
+        const Eigen::Vector3d a = mesh.V.row(mesh.F(hit->face, 0)), b = mesh.V.row(mesh.F(hit->face, 1)),
+                              c = mesh.V.row(mesh.F(hit->face, 2));
+        const int side = (b - a).cross(c - a).dot(d) > 0.0 ? 1 : -1;  // +1 leaving, −1 entering
+        if (side == last_side && hit->t_mm - last_t < 0.05) continue;
+        last_side = side, last_t = hit->t_mm;
+        depth -= side;
+        sum += side * hit->t_mm;
+      }
+      // A crossing missed (a ray through a crack) leaves the ray inside or beyond outside:
+      // that pixel is filled from its neighbours instead.
+      if (depth != 0 || sum < 0.0) valid.at<std::uint8_t>(i, j) = 0;
+      else out.at<float>(i, j) = static_cast<float>(sum);
+    }
+  if (static_cast<std::size_t>(cv::countNonZero(valid)) < valid.total()) {
+    cv::Mat sum_near, count_near;
+    cv::boxFilter(out, sum_near, CV_32F, cv::Size(3, 3), cv::Point(-1, -1), false);
+    cv::boxFilter(valid, count_near, CV_32F, cv::Size(3, 3), cv::Point(-1, -1), false);
+    for (int i = 0; i < h; ++i)
+      for (int j = 0; j < w; ++j)
+        if (valid.at<std::uint8_t>(i, j) == 0)
+          out.at<float>(i, j) = count_near.at<float>(i, j) > 0.0f ? sum_near.at<float>(i, j) / count_near.at<float>(i, j) : 0.0f;
+  }
+  return out;
+}
+
+PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vector<PelvisView>& views,
+                                   const PelvisRegistrationOptions& options) {
+  if (bones_ct.V.rows() == 0 || bones_ct.F.rows() == 0) throw std::invalid_argument("register_pelvis: no bones");
+  if (options.step_px < 1) throw std::invalid_argument("register_pelvis: step_px must be at least 1");
+  if (views.empty()) throw std::invalid_argument("register_pelvis: no views");
+  const RayCaster caster(bones_ct);
+  const Eigen::Vector3d centroid_ct = bones_ct.V.colwise().mean().transpose();
+  PelvisRegistration out;
+  out.views.resize(views.size());
+  Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  for (int round = 0; round < options.max_rounds; ++round) {
+    Eigen::Matrix4d moved = Eigen::Matrix4d::Identity();
+    moved.topRightCorner<3, 1>() = t;
+    Eigen::MatrixXd A(0, 3);
+    Eigen::VectorXd b(0);
+    std::vector<Eigen::Vector3d> rays;
+    double sum_sq = 0.0;
+    int used = 0;
+    for (std::size_t k = 0; k < views.size(); ++k) {
+      const PelvisView& view = views[k];
+      PelvisViewMatch& report = out.views[k];
+      report = {view.name, false, 0.0, {0, 0}, ""};
+      if (view.frame.empty() || view.frame.channels() != 1) {
+        report.reason = "not a one-channel image";
+        continue;
+      }
+      const ProjectionMatrix P_moved = view.P_ct * moved;
+      const Eigen::Vector3d c = centroid_ct + t;
+      const Eigen::Matrix<double, 2, 3> J = projection_jacobian(view.P_ct, c);
+      // How many matched pixels the searched distance is, at the bones.
+      const double px_per_mm = J.norm() / std::sqrt(2.0);
+      const int reach = std::max(2, static_cast<int>(std::ceil(options.max_shift_mm * px_per_mm / options.step_px)));
+      const cv::Mat bone = bone_thickness_image(caster, P_moved, view.frame.cols, view.frame.rows, options.step_px);
+      const ViewMatch m = match_bones(attenuation_image(view.frame, bone.size()), bone, reach, options);
+      report.correlation = m.correlation;
+      report.shift_px = m.shift_cells * options.step_px;
+      if (!m.ok) {
+        report.reason = m.reason;
+        continue;
+      }
+      report.used = true;
+      ++used;
+      A.conservativeResize(A.rows() + 2, 3);
+      b.conservativeResize(b.rows() + 2);
+      A.bottomRows<2>() = J;
+      b.tail<2>() = report.shift_px;
+      sum_sq += report.shift_px.squaredNorm();
+      rays.push_back((c - pinhole_camera(view.P_ct).source_mm).normalized());
+    }
+    out.rounds = round + 1;
+    if (used < 2) {
+      out.refused = used == 0 ? "no view showed the pelvis well enough" : "only one view showed the pelvis well enough (two fix its depth)";
+      return out;
+    }
+    double widest_deg = 0.0;
+    for (std::size_t i = 0; i < rays.size(); ++i)
+      for (std::size_t j = i + 1; j < rays.size(); ++j)
+        widest_deg = std::max(widest_deg, std::acos(std::clamp(rays[i].dot(rays[j]), -1.0, 1.0)) * 180.0 / std::numbers::pi);
+    if (widest_deg < options.min_separation_deg) {
+      out.refused = "the views that showed the pelvis are " + base::quantity_text(widest_deg, "deg", 1) +
+                    " apart, too close to fix its depth (needs " + base::quantity_text(options.min_separation_deg, "deg", 0) + ")";
+      return out;
+    }
+    out.residual_px = std::sqrt(sum_sq / used);
+    const Eigen::Vector3d step = A.colPivHouseholderQr().solve(b);
+    t += step;
+    if (t.norm() > 2.0 * options.max_shift_mm) {
+      out.refused = "the views disagree: they would move the pelvis " + base::quantity_text(t.norm(), "mm", 0);
+      return out;
+    }
+    if (step.norm() < 0.1) break;
+  }
+  out.found = true;
+  out.shift_mm = t;
+  return out;
+}
+
+}  // namespace evar::geometry
