@@ -1,6 +1,8 @@
 // `evarnode eval`: the paper's Table 1 on sessions with ground truth (session_evaluation.hpp):
 // eval.json, eval.md and the pictures (evaluation_plots.hpp) in --out.
+#include <Eigen/Geometry>
 #include <algorithm>
+#include <numbers>
 #include <cstdio>
 #include <map>
 #include <sstream>
@@ -109,6 +111,29 @@ void write_devices(const std::filesystem::path& directory, const std::vector<Cas
   }
 }
 
+// What the pelvis registration found, or why not; null when none was tried.
+nlohmann::json pelvis_json(const std::optional<geometry::PelvisRegistration>& r) {
+  if (!r) return nullptr;
+  nlohmann::json views = nlohmann::json::array();
+  for (const auto& v : r->views)
+    views.push_back({{"view", v.name}, {"used", v.used}, {"correlation", v.correlation},
+                     {"shift_px", {v.shift_px.x(), v.shift_px.y()}}, {"reason", v.reason}});
+  return {{"found", r->found},
+          {"shift_mm", r->found ? nlohmann::json{r->shift_mm.x(), r->shift_mm.y(), r->shift_mm.z()} : nlohmann::json()},
+          {"turn_deg", r->found ? nlohmann::json(Eigen::AngleAxisd(r->rotation).angle() * 180.0 / std::numbers::pi) : nlohmann::json()},
+          {"rotation", r->found ? nlohmann::json{{r->rotation(0, 0), r->rotation(0, 1), r->rotation(0, 2)},
+                                                 {r->rotation(1, 0), r->rotation(1, 1), r->rotation(1, 2)},
+                                                 {r->rotation(2, 0), r->rotation(2, 1), r->rotation(2, 2)}}
+                                : nlohmann::json()},
+          {"pivot_mm", {r->pivot_mm.x(), r->pivot_mm.y(), r->pivot_mm.z()}},
+          {"turned", r->turned},
+          {"blocks", r->blocks},
+          {"refused", r->refused},
+          {"residual_px", r->residual_px},
+          {"rounds", r->rounds},
+          {"views", views}};
+}
+
 }  // namespace
 
 int run_eval(const EvalCommand& cmd) {
@@ -117,7 +142,9 @@ int run_eval(const EvalCommand& cmd) {
   nlohmann::json jcases = nlohmann::json::array();
   for (const auto& dir : cmd.sessions) {
     ProgressBar bar(dir.filename().string(), cmd.progress);
-    CaseEvaluation c = evaluate_session(dir, {}, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
+    EvaluationOptions options;
+    options.pelvis = cmd.pelvis;
+    CaseEvaluation c = evaluate_session(dir, options, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
     bar.finish();
     nlohmann::json lm = nlohmann::json::array();
     for (const auto& l : c.landmarks) lm.push_back(to_json(l));
@@ -140,7 +167,8 @@ int run_eval(const EvalCommand& cmd) {
                       {"adaptations", c.adaptations}, {"failures", c.failures}, {"frames_evaluated", c.frames_evaluated},
                       {"landmarks", lm}, {"model", model}, {"device_errors", devices},
                       {"device_iliac", c.device_iliac}, {"physics", c.physics}, {"difficulty", c.difficulty},
-                      {"registration_residual_deg", c.registration_residual_deg}, {"seconds", c.seconds}});
+                      {"registration_residual_deg", c.registration_residual_deg}, {"pelvis", pelvis_json(c.pelvis)},
+                      {"seconds", c.seconds}});
     if (!c.model) node::log().warn("{}: no adapted model ({} candidates, {} pairs{}{})", dir.string(), c.candidates, c.pairs,
                              c.failures.empty() ? "" : "; ", c.failures.empty() ? "" : c.failures.back());
     else

@@ -2,13 +2,16 @@
 
 #include <algorithm>
 #include <chrono>
+#include <deque>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <numeric>
 #include <stdexcept>
 
+#include "evar/deform/pelvis_shift.hpp"
 #include "evar/geometry/video_frame.hpp"
+#include "evar/node/frame_view.hpp"
 
 #include <Eigen/Geometry>
 #include <numbers>
@@ -99,7 +102,20 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   const geometry::Scene& scene = *loaded;
   if (scene.landmarks.empty())
     throw base::InputError(scene.file.string() + ": landmarks: none (nothing to evaluate)");
-  const deform::SceneDeformer deformer(scene, options.deform);
+  // The models the node bends: where the registration put them, or, once the pelvis has been
+  // found in two views, moved with it (made anew each time the pelvis is found elsewhere).
+  // A deformer holds on to its scene: the moved scenes are kept until the end.
+  std::deque<geometry::Scene> moved_scenes;
+  auto deformer = std::make_unique<const deform::SceneDeformer>(scene, options.deform);
+  bool deformer_changed = false;
+  Eigen::Vector3d pelvis_shift = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d pelvis_rotation = Eigen::Matrix3d::Identity();
+  std::vector<geometry::PelvisView> pelvis_views;
+  struct SeenView {
+    double primary_deg, secondary_deg;
+    Eigen::Vector3d table_mm;
+  };
+  std::vector<SeenView> pelvis_seen;
   geometry::Polyline true_device;
   for (const auto& p : geometry::read_curve(directory / session.truth->device, 2).points) true_device.push_back(p.position_lps);
   // Where the registration given to the node is off (sessions at the paper's difficulty),
@@ -145,6 +161,35 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm,
                                       session::to_carm_state(*sample, 0));
     const cv::Mat image = session::read_detector_frame(session, i);
+    // The pelvis: the first fluoroscopy frame of every view (not a DSA run's, whose contrast
+    // is not bone) is one more view of it.
+    if (options.pelvis && scene.pelvis.V.rows() > 0 && record.source != "dsa") {
+      const Eigen::Vector3d table(sample->table_mm[0], sample->table_mm[1], sample->table_mm[2]);
+      const bool seen = std::any_of(pelvis_seen.begin(), pelvis_seen.end(), [&](const SeenView& s) {
+        return std::abs(s.primary_deg - sample->primary_deg) < options.pairs.same_view_deg &&
+               std::abs(s.secondary_deg - sample->secondary_deg) < options.pairs.same_view_deg && (s.table_mm - table).norm() < 5.0;
+      });
+      if (!seen) {
+        pelvis_seen.push_back({sample->primary_deg, sample->secondary_deg, table});
+        pelvis_views.push_back({view.P_ct, image, "frame " + std::to_string(record.frame) + ", " +
+                                                      node::angulation_text(sample->primary_deg, sample->secondary_deg)});
+        if (pelvis_views.size() >= 2) {
+          result.pelvis = geometry::register_pelvis(scene.pelvis, pelvis_views);
+          // Made anew when the pelvis is found more than half a millimetre (at its bones'
+          // centroid, or 100 mm from it by the turn) from where it was found before.
+          const auto& found = *result.pelvis;
+          if (found.found && ((found.shift_mm - pelvis_shift).norm() > 0.5 ||
+                              100.0 * Eigen::AngleAxisd(found.rotation * pelvis_rotation.transpose()).angle() > 0.5)) {
+            pelvis_shift = found.shift_mm;
+            pelvis_rotation = found.rotation;
+            geometry::Scene& moved = moved_scenes.emplace_back(scene);
+            deform::apply(deform::pelvis_shift_for(scene, found.shift_mm, found.rotation, found.pivot_mm), moved);
+            deformer = std::make_unique<const deform::SceneDeformer>(moved, options.deform);
+            deformer_changed = true;
+          }
+        }
+      }
+    }
     // As the node: a video-out frame whose image area is not fluoroscopy is not searched.
     node::FrameAnalysis analysis;
     if (session.video_mapping) analysis.reason = geometry::not_fluoroscopy(image, candidate.field_mask);
@@ -157,7 +202,9 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
         ++result.pairs;
         try {
           model = std::make_shared<const node::AdaptedModel>(
-              node::adapt_model(deformer, *pair, options.adaptation, model ? &model->deformation : nullptr));
+              node::adapt_model(*deformer, *pair, options.adaptation,
+                                model && !deformer_changed ? &model->deformation : nullptr));
+          deformer_changed = false;
           ++result.adaptations;
           selector.succeeded(pair->earlier.id());
           DeviceError e = device_error(model->reconstruction.points, true_device);
@@ -184,7 +231,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   // and which vessel each landmark sits on: the paper's Table 1 measures the internal iliac
   // ostia of iliacs carrying a device.
   try {
-    const deform::SceneDeformation on_truth = deformer.deform(true_device);
+    const deform::SceneDeformation on_truth = deformer->deform(true_device);
     result.device_iliac = on_truth.device_iliac;
     for (LandmarkError& l : result.landmarks)
       for (std::size_t k = 0; k < scene.landmarks.size(); ++k)

@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <functional>
 #include <memory>
+#include <optional>
 #include <string>
 #include <vector>
 
@@ -17,6 +18,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include "evar/geometry/pelvis_registration.hpp"
 #include "evar/node/device_candidate.hpp"
 #include "evar/node/live_node.hpp"
 #include "evar/node/model_adaptation.hpp"
@@ -30,6 +32,10 @@ struct EvaluationOptions {
   node::ViewPairOptions pairs;
   node::AdaptationOptions adaptation;
   deform::DeformOptions deform;
+  /// Find the pelvis in the fluoroscopy (when the scene has its bones) and move the models
+  /// with it before bending them (geometry/pelvis_registration.hpp, deform/pelvis_shift.hpp);
+  /// false: the models where the registration put them, as the paper has them.
+  bool pelvis = true;
 };
 
 struct LandmarkError {
@@ -91,6 +97,9 @@ struct CaseEvaluation {
   std::string physics = "unknown";       ///< the simulator's truth physics (patient.json), if any
   std::string difficulty = "unknown";    ///< the simulator's difficulty (patient.json), if any
   double registration_residual_deg = 0.0;  ///< the given registration's rotation off the true one
+  /// The last pelvis registration tried (from the fluoroscopy views seen so far); none when
+  /// the scene has no pelvis, EvaluationOptions::pelvis is off or fewer than two views came.
+  std::optional<geometry::PelvisRegistration> pelvis;
   std::shared_ptr<const node::AdaptedModel> model;  ///< the last adapted model (null when none)
   geometry::Polyline true_device;  ///< the session's true device in the node's CT frame (LPS mm)
   std::shared_ptr<const session::Session> recording;  ///< as read (for pictures)

@@ -1,5 +1,6 @@
 #include "evar/deform/pelvis_shift.hpp"
 
+#include <Eigen/LU>
 #include <algorithm>
 #include <limits>
 #include <string>
@@ -29,17 +30,22 @@ Eigen::Vector3d nearest_on(const std::vector<Eigen::Vector3d>& c, const Eigen::V
 Eigen::Vector3d PelvisShift::displacement_at(const Eigen::Vector3d& x_mm) const {
   const Eigen::Vector3d axis = bifurcation_point_mm - renal_point_mm;
   const double f = std::clamp((x_mm - renal_point_mm).dot(axis) / axis.squaredNorm(), 0.0, 1.0);
-  return f * f * (3.0 - 2.0 * f) * shift_mm;
+  return f * f * (3.0 - 2.0 * f) * (rotation * (x_mm - pivot_mm) + pivot_mm + shift_mm - x_mm);
 }
 
-PelvisShift pelvis_shift_for(const geometry::Scene& scene, const Eigen::Vector3d& shift_mm) {
-  if (!shift_mm.allFinite()) throw base::InputError("pelvis shift: not a finite displacement");
+PelvisShift pelvis_shift_for(const geometry::Scene& scene, const Eigen::Vector3d& shift_mm, const Eigen::Matrix3d& rotation,
+                             const Eigen::Vector3d& pivot_mm) {
+  if (!shift_mm.allFinite() || !pivot_mm.allFinite()) throw base::InputError("pelvis shift: not a finite displacement");
+  if (!rotation.allFinite() || (rotation.transpose() * rotation - Eigen::Matrix3d::Identity()).norm() > 1e-6 || rotation.determinant() < 0.0)
+    throw base::InputError("pelvis shift: the pelvis's turn is not a rotation");
   const auto aorta = std::find_if(scene.vessels.begin(), scene.vessels.end(),
                                   [](const geometry::Vessel& v) { return v.kind == geometry::VesselKind::Aorta; });
   if (aorta == scene.vessels.end() || aorta->centerline.size() < 2)
     throw base::InputError(scene.file.string() + ": a pelvis shift needs the aorta's centerline (renal level to bifurcation)");
   PelvisShift out;
   out.shift_mm = shift_mm;
+  out.rotation = rotation;
+  out.pivot_mm = pivot_mm;
   Eigen::Vector3d renal_sum = Eigen::Vector3d::Zero();
   int renal_count = 0;
   for (const auto& lm : scene.landmarks)

@@ -1,6 +1,8 @@
 #include "evar/geometry/pelvis_registration.hpp"
 
 #include <Eigen/Dense>
+#include <Eigen/Geometry>
+#include <Eigen/SVD>
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -103,7 +105,8 @@ Eigen::Matrix<double, 2, 3> projection_jacobian(const ProjectionMatrix& P, const
 
 }  // namespace
 
-cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, int cols, int rows, int step_px) {
+cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, int cols, int rows, int step_px,
+                             cv::Mat* mean_depth_mm) {
   if (step_px < 1 || cols < 1 || rows < 1) throw std::invalid_argument("bone_thickness_image: sizes and step must be positive");
   const PinholeCamera camera = pinhole_camera(P);
   const TriangleMesh& mesh = bones.mesh();
@@ -111,6 +114,7 @@ cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, 
   cv::Mat out(h, w, CV_32F, cv::Scalar(0.0f));
   const double centre = 0.5 * (step_px - 1);
   cv::Mat valid(h, w, CV_8U, cv::Scalar(1));
+  cv::Mat depth(h, w, CV_32F, cv::Scalar(0.0f));
   for (int i = 0; i < h; ++i)
     for (int j = 0; j < w; ++j) {
       const Eigen::Vector3d d = back_projected_ray(camera, {j * step_px + centre, i * step_px + centre});
@@ -119,8 +123,8 @@ cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, 
       // unless the next search starts clear of it (0.01 mm; bone surfaces lie further apart),
       // and a ray through an edge or a vertex may report it once per face there: a
       // crossing the same way within 0.05 mm of the last is that one again.
-      double sum = 0.0, t_min = 0.0, last_t = -1.0;
-      int depth = 0, last_side = 0;
+      double sum = 0.0, moment = 0.0, t_min = 0.0, last_t = -1.0;
+      int inside = 0, last_side = 0;
       for (int k = 0; k < 64; ++k) {
         const auto hit = bones.first_hit(camera.source_mm, d, std::numeric_limits<double>::infinity(), t_min);
         if (!hit) break;
@@ -130,13 +134,17 @@ cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, 
         const int side = (b - a).cross(c - a).dot(d) > 0.0 ? 1 : -1;  // +1 leaving, −1 entering
         if (side == last_side && hit->t_mm - last_t < 0.05) continue;
         last_side = side, last_t = hit->t_mm;
-        depth -= side;
+        inside -= side;
         sum += side * hit->t_mm;
+        moment += side * 0.5 * hit->t_mm * hit->t_mm;  // Σ ∫ t dt over the chords
       }
       // A crossing missed (a ray through a crack) leaves the ray inside or beyond outside:
       // that pixel is filled from its neighbours instead.
-      if (depth != 0 || sum < 0.0) valid.at<std::uint8_t>(i, j) = 0;
-      else out.at<float>(i, j) = static_cast<float>(sum);
+      if (inside != 0 || sum < 0.0) valid.at<std::uint8_t>(i, j) = 0;
+      else {
+        out.at<float>(i, j) = static_cast<float>(sum);
+        if (sum > 1e-6) depth.at<float>(i, j) = static_cast<float>(moment / sum);
+      }
     }
   if (static_cast<std::size_t>(cv::countNonZero(valid)) < valid.total()) {
     cv::Mat sum_near, count_near;
@@ -147,6 +155,7 @@ cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, 
         if (valid.at<std::uint8_t>(i, j) == 0)
           out.at<float>(i, j) = count_near.at<float>(i, j) > 0.0f ? sum_near.at<float>(i, j) / count_near.at<float>(i, j) : 0.0f;
   }
+  if (mean_depth_mm != nullptr) *mean_depth_mm = depth;
   return out;
 }
 
@@ -156,16 +165,22 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
   if (options.step_px < 1) throw std::invalid_argument("register_pelvis: step_px must be at least 1");
   if (views.empty()) throw std::invalid_argument("register_pelvis: no views");
   const RayCaster caster(bones_ct);
-  const Eigen::Vector3d centroid_ct = bones_ct.V.colwise().mean().transpose();
   PelvisRegistration out;
+  out.pivot_mm = bones_ct.V.colwise().mean().transpose();
   out.views.resize(views.size());
+  Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
+  const int block = std::max(4, options.block_px / options.step_px);
   for (int round = 0; round < options.max_rounds; ++round) {
-    Eigen::Matrix4d moved = Eigen::Matrix4d::Identity();
-    moved.topRightCorner<3, 1>() = t;
-    Eigen::MatrixXd A(0, 3);
-    Eigen::VectorXd b(0);
+    // The bones where the pose so far puts them: x ↦ R(x − c) + c + t.
+    Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
+    pose.topLeftCorner<3, 3>() = R;
+    pose.topRightCorner<3, 1>() = out.pivot_mm + t - R * out.pivot_mm;
+    const Eigen::Vector3d c = out.pivot_mm + t;
+    Eigen::MatrixXd A_t(0, 3), A_6(0, 6);  // the whole views' shifts (translation); the blocks' (turn and translation)
+    Eigen::VectorXd b_t(0), b_6(0);
     std::vector<Eigen::Vector3d> rays;
+    std::vector<int> blocks_per_view;
     double sum_sq = 0.0;
     int used = 0;
     for (std::size_t k = 0; k < views.size(); ++k) {
@@ -176,14 +191,15 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
         report.reason = "not a one-channel image";
         continue;
       }
-      const ProjectionMatrix P_moved = view.P_ct * moved;
-      const Eigen::Vector3d c = centroid_ct + t;
+      const ProjectionMatrix P_moved = view.P_ct * pose;
       const Eigen::Matrix<double, 2, 3> J = projection_jacobian(view.P_ct, c);
       // How many matched pixels the searched distance is, at the bones.
       const double px_per_mm = J.norm() / std::sqrt(2.0);
       const int reach = std::max(2, static_cast<int>(std::ceil(options.max_shift_mm * px_per_mm / options.step_px)));
-      const cv::Mat bone = bone_thickness_image(caster, P_moved, view.frame.cols, view.frame.rows, options.step_px);
-      const ViewMatch m = match_bones(attenuation_image(view.frame, bone.size()), bone, reach, options);
+      cv::Mat depth;
+      const cv::Mat bone = bone_thickness_image(caster, P_moved, view.frame.cols, view.frame.rows, options.step_px, &depth);
+      const cv::Mat attenuation = attenuation_image(view.frame, bone.size());
+      const ViewMatch m = match_bones(attenuation, bone, reach, options);
       report.correlation = m.correlation;
       report.shift_px = m.shift_cells * options.step_px;
       if (!m.ok) {
@@ -192,12 +208,73 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
       }
       report.used = true;
       ++used;
-      A.conservativeResize(A.rows() + 2, 3);
-      b.conservativeResize(b.rows() + 2);
-      A.bottomRows<2>() = J;
-      b.tail<2>() = report.shift_px;
+      A_t.conservativeResize(A_t.rows() + 2, 3);
+      b_t.conservativeResize(b_t.rows() + 2);
+      A_t.bottomRows<2>() = J;
+      b_t.tail<2>() = report.shift_px;
       sum_sq += report.shift_px.squaredNorm();
-      rays.push_back((c - pinhole_camera(view.P_ct).source_mm).normalized());
+      const PinholeCamera camera = pinhole_camera(view.P_ct);
+      rays.push_back((c - camera.source_mm).normalized());
+
+      // Blocks: each matched on its own, a little around the whole view's shift.
+      int matched = 0;
+      cv::Mat fx, fy, bx, by;
+      smoothed_gradients(attenuation, fx, fy);
+      smoothed_gradients(bone, bx, by);
+      const cv::Point whole(static_cast<int>(std::lround(m.shift_cells.x())), static_cast<int>(std::lround(m.shift_cells.y())));
+      const int local = 3;
+      const cv::Rect image(0, 0, bone.cols, bone.rows);
+      for (int y0 = 0; y0 + block <= bone.rows; y0 += block / 2)
+        for (int x0 = 0; x0 + block <= bone.cols; x0 += block / 2) {
+          const cv::Rect cell(x0, y0, block, block);
+          const cv::Rect search = (cell + whole + cv::Size(2 * local, 2 * local) - cv::Point(local, local));
+          if ((search & image) != search) continue;
+          const cv::Mat thick = bone(cell);
+          if (cv::countNonZero(thick > 0.5f) < 0.25 * cell.area()) continue;
+          cv::Mat rx, ry;
+          cv::matchTemplate(fx(search), bx(cell), rx, cv::TM_CCOEFF_NORMED);
+          cv::matchTemplate(fy(search), by(cell), ry, cv::TM_CCOEFF_NORMED);
+          const cv::Mat r = 0.5 * (rx + ry);
+          double best = 0.0;
+          cv::Point at;
+          cv::minMaxLoc(r, nullptr, &best, nullptr, &at);
+          if (best < options.min_correlation || at.x == 0 || at.y == 0 || at.x == r.cols - 1 || at.y == r.rows - 1) continue;
+          const auto vertex = [](float a, float b, float cc) {
+            const double d = a - 2.0 * b + cc;
+            return d < 0.0 ? std::clamp(0.5 * (a - cc) / d, -0.5, 0.5) : 0.0;
+          };
+          const Eigen::Vector2d shift_px =
+              options.step_px * Eigen::Vector2d(whole.x - local + at.x + vertex(r.at<float>(at.y, at.x - 1), r.at<float>(at.y, at.x), r.at<float>(at.y, at.x + 1)),
+                                                whole.y - local + at.y + vertex(r.at<float>(at.y - 1, at.x), r.at<float>(at.y, at.x), r.at<float>(at.y + 1, at.x)));
+          // The bone the block shows: its rays' thickness-weighted points, where the pose put them.
+          Eigen::Vector3d X = Eigen::Vector3d::Zero();
+          double weight = 0.0;
+          const double centre = 0.5 * (options.step_px - 1);
+          for (int i = y0; i < y0 + block; ++i)
+            for (int j = x0; j < x0 + block; ++j) {
+              const float w = thick.at<float>(i - y0, j - x0);
+              if (w <= 0.5f) continue;
+              X += w * (camera.source_mm + depth.at<float>(i, j) *
+                                               back_projected_ray(pinhole_camera(P_moved), {j * options.step_px + centre, i * options.step_px + centre}));
+              weight += w;
+            }
+          X /= weight;
+          // X is in the moved bones' frame seen through P_moved; the same point through P_ct
+          // (the CT's frame, where the pose applies) is pose · X_ct — and P_moved·X_ct = P_ct·pose·X_ct.
+          const Eigen::Vector3d X_ct = (pose.inverse() * X.homogeneous()).head<3>();
+          const Eigen::Vector3d at_pose = (pose * X_ct.homogeneous()).head<3>();
+          const Eigen::Matrix<double, 2, 3> Jp = projection_jacobian(view.P_ct, at_pose);
+          // δx = δθ × (x − c) + δt:  J·(−[x − c]× δθ + δt).
+          Eigen::Matrix3d cross;
+          const Eigen::Vector3d r_c = at_pose - c;
+          cross << 0, -r_c.z(), r_c.y(), r_c.z(), 0, -r_c.x(), -r_c.y(), r_c.x(), 0;
+          A_6.conservativeResize(A_6.rows() + 2, 6);
+          b_6.conservativeResize(b_6.rows() + 2);
+          A_6.bottomRows<2>() << -Jp * cross, Jp;
+          b_6.tail<2>() = shift_px;
+          ++matched;
+        }
+      blocks_per_view.push_back(matched);
     }
     out.rounds = round + 1;
     if (used < 2) {
@@ -214,16 +291,43 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
       return out;
     }
     out.residual_px = std::sqrt(sum_sq / used);
-    const Eigen::Vector3d step = A.colPivHouseholderQr().solve(b);
-    t += step;
-    if (t.norm() > 2.0 * options.max_shift_mm) {
-      out.refused = "the views disagree: they would move the pelvis " + base::quantity_text(t.norm(), "mm", 0);
+    // The turn where blocks of two views or more pin it down, else the translation alone.
+    const int views_with_blocks = static_cast<int>(std::count_if(blocks_per_view.begin(), blocks_per_view.end(), [](int n) { return n >= 3; }));
+    out.blocks = static_cast<int>(A_6.rows() / 2);
+    Eigen::Vector3d d_theta = Eigen::Vector3d::Zero(), d_t;
+    bool turned = false;
+    if (options.turn && out.blocks >= options.min_blocks && views_with_blocks >= 2) {
+      // The turn solved as the motion it gives 50 mm from the pivot (so both halves of the
+      // unknowns are millimetres); a direction the blocks barely measure (blocks in a line
+      // cannot tell a turn about that line) leaves the turn out.
+      constexpr double kLeverMm = 50.0;
+      Eigen::MatrixXd scaled = A_6;
+      scaled.leftCols<3>() /= kLeverMm;
+      const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinU | Eigen::ComputeThinV);
+      const auto& sv = svd.singularValues();
+      if (sv(5) > 0.02 * sv(0)) {
+        const Eigen::VectorXd x = svd.solve(b_6);
+        d_theta = x.head<3>() / kLeverMm;
+        d_t = x.tail<3>();
+        turned = true;
+      }
+    }
+    if (!turned) d_t = A_t.colPivHouseholderQr().solve(b_t);
+    out.turned = turned;
+    const double angle = d_theta.norm();
+    if (angle > 0.0) R = Eigen::AngleAxisd(angle, d_theta / angle).toRotationMatrix() * R;
+    t += d_t;
+    const double turn_deg = Eigen::AngleAxisd(R).angle() * 180.0 / std::numbers::pi;
+    if (t.norm() > 2.0 * options.max_shift_mm || turn_deg > options.max_turn_deg) {
+      out.refused = "the views disagree: they would move the pelvis " + base::quantity_text(t.norm(), "mm", 0) + " and turn it " +
+                    base::quantity_text(turn_deg, "deg", 1);
       return out;
     }
-    if (step.norm() < 0.1) break;
+    if (d_t.norm() < 0.1 && angle * 180.0 / std::numbers::pi < 0.05) break;
   }
   out.found = true;
   out.shift_mm = t;
+  out.rotation = R;
   return out;
 }
 

@@ -6,7 +6,10 @@
 // each ray, the image of that thickness is matched to the frame by gradient correlation
 // (Penney et al. 1998: edges, not grey levels, so soft tissue, gas and exposure do not
 // matter), each view giving the 2D shift of the bones, and the views together the 3D
-// translation. A view whose match is weak (no bones in its field, or something else there)
+// translation. Blocks of the bones' image matched on their own give local shifts at the
+// bone they show; where enough of them spread over two views, they give the pelvis's turn
+// too (a registration to the renal arteries that is off by a few degrees is off by
+// centimetres' worth of lever at the pelvis). A view whose match is weak (no bones in its field, or something else there)
 // is not used, and with fewer than two views, or views too close to fix the depth, the
 // registration is refused: a guess would move the iliacs by its error.
 #include <Eigen/Core>
@@ -25,7 +28,10 @@ namespace evar::geometry {
 /// of `bones`, summed. A cols/step x rows/step CV_32F image (rounded up); its pixel (i, j)
 /// is the ray through detector pixel (j·step + (step−1)/2, i·step + (step−1)/2), the centre of
 /// the step x step block it stands for.
-cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, int cols, int rows, int step_px);
+/// With `mean_depth_mm`, also the thickness-weighted mean distance from the source of the
+/// bone along each ray (0 where there is none).
+cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, int cols, int rows, int step_px,
+                             cv::Mat* mean_depth_mm = nullptr);
 
 struct PelvisView {
   ProjectionMatrix P_ct;  ///< CT LPS mm → detector pixels: the view with the registration (and table) in it
@@ -39,7 +45,11 @@ struct PelvisRegistrationOptions {
   double min_correlation = 0.5;     ///< gradient correlation a view's match needs to count
   double min_bone_fraction = 0.03;  ///< of a view's matched pixels, the share over the bones
   double min_separation_deg = 15.0; ///< between two views' rays to the bones, to fix the depth
-  int max_rounds = 4;               ///< render, match, solve; stops when a round moves < 0.1 mm
+  int max_rounds = 6;               ///< render, match, solve; stops when a round moves < 0.1 mm and turns < 0.05°
+  bool turn = true;                 ///< solve for the turn too where the blocks allow (false: translation only)
+  int block_px = 64;                ///< the blocks' side, detector pixels
+  int min_blocks = 8;               ///< matched blocks (over two views or more) a turn needs
+  double max_turn_deg = 10.0;       ///< a larger turn is refused as a disagreement of the views
 };
 
 struct PelvisViewMatch {
@@ -52,7 +62,13 @@ struct PelvisViewMatch {
 
 struct PelvisRegistration {
   bool found = false;
-  Eigen::Vector3d shift_mm = Eigen::Vector3d::Zero();  ///< CT LPS: where the pelvis lies − where the registration put it
+  /// The pelvis's pose against where the registration put it, in CT LPS: a bone point x lies
+  /// at rotation·(x − pivot_mm) + pivot_mm + shift_mm.
+  Eigen::Vector3d shift_mm = Eigen::Vector3d::Zero();
+  Eigen::Matrix3d rotation = Eigen::Matrix3d::Identity();
+  Eigen::Vector3d pivot_mm = Eigen::Vector3d::Zero();  ///< the bones' centroid
+  bool turned = false;       ///< the turn was solved for (enough blocks matched); otherwise a translation
+  int blocks = 0;            ///< blocks matched in the last round (all views)
   std::vector<PelvisViewMatch> views;
   double residual_px = 0.0;  ///< RMS of the used views' last shifts (what the translation does not explain)
   int rounds = 0;
