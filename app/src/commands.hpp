@@ -151,7 +151,7 @@ struct EvalCommand {
   std::vector<std::filesystem::path> sessions;
   std::filesystem::path out;
   bool progress = true;
-  bool pelvis = true;  ///< find the pelvis in the fluoroscopy where the scene has its bones
+  bool pelvis = false;  ///< find the pelvis in the fluoroscopy where the scene has its bones
 };
 int run_eval(const EvalCommand& cmd);
 

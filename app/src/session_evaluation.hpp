@@ -34,8 +34,8 @@ struct EvaluationOptions {
   deform::DeformOptions deform;
   /// Find the pelvis in the fluoroscopy (when the scene has its bones) and move the models
   /// with it before bending them (geometry/pelvis_registration.hpp, deform/pelvis_shift.hpp);
-  /// false: the models where the registration put them, as the paper has them.
-  bool pelvis = true;
+  /// false (the default, what the live node does): the models where the registration put them.
+  bool pelvis = false;
 };
 
 struct LandmarkError {

@@ -17,11 +17,11 @@ namespace evar::geometry {
 namespace {
 
 // Gradients of a smoothed image: the part of an X-ray picture that bones decide.
-void smoothed_gradients(const cv::Mat& image, cv::Mat& gx, cv::Mat& gy) {
+void smoothed_gradients(const cv::Mat& image, cv::Mat g[2]) {
   cv::Mat smooth;
   cv::GaussianBlur(image, smooth, cv::Size(0, 0), 1.0);
-  cv::Sobel(smooth, gx, CV_32F, 1, 0, 3);
-  cv::Sobel(smooth, gy, CV_32F, 0, 1, 3);
+  cv::Sobel(smooth, g[0], CV_32F, 1, 0, 3);
+  cv::Sobel(smooth, g[1], CV_32F, 0, 1, 3);
 }
 
 // −log of the frame's grey level, at the matched images' size: the line integral of the
@@ -36,6 +36,26 @@ cv::Mat attenuation_image(const cv::Mat& frame, cv::Size size) {
   return -small;
 }
 
+// The peak of a correlation map to a fraction of a pixel: a parabola through it and its
+// neighbours, per axis. `at` must not lie on the map's border.
+Eigen::Vector2d subpixel_peak(const cv::Mat& r, cv::Point at) {
+  const auto vertex = [](float a, float b, float c) {
+    const double d = a - 2.0 * b + c;
+    return d < 0.0 ? std::clamp(0.5 * (a - c) / d, -0.5, 0.5) : 0.0;
+  };
+  return {at.x + vertex(r.at<float>(at.y, at.x - 1), r.at<float>(at.y, at.x), r.at<float>(at.y, at.x + 1)),
+          at.y + vertex(r.at<float>(at.y - 1, at.x), r.at<float>(at.y, at.x), r.at<float>(at.y + 1, at.x))};
+}
+
+// Gradient correlation of `templ` of the bones' gradients over `search` of the frame's: the
+// mean of the two directions' normalized cross-correlations, one value per placement.
+cv::Mat gradient_correlation(const cv::Mat f[2], const cv::Mat b[2], const cv::Rect& search, const cv::Rect& templ) {
+  cv::Mat rx, ry;
+  cv::matchTemplate(f[0](search), b[0](templ), rx, cv::TM_CCOEFF_NORMED);
+  cv::matchTemplate(f[1](search), b[1](templ), ry, cv::TM_CCOEFF_NORMED);
+  return 0.5 * (rx + ry);
+}
+
 struct ViewMatch {
   bool ok = false;
   double correlation = 0.0;
@@ -43,17 +63,17 @@ struct ViewMatch {
   std::string reason;
 };
 
-// The shift (matched-image pixels) that best lays the bones' gradients over the frame's,
-// searched over ±reach pixels.
-ViewMatch match_bones(const cv::Mat& attenuation, const cv::Mat& bone, int reach, const PelvisRegistrationOptions& options) {
+// The shift (matched-image pixels) that best lays the bones' gradients `b` over the frame's
+// `f`, searched over ±reach pixels.
+ViewMatch match_bones(const cv::Mat f[2], const cv::Mat b[2], const cv::Mat& bone, int reach, const PelvisRegistrationOptions& options) {
   ViewMatch m;
   const cv::Rect image(0, 0, bone.cols, bone.rows);
   const cv::Rect inner(reach, reach, bone.cols - 2 * reach, bone.rows - 2 * reach);
-  cv::Mat mask = bone > 0.5f;
   if (inner.width < 8 || inner.height < 8) {
     m.reason = "the searched range is as large as the image";
     return m;
   }
+  const cv::Mat mask = bone > 0.5f;
   const cv::Rect bones_box = cv::boundingRect(mask);
   const cv::Rect templ = (bones_box + cv::Size(4, 4) - cv::Point(2, 2)) & inner;
   if (templ.area() < 64 || cv::countNonZero(mask(templ)) < options.min_bone_fraction * templ.area()) {
@@ -61,13 +81,7 @@ ViewMatch match_bones(const cv::Mat& attenuation, const cv::Mat& bone, int reach
     return m;
   }
   const cv::Rect search = (templ + cv::Size(2 * reach, 2 * reach) - cv::Point(reach, reach)) & image;
-  cv::Mat fx, fy, bx, by;
-  smoothed_gradients(attenuation, fx, fy);
-  smoothed_gradients(bone, bx, by);
-  cv::Mat rx, ry;
-  cv::matchTemplate(fx(search), bx(templ), rx, cv::TM_CCOEFF_NORMED);
-  cv::matchTemplate(fy(search), by(templ), ry, cv::TM_CCOEFF_NORMED);
-  const cv::Mat r = 0.5 * (rx + ry);
+  const cv::Mat r = gradient_correlation(f, b, search, templ);
   double best = 0.0;
   cv::Point at;
   cv::minMaxLoc(r, nullptr, &best, nullptr, &at);
@@ -76,14 +90,7 @@ ViewMatch match_bones(const cv::Mat& attenuation, const cv::Mat& bone, int reach
     m.reason = "the best match lies at the end of the searched range";
     return m;
   }
-  // The peak to a fraction of a pixel: a parabola through it and its neighbours, per axis.
-  const auto vertex = [](float a, float b, float c) {
-    const double d = a - 2.0 * b + c;
-    return d < 0.0 ? std::clamp(0.5 * (a - c) / d, -0.5, 0.5) : 0.0;
-  };
-  const double dx = vertex(r.at<float>(at.y, at.x - 1), r.at<float>(at.y, at.x), r.at<float>(at.y, at.x + 1));
-  const double dy = vertex(r.at<float>(at.y - 1, at.x), r.at<float>(at.y, at.x), r.at<float>(at.y + 1, at.x));
-  m.shift_cells = {at.x + dx - (templ.x - search.x), at.y + dy - (templ.y - search.y)};
+  m.shift_cells = subpixel_peak(r, at) - Eigen::Vector2d(templ.x - search.x, templ.y - search.y);
   if (best < options.min_correlation) {
     m.reason = "the bones match the frame with a gradient correlation of only " + base::quantity_text(best, "", 2) +
                " (needs " + base::quantity_text(options.min_correlation, "", 2) + ")";
@@ -198,8 +205,10 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
       const int reach = std::max(2, static_cast<int>(std::ceil(options.max_shift_mm * px_per_mm / options.step_px)));
       cv::Mat depth;
       const cv::Mat bone = bone_thickness_image(caster, P_moved, view.frame.cols, view.frame.rows, options.step_px, &depth);
-      const cv::Mat attenuation = attenuation_image(view.frame, bone.size());
-      const ViewMatch m = match_bones(attenuation, bone, reach, options);
+      cv::Mat f[2], g[2];
+      smoothed_gradients(attenuation_image(view.frame, bone.size()), f);
+      smoothed_gradients(bone, g);
+      const ViewMatch m = match_bones(f, g, bone, reach, options);
       report.correlation = m.correlation;
       report.shift_px = m.shift_cells * options.step_px;
       if (!m.ok) {
@@ -213,14 +222,11 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
       A_t.bottomRows<2>() = J;
       b_t.tail<2>() = report.shift_px;
       sum_sq += report.shift_px.squaredNorm();
-      const PinholeCamera camera = pinhole_camera(view.P_ct);
-      rays.push_back((c - camera.source_mm).normalized());
+      rays.push_back((c - pinhole_camera(view.P_ct).source_mm).normalized());
 
       // Blocks: each matched on its own, a little around the whole view's shift.
       int matched = 0;
-      cv::Mat fx, fy, bx, by;
-      smoothed_gradients(attenuation, fx, fy);
-      smoothed_gradients(bone, bx, by);
+      const PinholeCamera moved_camera = pinhole_camera(P_moved);  // the bone mesh as it is, seen as moved
       const cv::Point whole(static_cast<int>(std::lround(m.shift_cells.x())), static_cast<int>(std::lround(m.shift_cells.y())));
       const int local = 3;
       const cv::Rect image(0, 0, bone.cols, bone.rows);
@@ -231,22 +237,15 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
           if ((search & image) != search) continue;
           const cv::Mat thick = bone(cell);
           if (cv::countNonZero(thick > 0.5f) < 0.25 * cell.area()) continue;
-          cv::Mat rx, ry;
-          cv::matchTemplate(fx(search), bx(cell), rx, cv::TM_CCOEFF_NORMED);
-          cv::matchTemplate(fy(search), by(cell), ry, cv::TM_CCOEFF_NORMED);
-          const cv::Mat r = 0.5 * (rx + ry);
+          const cv::Mat r = gradient_correlation(f, g, search, cell);
           double best = 0.0;
           cv::Point at;
           cv::minMaxLoc(r, nullptr, &best, nullptr, &at);
           if (best < options.min_correlation || at.x == 0 || at.y == 0 || at.x == r.cols - 1 || at.y == r.rows - 1) continue;
-          const auto vertex = [](float a, float b, float cc) {
-            const double d = a - 2.0 * b + cc;
-            return d < 0.0 ? std::clamp(0.5 * (a - cc) / d, -0.5, 0.5) : 0.0;
-          };
           const Eigen::Vector2d shift_px =
-              options.step_px * Eigen::Vector2d(whole.x - local + at.x + vertex(r.at<float>(at.y, at.x - 1), r.at<float>(at.y, at.x), r.at<float>(at.y, at.x + 1)),
-                                                whole.y - local + at.y + vertex(r.at<float>(at.y - 1, at.x), r.at<float>(at.y, at.x), r.at<float>(at.y + 1, at.x)));
-          // The bone the block shows: its rays' thickness-weighted points, where the pose put them.
+              options.step_px * (subpixel_peak(r, at) + Eigen::Vector2d(whole.x - local, whole.y - local));
+          // The bone the block shows: its rays' thickness-weighted points, on the bone mesh
+          // (P_moved projects the mesh as the pose moves it), then where the pose puts them.
           Eigen::Vector3d X = Eigen::Vector3d::Zero();
           double weight = 0.0;
           const double centre = 0.5 * (options.step_px - 1);
@@ -254,15 +253,12 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
             for (int j = x0; j < x0 + block; ++j) {
               const float w = thick.at<float>(i - y0, j - x0);
               if (w <= 0.5f) continue;
-              X += w * (camera.source_mm + depth.at<float>(i, j) *
-                                               back_projected_ray(pinhole_camera(P_moved), {j * options.step_px + centre, i * options.step_px + centre}));
+              X += w * (moved_camera.source_mm +
+                        depth.at<float>(i, j) * back_projected_ray(moved_camera, {j * options.step_px + centre, i * options.step_px + centre}));
               weight += w;
             }
           X /= weight;
-          // X is in the moved bones' frame seen through P_moved; the same point through P_ct
-          // (the CT's frame, where the pose applies) is pose · X_ct — and P_moved·X_ct = P_ct·pose·X_ct.
-          const Eigen::Vector3d X_ct = (pose.inverse() * X.homogeneous()).head<3>();
-          const Eigen::Vector3d at_pose = (pose * X_ct.homogeneous()).head<3>();
+          const Eigen::Vector3d at_pose = (pose * X.homogeneous()).head<3>();
           const Eigen::Matrix<double, 2, 3> Jp = projection_jacobian(view.P_ct, at_pose);
           // δx = δθ × (x − c) + δt:  J·(−[x − c]× δθ + δt).
           Eigen::Matrix3d cross;
