@@ -161,9 +161,12 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm,
                                       session::to_carm_state(*sample, 0));
     const cv::Mat image = session::read_detector_frame(session, i);
+    // As the node: a video-out frame whose image area is not fluoroscopy is not searched.
+    node::FrameAnalysis analysis;
+    if (session.video_mapping) analysis.reason = geometry::not_fluoroscopy(image, candidate.field_mask);
     // The pelvis: the first fluoroscopy frame of every view (not a DSA run's, whose contrast
     // is not bone) is one more view of it.
-    if (options.pelvis && scene.pelvis.V.rows() > 0 && record.source != "dsa") {
+    if (options.pelvis && scene.pelvis.V.rows() > 0 && record.source != "dsa" && analysis.reason.empty()) {
       const Eigen::Vector3d table(sample->table_mm[0], sample->table_mm[1], sample->table_mm[2]);
       const bool seen = std::any_of(pelvis_seen.begin(), pelvis_seen.end(), [&](const SeenView& s) {
         return std::abs(s.primary_deg - sample->primary_deg) < options.pairs.same_view_deg &&
@@ -174,10 +177,11 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
         pelvis_views.push_back({view.P_ct, image, "frame " + std::to_string(record.frame) + ", " +
                                                       node::angulation_text(sample->primary_deg, sample->secondary_deg)});
         if (pelvis_views.size() >= 2) {
-          result.pelvis = geometry::register_pelvis(scene.pelvis, pelvis_views);
+          // The report keeps the pose the models were moved by; a later refusal only replaces a refusal.
+          const geometry::PelvisRegistration found = geometry::register_pelvis(scene.pelvis, pelvis_views);
+          if (found.found || !result.pelvis || !result.pelvis->found) result.pelvis = found;
           // Made anew when the pelvis is found more than half a millimetre (at its bones'
           // centroid, or 100 mm from it by the turn) from where it was found before.
-          const auto& found = *result.pelvis;
           if (found.found && ((found.shift_mm - pelvis_shift).norm() > 0.5 ||
                               100.0 * Eigen::AngleAxisd(found.rotation * pelvis_rotation.transpose()).angle() > 0.5)) {
             pelvis_shift = found.shift_mm;
@@ -190,9 +194,6 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
         }
       }
     }
-    // As the node: a video-out frame whose image area is not fluoroscopy is not searched.
-    node::FrameAnalysis analysis;
-    if (session.video_mapping) analysis.reason = geometry::not_fluoroscopy(image, candidate.field_mask);
     if (analysis.reason.empty()) analysis = node::analyse_frame(image, view, candidate);
     if (analysis.candidate) {
       ++result.candidates;

@@ -29,6 +29,7 @@ Eigen::Vector3d nearest_on(const std::vector<Eigen::Vector3d>& c, const Eigen::V
 
 Eigen::Vector3d PelvisShift::displacement_at(const Eigen::Vector3d& x_mm) const {
   const Eigen::Vector3d axis = bifurcation_point_mm - renal_point_mm;
+  if (!(axis.squaredNorm() > 0.0)) return Eigen::Vector3d::Zero();  // no ramp (pelvis_shift_for makes one of 10 mm or more)
   const double f = std::clamp((x_mm - renal_point_mm).dot(axis) / axis.squaredNorm(), 0.0, 1.0);
   return f * f * (3.0 - 2.0 * f) * (rotation * (x_mm - pivot_mm) + pivot_mm + shift_mm - x_mm);
 }

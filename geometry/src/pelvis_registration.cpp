@@ -26,12 +26,19 @@ void smoothed_gradients(const cv::Mat& image, cv::Mat g[2]) {
 
 // −log of the frame's grey level, at the matched images' size: the line integral of the
 // attenuation up to a constant, where bone adds its thickness times its density.
-cv::Mat attenuation_image(const cv::Mat& frame, cv::Size size) {
+// Each matched pixel stands for a step x step block of the detector (the bones' image samples
+// its centre), so the frame is padded to whole blocks before it is averaged down. Grey levels
+// are floored a millionth of the brightest above zero (a frame of any depth or scale).
+cv::Mat attenuation_image(const cv::Mat& frame, cv::Size size, int step) {
   cv::Mat grey;
   frame.convertTo(grey, CV_32F);
+  cv::copyMakeBorder(grey, grey, 0, std::max(0, size.height * step - grey.rows), 0, std::max(0, size.width * step - grey.cols),
+                     cv::BORDER_REPLICATE);
   cv::Mat small;
   cv::resize(grey, small, size, 0, 0, cv::INTER_AREA);
-  cv::max(small, 1.0, small);
+  double brightest = 0.0;
+  cv::minMaxLoc(small, nullptr, &brightest);
+  cv::max(small, std::max(brightest * 1e-6, 1e-30), small);
   cv::log(small, small);
   return -small;
 }
@@ -169,11 +176,16 @@ cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, 
 PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vector<PelvisView>& views,
                                    const PelvisRegistrationOptions& options) {
   if (bones_ct.V.rows() == 0 || bones_ct.F.rows() == 0) throw std::invalid_argument("register_pelvis: no bones");
-  if (options.step_px < 1) throw std::invalid_argument("register_pelvis: step_px must be at least 1");
+  if (options.step_px < 1 || options.block_px < options.step_px || options.max_rounds < 1 ||
+      !(options.max_shift_mm > 0.0 && options.max_shift_mm <= 500.0) || !(options.max_turn_deg > 0.0) || !(options.settled_mm > 0.0) ||
+      !std::isfinite(options.min_correlation) || !std::isfinite(options.min_separation_deg))
+    throw std::invalid_argument("register_pelvis: implausible options (a step of at least 1 px, blocks no smaller, "
+                                "at least one round, a searched distance over 0 and up to 500 mm, a turn limit over 0)");
   if (views.empty()) throw std::invalid_argument("register_pelvis: no views");
   const RayCaster caster(bones_ct);
   PelvisRegistration out;
   out.pivot_mm = bones_ct.V.colwise().mean().transpose();
+  const double extent_mm = (bones_ct.V.rowwise() - out.pivot_mm.transpose()).rowwise().norm().maxCoeff();
   out.views.resize(views.size());
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
@@ -206,7 +218,7 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
       cv::Mat depth;
       const cv::Mat bone = bone_thickness_image(caster, P_moved, view.frame.cols, view.frame.rows, options.step_px, &depth);
       cv::Mat f[2], g[2];
-      smoothed_gradients(attenuation_image(view.frame, bone.size()), f);
+      smoothed_gradients(attenuation_image(view.frame, bone.size(), options.step_px), f);
       smoothed_gradients(bone, g);
       const ViewMatch m = match_bones(f, g, bone, reach, options);
       report.correlation = m.correlation;
@@ -252,11 +264,12 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
           for (int i = y0; i < y0 + block; ++i)
             for (int j = x0; j < x0 + block; ++j) {
               const float w = thick.at<float>(i - y0, j - x0);
-              if (w <= 0.5f) continue;
+              if (w <= 0.5f || depth.at<float>(i, j) <= 0.0f) continue;  // no bone, or a ray filled in from its neighbours
               X += w * (moved_camera.source_mm +
                         depth.at<float>(i, j) * back_projected_ray(moved_camera, {j * options.step_px + centre, i * options.step_px + centre}));
               weight += w;
             }
+          if (weight <= 0.0) continue;
           X /= weight;
           const Eigen::Vector3d at_pose = (pose * X.homogeneous()).head<3>();
           const Eigen::Matrix<double, 2, 3> Jp = projection_jacobian(view.P_ct, at_pose);
@@ -319,9 +332,17 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
                     base::quantity_text(turn_deg, "deg", 1);
       return out;
     }
-    if (d_t.norm() < 0.1 && angle * 180.0 / std::numbers::pi < 0.05) break;
+    // Settled when the step moves no bone by more than a quarter millimetre.
+    if (d_t.norm() + angle * extent_mm < options.settled_mm) {
+      out.found = true;
+      break;
+    }
   }
-  out.found = true;
+  if (!out.found) {
+    out.refused = "the pose did not settle in " + std::to_string(options.max_rounds) + " rounds (the last moved a bone by more than " +
+                  base::quantity_text(options.settled_mm, "mm") + ")";
+    return out;
+  }
   out.shift_mm = t;
   out.rotation = R;
   return out;

@@ -3,6 +3,7 @@
 #include "evar/base/atomic_file.hpp"
 #include "evar/geometry/polyline.hpp"
 
+#include <Eigen/Geometry>
 #include <cctype>
 #include <cmath>
 #include <set>
@@ -203,6 +204,17 @@ Scene load_scene(const std::filesystem::path& scene_json) {
                               ": the bones' surface is not closed (an edge not shared by exactly two faces); the pelvis's "
                               "image is made of the bone's thickness along each ray, which needs closed surfaces: export "
                               "the bone segmentation as a closed surface (3D Slicer: Segmentations > Export to models)");
+    // Outward faces: the bone's thickness along a ray is counted from which way it crosses them.
+    double volume_mm3 = 0.0;
+    for (Eigen::Index f = 0; f < scene.pelvis.F.rows(); ++f) {
+      const Eigen::Vector3d a = scene.pelvis.V.row(scene.pelvis.F(f, 0)), b = scene.pelvis.V.row(scene.pelvis.F(f, 1)),
+                            c = scene.pelvis.V.row(scene.pelvis.F(f, 2));
+      volume_mm3 += a.dot(b.cross(c)) / 6.0;
+    }
+    if (!(volume_mm3 > 0.0))
+      bad(file, "pelvis", scene.pelvis_path.string() +
+                              ": the bones' faces point inward (the surface encloses a negative volume); reverse the "
+                              "faces' order (3D Slicer: Surface Toolbox > Normals > Flip normals) and save it again");
   }
 
   if (!scene.landmarks_path.empty()) {

@@ -403,6 +403,11 @@ TEST(LoadScene, LoadsThePelvisItNamesAndRefusesAnOpenOne) {
   EXPECT_EQ(copied.pelvis.V, tetrahedron(-80).V);
   EXPECT_EQ(copied.pelvis_path.filename(), "pelvis.ply");
 
+  TriangleMesh inward = tetrahedron(-80);
+  inward.F.col(1).swap(inward.F.col(2));
+  write_mesh(file.parent_path() / "pelvis.ply", inward, MeshFormat::PlyBinary);
+  EXPECT_THAT(scene_error(file), HasSubstr("point inward"));
+
   TriangleMesh open = tetrahedron(-80);
   open.F.conservativeResize(3, 3);  // one face gone: three edges with one face each
   write_mesh(file.parent_path() / "pelvis.ply", open, MeshFormat::PlyBinary);

@@ -45,7 +45,8 @@ struct PelvisRegistrationOptions {
   double min_correlation = 0.5;     ///< gradient correlation a view's match needs to count
   double min_bone_fraction = 0.03;  ///< of a view's matched pixels, the share over the bones
   double min_separation_deg = 15.0; ///< between two views' rays to the bones, to fix the depth
-  int max_rounds = 6;               ///< render, match, solve; stops when a round moves < 0.1 mm and turns < 0.05°
+  int max_rounds = 10;              ///< render, match, solve, until settled (else refused)
+  double settled_mm = 0.25;         ///< settled: a round's step moves no bone further than this
   bool turn = true;                 ///< solve for the turn too where the blocks allow (false: translation only)
   int block_px = 64;                ///< the blocks' side, detector pixels
   int min_blocks = 8;               ///< matched blocks (over two views or more) a turn needs
@@ -70,14 +71,15 @@ struct PelvisRegistration {
   bool turned = false;       ///< the turn was solved for (enough blocks matched); otherwise a translation
   int blocks = 0;            ///< blocks matched in the last round (all views)
   std::vector<PelvisViewMatch> views;
-  double residual_px = 0.0;  ///< RMS of the used views' last shifts (what the translation does not explain)
+  double residual_px = 0.0;  ///< RMS of the used views' shifts in the last round (what the pose before it left)
   int rounds = 0;
   std::string refused;       ///< why nothing was found ("" when found)
 };
 
-/// Registers the pelvis `bones_ct` (CT LPS) to the views by a translation in the CT's axes
-/// (what deform/pelvis_shift.hpp takes). Never throws for what the images show: a refusal
-/// says why. std::invalid_argument for an empty bone mesh, a step under 1 or no views.
+/// Registers the pelvis `bones_ct` (CT LPS) to the views: its pose in the CT's axes, a turn
+/// where the blocks allow, else a translation (what deform/pelvis_shift.hpp takes). Never
+/// throws for what the images show: a refusal says why (also a pose that did not settle in
+/// max_rounds). std::invalid_argument for an empty bone mesh, implausible options or no views.
 PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vector<PelvisView>& views,
                                    const PelvisRegistrationOptions& options = {});
 
