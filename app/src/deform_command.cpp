@@ -96,8 +96,12 @@ int run_deform(const DeformCommand& cmd) {
   std::optional<deform::PelvisShift> pelvis;
   geometry::Scene shifted;
   if (!cmd.pelvis_shift_mm.empty()) {
-    pelvis = deform::pelvis_shift_for(
-        scene, Eigen::Vector3d(cmd.pelvis_shift_mm[0], cmd.pelvis_shift_mm[1], cmd.pelvis_shift_mm[2]));
+    try {
+      pelvis = deform::pelvis_shift_for(
+          scene, Eigen::Vector3d(cmd.pelvis_shift_mm[0], cmd.pelvis_shift_mm[1], cmd.pelvis_shift_mm[2]));
+    } catch (const base::InputError& e) {
+      throw base::InputError(std::string("--pelvis-shift-mm: ") + e.what());
+    }
     shifted = scene;
     deform::apply(*pelvis, shifted);
     node::log().info("pelvis shifted by {} (LPS): the models moved with it from the aortic bifurcation down, "
@@ -182,7 +186,7 @@ int run_deform(const DeformCommand& cmd) {
   }
   const auto made_here = std::count_if(result.reports.begin(), result.reports.end(),
                                       [](const auto& r) { return r.proxy_vertices > 0 && r.proxy_file.empty(); });
-  if (made_here > 0)
+  if (made_here > 0 && !pelvis)
     node::log().info("{} {} made at load in {:.0f} ms; `{}` keeps {} beside the meshes, so later "
                      "loads read {} in milliseconds",
                      made_here, made_here == 1 ? "proxy" : "proxies", result.proxy_ms, proxies_command,
