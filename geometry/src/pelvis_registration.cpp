@@ -176,7 +176,7 @@ cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, 
 PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vector<PelvisView>& views,
                                    const PelvisRegistrationOptions& options) {
   if (bones_ct.V.rows() == 0 || bones_ct.F.rows() == 0) throw std::invalid_argument("register_pelvis: no bones");
-  if (options.step_px < 1 || options.block_px < options.step_px || options.max_rounds < 1 ||
+  if (options.step_px < 1 || options.blocks_across < 1 || options.max_rounds < 1 ||
       !(options.max_shift_mm > 0.0 && options.max_shift_mm <= 500.0) || !(options.max_turn_deg > 0.0) || !(options.settled_mm > 0.0) ||
       !std::isfinite(options.min_correlation) || !std::isfinite(options.min_separation_deg))
     throw std::invalid_argument("register_pelvis: implausible options (a step of at least 1 px, blocks no smaller, "
@@ -189,7 +189,7 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
   out.views.resize(views.size());
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
-  const int block = std::max(4, options.block_px / options.step_px);
+  bool translation_settled = false;
   for (int round = 0; round < options.max_rounds; ++round) {
     // The bones where the pose so far puts them: x ↦ R(x − c) + c + t.
     Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
@@ -238,6 +238,7 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
 
       // Blocks: each matched on its own, a little around the whole view's shift.
       int matched = 0;
+      const int block = std::max(4, view.frame.cols / options.blocks_across / options.step_px);
       const PinholeCamera moved_camera = pinhole_camera(P_moved);  // the bone mesh as it is, seen as moved
       const cv::Point whole(static_cast<int>(std::lround(m.shift_cells.x())), static_cast<int>(std::lround(m.shift_cells.y())));
       const int local = 3;
@@ -305,7 +306,10 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
     out.blocks = static_cast<int>(A_6.rows() / 2);
     Eigen::Vector3d d_theta = Eigen::Vector3d::Zero(), d_t;
     bool turned = false;
-    if (options.turn && out.blocks >= options.min_blocks && views_with_blocks >= 2) {
+    // The turn only once the translation has settled to a millimetre: blocks are searched
+    // ±3 matched pixels about their view's shift, so before that they measure the
+    // translation's error, not the turn.
+    if (options.turn && translation_settled && out.blocks >= options.min_blocks && views_with_blocks >= 2) {
       // The turn solved as the motion it gives 50 mm from the pivot (so both halves of the
       // unknowns are millimetres); a direction the blocks barely measure (blocks in a line
       // cannot tell a turn about that line) leaves the turn out.
@@ -316,13 +320,17 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
       const auto& sv = svd.singularValues();
       if (sv(5) > 0.02 * sv(0)) {
         const Eigen::VectorXd x = svd.solve(b_6);
-        d_theta = x.head<3>() / kLeverMm;
-        d_t = x.tail<3>();
+        // At most two degrees a round: a linearized turn is good to a few degrees, and blocks
+        // are matched within ±3 pixels, so a large step overshoots and the rounds swing.
+        const double scale = std::min(1.0, (2.0 * std::numbers::pi / 180.0) / std::max(x.head<3>().norm() / kLeverMm, 1e-12));
+        d_theta = scale * x.head<3>() / kLeverMm;
+        d_t = scale * x.tail<3>();
         turned = true;
       }
     }
     if (!turned) d_t = A_t.colPivHouseholderQr().solve(b_t);
-    out.turned = turned;
+    out.turned = out.turned || turned;
+    if (!turned && d_t.norm() < 1.0) translation_settled = true;
     const double angle = d_theta.norm();
     if (angle > 0.0) R = Eigen::AngleAxisd(angle, d_theta / angle).toRotationMatrix() * R;
     t += d_t;
@@ -332,8 +340,8 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
                     base::quantity_text(turn_deg, "deg", 1);
       return out;
     }
-    // Settled when the step moves no bone by more than a quarter millimetre.
-    if (d_t.norm() + angle * extent_mm < options.settled_mm) {
+    // Settled when the step moves no bone by more than settled_mm (with the turn, once solved for).
+    if (d_t.norm() + angle * extent_mm < options.settled_mm && (turned || !options.turn || !translation_settled || out.blocks < options.min_blocks)) {
       out.found = true;
       break;
     }

@@ -45,10 +45,10 @@ struct PelvisRegistrationOptions {
   double min_correlation = 0.5;     ///< gradient correlation a view's match needs to count
   double min_bone_fraction = 0.03;  ///< of a view's matched pixels, the share over the bones
   double min_separation_deg = 15.0; ///< between two views' rays to the bones, to fix the depth
-  int max_rounds = 10;              ///< render, match, solve, until settled (else refused)
-  double settled_mm = 0.25;         ///< settled: a round's step moves no bone further than this
+  int max_rounds = 15;              ///< render, match, solve, until settled (else refused)
+  double settled_mm = 1.0;          ///< settled: a round's step moves no bone further than this
   bool turn = true;                 ///< solve for the turn too where the blocks allow (false: translation only)
-  int block_px = 64;                ///< the blocks' side, detector pixels
+  int blocks_across = 8;            ///< a block's side is the frame's width over this (64 px at 512)
   int min_blocks = 8;               ///< matched blocks (over two views or more) a turn needs
   double max_turn_deg = 10.0;       ///< a larger turn is refused as a disagreement of the views
 };
