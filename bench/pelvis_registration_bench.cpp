@@ -16,13 +16,8 @@ namespace {
 using namespace evar;
 
 geometry::CArmView view(double primary_deg) {
-  geometry::CArmView v;
-  v.primary_angle_deg = primary_deg;
-  v.source_to_detector_mm = 1200.0;
-  v.source_to_isocenter_mm = 800.0;
-  v.detector_cols = v.detector_rows = 512;
-  v.row_spacing_mm = v.col_spacing_mm = 0.6;
-  return v;
+  return {.primary_angle_deg = primary_deg, .source_to_detector_mm = 1200.0, .source_to_isocenter_mm = 800.0,
+          .detector_cols = 512, .detector_rows = 512, .row_spacing_mm = 0.6, .col_spacing_mm = 0.6};
 }
 
 struct Problem {

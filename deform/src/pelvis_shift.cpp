@@ -2,30 +2,13 @@
 
 #include <Eigen/LU>
 #include <algorithm>
-#include <limits>
 #include <string>
 
 #include "evar/base/input_error.hpp"
 #include "evar/base/quantity_text.hpp"
+#include "evar/geometry/polyline.hpp"
 
 namespace evar::deform {
-namespace {
-
-// The point of polyline `c` nearest to `p`.
-Eigen::Vector3d nearest_on(const std::vector<Eigen::Vector3d>& c, const Eigen::Vector3d& p) {
-  Eigen::Vector3d best = c.front();
-  double best_d2 = std::numeric_limits<double>::infinity();
-  for (std::size_t i = 0; i + 1 < c.size(); ++i) {
-    const Eigen::Vector3d e = c[i + 1] - c[i];
-    const double len2 = e.squaredNorm();
-    const double t = len2 > 0.0 ? std::clamp((p - c[i]).dot(e) / len2, 0.0, 1.0) : 0.0;
-    const Eigen::Vector3d q = c[i] + t * e;
-    if ((q - p).squaredNorm() < best_d2) best_d2 = (q - p).squaredNorm(), best = q;
-  }
-  return best;
-}
-
-}  // namespace
 
 Eigen::Vector3d PelvisShift::displacement_at(const Eigen::Vector3d& x_mm) const {
   const Eigen::Vector3d axis = bifurcation_point_mm - renal_point_mm;
@@ -51,7 +34,7 @@ PelvisShift pelvis_shift_for(const geometry::Scene& scene, const Eigen::Vector3d
   int renal_count = 0;
   for (const auto& lm : scene.landmarks)
     if (lm.label.rfind("renal", 0) == 0) renal_sum += lm.position_lps, ++renal_count;
-  out.renal_point_mm = renal_count > 0 ? nearest_on(aorta->centerline, renal_sum / renal_count) : aorta->centerline.front();
+  out.renal_point_mm = renal_count > 0 ? geometry::project_onto(aorta->centerline, renal_sum / renal_count).point : aorta->centerline.front();
   out.bifurcation_point_mm = aorta->centerline.back();
   const double span_mm = (out.bifurcation_point_mm - out.renal_point_mm).norm();
   if (span_mm < 10.0)

@@ -1,4 +1,5 @@
 // Mesh checks at the input edge: what the deformation and ray casting rely on.
+#include <Eigen/Geometry>
 #include <algorithm>
 #include <cmath>
 #include <cstdint>
@@ -157,6 +158,17 @@ double mean_edge_length(const TriangleMesh& mesh) {
     }
   }
   return sum / (3.0 * static_cast<double>(F.rows()));
+}
+
+double enclosed_volume(const TriangleMesh& mesh) {
+  double six_v = 0.0;
+  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
+    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
+    const Eigen::Vector3d b = mesh.V.row(mesh.F(f, 1)).transpose();
+    const Eigen::Vector3d c = mesh.V.row(mesh.F(f, 2)).transpose();
+    six_v += a.dot(b.cross(c));
+  }
+  return six_v / 6.0;
 }
 
 bool is_closed(const TriangleMesh& mesh) {

@@ -205,12 +205,7 @@ Scene load_scene(const std::filesystem::path& scene_json) {
                               "image is made of the bone's thickness along each ray, which needs closed surfaces: export "
                               "the bone segmentation as a closed surface (3D Slicer: Segmentations > Export to models)");
     // Outward faces: the bone's thickness along a ray is counted from which way it crosses them.
-    double volume_mm3 = 0.0;
-    for (Eigen::Index f = 0; f < scene.pelvis.F.rows(); ++f) {
-      const Eigen::Vector3d a = scene.pelvis.V.row(scene.pelvis.F(f, 0)), b = scene.pelvis.V.row(scene.pelvis.F(f, 1)),
-                            c = scene.pelvis.V.row(scene.pelvis.F(f, 2));
-      volume_mm3 += a.dot(b.cross(c)) / 6.0;
-    }
+    const double volume_mm3 = enclosed_volume(scene.pelvis);
     if (!(volume_mm3 > 0.0))
       bad(file, "pelvis", scene.pelvis_path.string() +
                               ": the bones' faces point inward (the surface encloses a negative volume); reverse the "

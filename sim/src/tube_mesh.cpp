@@ -176,17 +176,6 @@ TubeOptions tube_options_for_vertex_count(const std::vector<Eigen::Vector3d>& ce
   return tube_options_for_vertex_count(length, sum / steps, target_vertices, capped);
 }
 
-double enclosed_volume(const geometry::TriangleMesh& mesh) {
-  double six_v = 0.0;
-  for (Eigen::Index f = 0; f < mesh.F.rows(); ++f) {
-    const Eigen::Vector3d a = mesh.V.row(mesh.F(f, 0)).transpose();
-    const Eigen::Vector3d b = mesh.V.row(mesh.F(f, 1)).transpose();
-    const Eigen::Vector3d c = mesh.V.row(mesh.F(f, 2)).transpose();
-    six_v += a.dot(b.cross(c));
-  }
-  return six_v / 6.0;
-}
-
 double interpolate_along(const std::vector<double>& arc, const std::vector<double>& values, double s) {
   const auto it = std::upper_bound(arc.begin(), arc.end(), s);
   if (it == arc.begin()) return values.front();

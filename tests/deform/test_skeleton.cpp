@@ -77,7 +77,7 @@ double bent_tube_volume_change(bool with_skeleton) {
   const auto res = deform::ArapSolver(std::move(terms), handles, opt).solve(targets);
   EXPECT_TRUE(res.converged);
   geometry::TriangleMesh out{res.X.topRows(n), m.F};
-  const double v0 = sim::enclosed_volume(m), v1 = sim::enclosed_volume(out);
+  const double v0 = geometry::enclosed_volume(m), v1 = geometry::enclosed_volume(out);
   return (v1 - v0) / v0;
 }
 }  // namespace

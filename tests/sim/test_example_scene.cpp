@@ -85,7 +85,7 @@ TEST(ExampleScene, HasAortaAndBothIliacsAsClosedOutwardMeshesAtTheRequestedResol
   EXPECT_NEAR(static_cast<double>(scene.vessel("iliac_right").mesh.V.rows()), 3500.0, 3500.0 * 0.02);
   for (const auto& v : scene.vessels) {
     EXPECT_TRUE(closed_and_oriented(v.mesh)) << v.name;
-    EXPECT_GT(evar::sim::enclosed_volume(v.mesh), 0.0) << v.name;
+    EXPECT_GT(evar::geometry::enclosed_volume(v.mesh), 0.0) << v.name;
     EXPECT_NO_THROW(evar::geometry::validate_mesh(v.mesh, v.name));
   }
   EXPECT_THROW(static_cast<void>(scene.vessel("renal")), std::out_of_range);

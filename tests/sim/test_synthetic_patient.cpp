@@ -343,11 +343,8 @@ TEST(PelvisMesh, ClosedOutwardBonesWrittenWithThePatient) {
   const BodyPhantom body = default_body_phantom();
   const geometry::TriangleMesh bones = pelvis_mesh(body);
   EXPECT_TRUE(geometry::is_closed(bones));
-  double volume = 0.0, expected = 0.0;
-  for (Eigen::Index f = 0; f < bones.F.rows(); ++f) {
-    const Eigen::Vector3d a = bones.V.row(bones.F(f, 0)), b = bones.V.row(bones.F(f, 1)), c = bones.V.row(bones.F(f, 2));
-    volume += a.dot(b.cross(c)) / 6.0;
-  }
+  const double volume = geometry::enclosed_volume(bones);
+  double expected = 0.0;
   int parts = 0;
   for (std::size_t k = body.pelvis_begin; k < body.pelvis_end; ++k)
     if (body.parts[k].mu_per_mm > 0.0) expected += 4.0 / 3.0 * std::numbers::pi * body.parts[k].semi_axes_mm.prod(), ++parts;

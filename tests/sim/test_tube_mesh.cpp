@@ -67,7 +67,7 @@ TEST(TubeMesh, StraightTubeVolumeIsTheStaggeredRingSolidInsideTheCylinder) {
   const double r = 10.0, length = 100.0;
   const int n = 32;
   const auto mesh = evar::sim::tube_mesh(straight_line(length, 11), [r](double) { return r; }, {n, 2.5, true});
-  const double volume = evar::sim::enclosed_volume(mesh);
+  const double volume = evar::geometry::enclosed_volume(mesh);
   // Each band between two rings turned by pi/N is an antiprism; by the prismatoid rule
   // its volume is h/6 (A + A + 4 A_mid) = h N r^2 sin(pi/N) (1 + 2 cos(pi/N)) / 3.
   const double antiprisms = length * n * r * r * std::sin(kPi / n) * (1.0 + 2.0 * std::cos(kPi / n)) / 3.0;
@@ -82,7 +82,7 @@ TEST(TubeMesh, CurvedTubeVolumeFollowsPappus) {
   const double R = 60.0, r = 8.0, length = R * kPi / 2.0;
   const int n = 64;
   const auto mesh = evar::sim::tube_mesh(planar_arc(R), [r](double) { return r; }, {n, 0.5, true});
-  const double volume = evar::sim::enclosed_volume(mesh);
+  const double volume = evar::geometry::enclosed_volume(mesh);
   // The centerline is a 1 mm chord polygon of the arc (length shorter by < 1e-4 relative)
   // and the cross-section lies between the inscribed N-gon and the circle.
   EXPECT_GT(volume, inscribed_area(n, r) * length * (1.0 - 1e-3));
@@ -168,7 +168,7 @@ TEST(TubeMesh, PerPointRadiiInterpolateAlongArcLength) {
   EXPECT_TRUE(closed_and_oriented(mesh));
   const double frustum = kPi * 60.0 * (100.0 + 50.0 + 25.0) / 3.0;
   const double polygon = inscribed_area(n, 1.0) / kPi;
-  EXPECT_NEAR(evar::sim::enclosed_volume(mesh), frustum * polygon, 1e-3 * frustum);
+  EXPECT_NEAR(evar::geometry::enclosed_volume(mesh), frustum * polygon, 1e-3 * frustum);
   EXPECT_THROW(evar::sim::tube_mesh(centerline, std::vector<double>{1.0, 2.0}, {}), std::invalid_argument);
 }
 
@@ -196,12 +196,12 @@ TEST(EnclosedVolume, UnitCubeIsOneAndFlipsSignWithOrientation) {
       0, 4, 2, 2, 4, 6,        // x = 0
       1, 3, 5, 3, 7, 5;        // x = 1
   ASSERT_TRUE(closed_and_oriented(cube));
-  EXPECT_NEAR(evar::sim::enclosed_volume(cube), 1.0, 1e-15);
+  EXPECT_NEAR(evar::geometry::enclosed_volume(cube), 1.0, 1e-15);
   // Independent of where the origin is.
   cube.V.rowwise() += Eigen::RowVector3d(100.0, -50.0, 7.0);
-  EXPECT_NEAR(evar::sim::enclosed_volume(cube), 1.0, 1e-11);
+  EXPECT_NEAR(evar::geometry::enclosed_volume(cube), 1.0, 1e-11);
   cube.F.col(1).swap(cube.F.col(2));
-  EXPECT_NEAR(evar::sim::enclosed_volume(cube), -1.0, 1e-11);
+  EXPECT_NEAR(evar::geometry::enclosed_volume(cube), -1.0, 1e-11);
 }
 
 }  // namespace

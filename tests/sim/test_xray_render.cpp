@@ -43,7 +43,7 @@ TEST(PathLengths, IntegrateToTheVolumeAndPeakAtTheDiameter) {
   cv::minMaxLoc(L, &negative, &peak);
   sum = cv::sum(L)[0];
   const double pixel_mm = v.col_spacing_mm * v.source_to_isocenter_mm / v.source_to_detector_mm;  // at the isocenter
-  EXPECT_NEAR(sum * pixel_mm * pixel_mm, enclosed_volume(tube), 0.02 * enclosed_volume(tube));
+  EXPECT_NEAR(sum * pixel_mm * pixel_mm, geometry::enclosed_volume(tube), 0.02 * geometry::enclosed_volume(tube));
   EXPECT_NEAR(peak, 2.0 * r, 0.3);  // the divergent ray through the axis is a little oblique
   EXPECT_GT(negative, -1e-6);       // shared edges are counted once: never a spurious entry
 }

@@ -30,6 +30,11 @@ void validate_mesh(const TriangleMesh& mesh, std::string_view source);
 /// inside for ray-parity tests).
 bool is_closed(const TriangleMesh& mesh);
 
+/// Volume (mm^3) enclosed by a closed triangle mesh: the divergence-theorem sum of the
+/// signed tetrahedra (origin, a, b, c) / 6. Positive when the faces point outward; only
+/// meaningful for a closed mesh (an open mesh gives a value that depends on the origin).
+double enclosed_volume(const TriangleMesh& mesh);
+
 /// Median edge length (mm) over all face edges (robust to a few stray vertices); 0 for a
 /// mesh without faces.
 double median_edge_length(const TriangleMesh& mesh);

@@ -61,9 +61,5 @@ TubeOptions tube_options_for_vertex_count(const std::vector<Eigen::Vector3d>& ce
                                           const RadiusProfile& radius, int target_vertices,
                                           bool capped = true);
 
-/// Volume (mm^3) enclosed by a closed triangle mesh: the divergence-theorem sum of the
-/// signed tetrahedra (origin, a, b, c) / 6. Positive when the faces point outward; only
-/// meaningful for a closed mesh (an open mesh gives a value that depends on the origin).
-double enclosed_volume(const geometry::TriangleMesh& mesh);
 
 }  // namespace evar::sim
