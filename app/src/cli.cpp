@@ -447,6 +447,10 @@ int run_cli(const std::vector<std::string>& args) {
   rn->add_option("--igtl-bind", run.igtl_bind, "address the server listens on (0.0.0.0 = every interface)")->capture_default_str();
   rn->add_flag("--display", run.display, "show the frames in a window (keys: m mode, s snapshot, f fullscreen, q quit)");
   rn->add_flag("--fullscreen", run.fullscreen, "the window fullscreen (the bedside monitor)");
+  rn->add_flag("!--no-pelvis", run.pelvis,
+               "leave the models where the registration put them; by default, where the scene has the pelvis's\n"
+               "bones, the pelvis is found in the fluoroscopy (from the second view on) and the models move with it\n"
+               "before they are bent (node.json \"pelvis\": false does the same; docs/DEFORMATION.md, \"The pelvis\")");
   rn->add_option("--mode", run.mode, "roadmap: undeformed, adapted or both (both: preoperative faint, adapted over it)")
       ->check(CLI::IsMember({"undeformed", "adapted", "both"}))
       ->capture_default_str();
@@ -475,10 +479,10 @@ int run_cli(const std::vector<std::string>& args) {
   ev->add_option("sessions", eval.sessions, "session directories")->required()->check(CLI::ExistingDirectory);
   ev->add_option("--out", eval.out, "output directory (created)")->required();
   ev->add_flag("!--no-progress", eval.progress, "no progress bars");
-  ev->add_flag("--pelvis", eval.pelvis,
-               "where the scene has the pelvis's bones, find the pelvis in the fluoroscopy and move the models\n"
-               "with it before bending them (beyond the paper; the live node does not do this yet, so without\n"
-               "this flag eval measures what the node does; docs/DEFORMATION.md, \"The pelvis\")");
+  ev->add_flag("!--no-pelvis", eval.pelvis,
+               "leave the models where the registration put them; by default, as the live node, where the\n"
+               "scene has the pelvis's bones the pelvis is found in the fluoroscopy and the models move with it\n"
+               "before they are bent (beyond the paper; docs/DEFORMATION.md, \"The pelvis\")");
 
   std::vector<std::string> reversed(args.rbegin(), args.rend());
   try {

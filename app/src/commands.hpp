@@ -151,7 +151,7 @@ struct EvalCommand {
   std::vector<std::filesystem::path> sessions;
   std::filesystem::path out;
   bool progress = true;
-  bool pelvis = false;  ///< find the pelvis in the fluoroscopy where the scene has its bones
+  bool pelvis = true;  ///< find the pelvis in the fluoroscopy where the scene has its bones (as the node)
 };
 int run_eval(const EvalCommand& cmd);
 
@@ -169,6 +169,7 @@ struct RunCommand {
   double speed = 1.0;
   bool fast = false;
   bool preload = false;  ///< decode every frame before playing (session::ReplayOptions::preload)
+  bool pelvis = true;   ///< find the pelvis in the fluoroscopy where the scene has its bones
   int loops = 1;
   std::optional<double> seconds;
   bool progress = true;

@@ -143,7 +143,7 @@ int run_eval(const EvalCommand& cmd) {
   for (const auto& dir : cmd.sessions) {
     ProgressBar bar(dir.filename().string(), cmd.progress);
     EvaluationOptions options;
-    options.pelvis = cmd.pelvis;
+    options.pelvis.enabled = cmd.pelvis;
     CaseEvaluation c = evaluate_session(dir, options, [&](std::size_t done, std::size_t total) { bar.update(done, total); });
     bar.finish();
     nlohmann::json lm = nlohmann::json::array();

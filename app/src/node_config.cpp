@@ -85,6 +85,9 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
       }
       else if (value.is_object()) c.video_mapping = geometry::parse_video_mapping(value, path, "video_mapping.");
       else bad_field(path, key, "expected the mapping's object or the name of its file");
+    } else if (key == "pelvis") {
+      if (!value.is_boolean()) bad_field(path, key, "expected true (find the pelvis in the bones, the default) or false");
+      c.pelvis = value.get<bool>();
     } else if (key == "geometry_stale_ms") c.geometry_stale_ms = number_field(path, value, key, 10, 600000, "ms");
     else bad_field(path, key, "unknown setting");
   }

@@ -10,7 +10,7 @@
 //   "carm": "serial:/dev/ttyUSB0,baud=115200",
 //   "fps": 30,
 //   "device_diameter_mm": 0.89, "min_contrast": 0.25, "min_separation_deg": 20,
-//   "geometry_stale_ms": 250, "max_view_gap_s": 120,
+//   "geometry_stale_ms": 250, "max_view_gap_s": 120, "pelvis": true,
 //   "video_mapping": {"format": "evarnode-video-mapping", ...}   or   "mapping.json"
 // }
 // Everything but format and version is optional for replays (the session has the patient,
@@ -45,6 +45,8 @@ struct NodeConfig {
   std::optional<double> geometry_stale_ms;
   /// Two views further apart in time than this are not paired (the device has moved on).
   double max_view_gap_s = 120.0;
+  /// Find the pelvis in the fluoroscopy where the scene has its bones, and move the models with it.
+  bool pelvis = true;
 };
 
 /// Throws base::InputError "<file>: <field>: <problem>".

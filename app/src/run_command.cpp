@@ -103,9 +103,11 @@ int run_node(const RunCommand& cmd) {
     options.candidate.min_contrast = config->min_contrast;
     options.adaptation.reconstruction.min_separation_deg = config->min_separation_deg;
     options.pairs.max_gap_ns = static_cast<std::int64_t>(config->max_view_gap_s * 1e9);
+    options.pelvis.enabled = config->pelvis;
     if (config->geometry_stale_ms)
       options.timeline.stale_after = std::chrono::milliseconds(static_cast<std::int64_t>(*config->geometry_stale_ms));
   }
+  if (!cmd.pelvis) options.pelvis.enabled = false;
   const auto mode = overlay::parse_roadmap_mode(cmd.mode);
   if (!mode) throw std::invalid_argument("--mode " + cmd.mode + ": expected undeformed, adapted or both");
   options.mode = *mode;
@@ -258,6 +260,14 @@ int run_node(const RunCommand& cmd) {
                    {"igtl_port", igtl ? igtl->port() : 0},
                    {"igtl_messages", igtl ? igtl->statistics().messages_sent : 0}}}};
   if (s.carm_clock_offset_ns) report["carm_clock_offset_ns"] = *s.carm_clock_offset_ns;
+  report["pelvis"] = {{"looked_for", options.pelvis.enabled && scene.pelvis.V.rows() > 0},
+                      {"views", s.pelvis_views},
+                      {"registrations", s.pelvis_registrations},
+                      {"found", s.pelvis_found},
+                      {"models_moved", s.pelvis_moves},
+                      {"last", s.last_pelvis},
+                      {"shift_mm", s.pelvis_shift_mm ? nlohmann::json(*s.pelvis_shift_mm) : nlohmann::json(nullptr)},
+                      {"turn_deg", s.pelvis_turn_deg}};
   std::size_t evaluated = 0;
   if (evaluation) {
     const std::vector<LandmarkError> errors = evaluation->result();

@@ -2,14 +2,13 @@
 
 #include <algorithm>
 #include <chrono>
-#include <deque>
 #include <cmath>
 #include <limits>
 #include <map>
 #include <numeric>
 #include <stdexcept>
 
-#include "evar/deform/pelvis_shift.hpp"
+#include "evar/node/pelvis_tracker.hpp"
 #include "evar/geometry/video_frame.hpp"
 #include "evar/node/frame_view.hpp"
 
@@ -103,19 +102,13 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   if (scene.landmarks.empty())
     throw base::InputError(scene.file.string() + ": landmarks: none (nothing to evaluate)");
   // The models the node bends: where the registration put them, or, once the pelvis has been
-  // found in two views, moved with it (made anew each time the pelvis is found elsewhere).
-  // A deformer holds on to its scene: the moved scenes are kept until the end.
-  std::deque<geometry::Scene> moved_scenes;
-  auto deformer = std::make_unique<const deform::SceneDeformer>(scene, options.deform);
+  // found in two views, moved with it (made anew each time the pelvis is found elsewhere), as
+  // the live node does (node/pelvis_tracker.hpp).
+  const deform::SceneDeformer registered(scene, options.deform);
+  node::PelvisTracker pelvis(scene, options.pelvis, options.deform);
+  std::shared_ptr<const node::PelvisMovedModels> moved;
+  const deform::SceneDeformer* deformer = &registered;
   bool deformer_changed = false;
-  Eigen::Vector3d pelvis_shift = Eigen::Vector3d::Zero();
-  Eigen::Matrix3d pelvis_rotation = Eigen::Matrix3d::Identity();
-  std::vector<geometry::PelvisView> pelvis_views;
-  struct SeenView {
-    double primary_deg, secondary_deg;
-    Eigen::Vector3d table_mm;
-  };
-  std::vector<SeenView> pelvis_seen;
   geometry::Polyline true_device;
   for (const auto& p : geometry::read_curve(directory / session.truth->device, 2).points) true_device.push_back(p.position_lps);
   // Where the registration given to the node is off (sessions at the paper's difficulty),
@@ -164,33 +157,20 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     // As the node: a video-out frame whose image area is not fluoroscopy is not searched.
     node::FrameAnalysis analysis;
     if (session.video_mapping) analysis.reason = geometry::not_fluoroscopy(image, candidate.field_mask);
-    // The pelvis: the first fluoroscopy frame of every view (not a DSA run's, whose contrast
-    // is not bone) is one more view of it.
-    if (options.pelvis && scene.pelvis.V.rows() > 0 && record.source != "dsa" && analysis.reason.empty()) {
-      const Eigen::Vector3d table(sample->table_mm[0], sample->table_mm[1], sample->table_mm[2]);
-      const bool seen = std::any_of(pelvis_seen.begin(), pelvis_seen.end(), [&](const SeenView& s) {
-        return std::abs(s.primary_deg - sample->primary_deg) < options.pairs.same_view_deg &&
-               std::abs(s.secondary_deg - sample->secondary_deg) < options.pairs.same_view_deg && (s.table_mm - table).norm() < 5.0;
-      });
-      if (!seen) {
-        pelvis_seen.push_back({sample->primary_deg, sample->secondary_deg, table});
-        pelvis_views.push_back({view.P_ct, image, "frame " + std::to_string(record.frame) + ", " +
-                                                      node::angulation_text(sample->primary_deg, sample->secondary_deg)});
-        if (pelvis_views.size() >= 2) {
-          // The report keeps the pose the models were moved by; a later refusal only replaces a refusal.
-          const geometry::PelvisRegistration found = geometry::register_pelvis(scene.pelvis, pelvis_views);
-          if (found.found || !result.pelvis || !result.pelvis->found) result.pelvis = found;
-          // Made anew when the pelvis is found more than half a millimetre (at its bones'
-          // centroid, or 100 mm from it by the turn) from where it was found before.
-          if (found.found && ((found.shift_mm - pelvis_shift).norm() > 0.5 ||
-                              100.0 * Eigen::AngleAxisd(found.rotation * pelvis_rotation.transpose()).angle() > 0.5)) {
-            pelvis_shift = found.shift_mm;
-            pelvis_rotation = found.rotation;
-            geometry::Scene& moved = moved_scenes.emplace_back(scene);
-            deform::apply(deform::pelvis_shift_for(scene, found.shift_mm, found.rotation, found.pivot_mm), moved);
-            deformer = std::make_unique<const deform::SceneDeformer>(moved, options.deform);
-            deformer_changed = true;
-          }
+    // The pelvis: the first fluoroscopy frame of every view is one more view of its bones.
+    if (analysis.reason.empty() &&
+        pelvis.offer(image, view, "frame " + std::to_string(record.frame) + ", " +
+                                      node::angulation_text(sample->primary_deg, sample->secondary_deg))) {
+      // The report keeps the pose the models were moved by; a later refusal only replaces a refusal.
+      const geometry::PelvisRegistration found = pelvis.register_views();
+      if (found.found || !result.pelvis || !result.pelvis->found) result.pelvis = found;
+      if (pelvis.moves_models(found)) {
+        try {
+          moved = pelvis.move_models(found);
+          deformer = moved->deformer.get();
+          deformer_changed = true;
+        } catch (const base::InputError& e) {
+          result.pelvis->refused = std::string("found, but the models cannot move with it: ") + e.what();
         }
       }
     }

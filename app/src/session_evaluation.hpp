@@ -22,6 +22,7 @@
 #include "evar/node/device_candidate.hpp"
 #include "evar/node/live_node.hpp"
 #include "evar/node/model_adaptation.hpp"
+#include "evar/node/pelvis_tracker.hpp"
 #include "evar/node/view_pair_selector.hpp"
 #include "evar/session/session.hpp"
 
@@ -32,10 +33,10 @@ struct EvaluationOptions {
   node::ViewPairOptions pairs;
   node::AdaptationOptions adaptation;
   deform::DeformOptions deform;
-  /// Find the pelvis in the fluoroscopy (when the scene has its bones) and move the models
-  /// with it before bending them (geometry/pelvis_registration.hpp, deform/pelvis_shift.hpp);
-  /// false (the default, what the live node does): the models where the registration put them.
-  bool pelvis = false;
+  /// As the live node: the pelvis found in the fluoroscopy (when the scene has its bones)
+  /// and the models moved with it before they are bent (node/pelvis_tracker.hpp); disabled:
+  /// the models where the registration put them.
+  node::PelvisTrackingOptions pelvis;
 };
 
 struct LandmarkError {
@@ -98,7 +99,7 @@ struct CaseEvaluation {
   std::string difficulty = "unknown";    ///< the simulator's difficulty (patient.json), if any
   double registration_residual_deg = 0.0;  ///< the given registration's rotation off the true one
   /// The last pelvis registration tried (from the fluoroscopy views seen so far); none when
-  /// the scene has no pelvis, EvaluationOptions::pelvis is off or fewer than two views came.
+  /// the scene has no pelvis, EvaluationOptions::pelvis is disabled or fewer than two views came.
   std::optional<geometry::PelvisRegistration> pelvis;
   std::shared_ptr<const node::AdaptedModel> model;  ///< the last adapted model (null when none)
   geometry::Polyline true_device;  ///< the session's true device in the node's CT frame (LPS mm)

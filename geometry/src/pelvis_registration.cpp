@@ -4,6 +4,7 @@
 #include <Eigen/Geometry>
 #include <Eigen/SVD>
 #include <algorithm>
+#include <optional>
 #include <cmath>
 #include <limits>
 #include <numbers>
@@ -190,6 +191,7 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
   bool translation_settled = false;
+  std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>> turning_poses;  // (R, t) after each turning round in a row
   for (int round = 0; round < options.max_rounds; ++round) {
     // The bones where the pose so far puts them: x ↦ R(x − c) + c + t.
     Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
@@ -306,27 +308,30 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
     out.blocks = static_cast<int>(A_6.rows() / 2);
     Eigen::Vector3d d_theta = Eigen::Vector3d::Zero(), d_t;
     bool turned = false;
+    // The turn where the blocks pin it down: a direction they barely measure (blocks in a line
+    // cannot tell a turn about that line) leaves the turn out, and the translation alone is
+    // the answer. Solved as the motion it gives 50 mm from the pivot (so both halves of the
+    // unknowns are millimetres).
+    bool turn_measurable = false;
+    constexpr double kLeverMm = 50.0;
+    std::optional<Eigen::JacobiSVD<Eigen::MatrixXd>> svd;
+    if (options.turn && out.blocks >= options.min_blocks && views_with_blocks >= 2) {
+      Eigen::MatrixXd scaled = A_6;
+      scaled.leftCols<3>() /= kLeverMm;
+      svd.emplace(scaled, Eigen::ComputeThinU | Eigen::ComputeThinV);
+      turn_measurable = svd->singularValues()(5) > 0.02 * svd->singularValues()(0);
+    }
     // The turn only once the translation has settled to a millimetre: blocks are searched
     // ±3 matched pixels about their view's shift, so before that they measure the
     // translation's error, not the turn.
-    if (options.turn && translation_settled && out.blocks >= options.min_blocks && views_with_blocks >= 2) {
-      // The turn solved as the motion it gives 50 mm from the pivot (so both halves of the
-      // unknowns are millimetres); a direction the blocks barely measure (blocks in a line
-      // cannot tell a turn about that line) leaves the turn out.
-      constexpr double kLeverMm = 50.0;
-      Eigen::MatrixXd scaled = A_6;
-      scaled.leftCols<3>() /= kLeverMm;
-      const Eigen::JacobiSVD<Eigen::MatrixXd> svd(scaled, Eigen::ComputeThinU | Eigen::ComputeThinV);
-      const auto& sv = svd.singularValues();
-      if (sv(5) > 0.02 * sv(0)) {
-        const Eigen::VectorXd x = svd.solve(b_6);
-        // At most two degrees a round: a linearized turn is good to a few degrees, and blocks
-        // are matched within ±3 pixels, so a large step overshoots and the rounds swing.
-        const double scale = std::min(1.0, (2.0 * std::numbers::pi / 180.0) / std::max(x.head<3>().norm() / kLeverMm, 1e-12));
-        d_theta = scale * x.head<3>() / kLeverMm;
-        d_t = scale * x.tail<3>();
-        turned = true;
-      }
+    if (turn_measurable && translation_settled) {
+      const Eigen::VectorXd x = svd->solve(b_6);
+      // At most two degrees a round: a linearized turn is good to a few degrees, and blocks
+      // are matched within ±3 pixels, so a large step overshoots and the rounds swing.
+      const double scale = std::min(1.0, (2.0 * std::numbers::pi / 180.0) / std::max(x.head<3>().norm() / kLeverMm, 1e-12));
+      d_theta = scale * x.head<3>() / kLeverMm;
+      d_t = scale * x.tail<3>();
+      turned = true;
     }
     if (!turned) d_t = A_t.colPivHouseholderQr().solve(b_t);
     out.turned = out.turned || turned;
@@ -340,10 +345,31 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
                     base::quantity_text(turn_deg, "deg", 1);
       return out;
     }
-    // Settled when the step moves no bone by more than settled_mm (with the turn, once solved for).
-    if (d_t.norm() + angle * extent_mm < options.settled_mm && (turned || !options.turn || !translation_settled || out.blocks < options.min_blocks)) {
+    // Settled when the step moves no bone by more than settled_mm (with the turn, once solved
+    // for), or when the turning rounds keep every bone within settled_mm of where the last
+    // three put it: noisy block matches make the steps swing about the pose, not away from it.
+    // Complete: the turn solved for, or not measurable in these views (then a translation).
+    const bool complete = turned || !turn_measurable;
+    if (d_t.norm() + angle * extent_mm < options.settled_mm && complete) {
       out.found = true;
       break;
+    }
+    if (turned) turning_poses.push_back({R, t});
+    else turning_poses.clear();
+    if (turning_poses.size() >= 3) {
+      double spread_mm = 0.0;
+      const auto n = turning_poses.size();
+      for (std::size_t i = n - 3; i < n; ++i)
+        for (std::size_t j = i + 1; j < n; ++j) {
+          const auto& [Ri, ti] = turning_poses[i];
+          const auto& [Rj, tj] = turning_poses[j];
+          // A bone point x moves by (Rj − Ri)(x − c) + (tj − ti) between the two poses.
+          spread_mm = std::max(spread_mm, (tj - ti).norm() + Eigen::AngleAxisd(Rj * Ri.transpose()).angle() * extent_mm);
+        }
+      if (spread_mm < options.settled_mm) {
+        out.found = true;
+        break;
+      }
     }
   }
   if (!out.found) {

@@ -8,6 +8,8 @@
 #include <string_view>
 #include <thread>
 
+#include <Eigen/Geometry>
+#include <numbers>
 #include <opencv2/core.hpp>
 
 #include "alert_board.hpp"
@@ -55,19 +57,28 @@ class LiveNode::Impl {
     acquisition::Frame frame;
     FrameView view;
   };
+  struct BoneView {  // the first analysed frame of a view, offered to the pelvis thread
+    cv::Mat detector;
+    FrameView view;
+    std::string name;
+  };
   void on_frame(const acquisition::Frame& frame);
   void compose_loop();
   void analysis_loop();
   void adaptation_loop();
+  void pelvis_loop();
   void output_loop();
-  void publish(std::shared_ptr<const AdaptedModel> adapted);
+  void publish(std::shared_ptr<const AdaptedModel> adapted, std::shared_ptr<const geometry::PelvisRegistration> pelvis);
+  /// The models the adaptations bend: moved with the pelvis found, or null (as registered).
+  std::shared_ptr<const PelvisMovedModels> moved_models() const;
   /// Samples the source's counts (compose thread) and raises or clears the frame-loss alert.
   void watch_frame_loss(acquisition::FrameLossMonitor& monitor);
 
   NodeOptions options_;
   std::optional<geometry::VideoToDetector> video_;  // set: frames are the C-arm's video output
   std::vector<std::unique_ptr<OutputSink>> sinks_;
-  std::unique_ptr<deform::SceneDeformer> deformer_;
+  std::unique_ptr<deform::SceneDeformer> deformer_;  // on the scene as registered
+  PelvisTracker pelvis_;                             // the pelvis thread's only
   std::shared_ptr<const overlay::RoadmapModel> initial_roadmap_;
   std::atomic<overlay::RoadmapMode> mode_;
 
@@ -78,6 +89,12 @@ class LiveNode::Impl {
   BoundedQueue<ComposedFrame> output_;
   LatestSlot<Analysis> analysis_;
   LatestSlot<ViewPair> pairs_;
+  BoundedQueue<BoneView> bone_views_{4};
+  // The models moved with the pelvis (null: as registered), and the pair the model on screen
+  // came from, adapted again when the models move.
+  mutable std::mutex moved_mutex_;
+  std::shared_ptr<const PelvisMovedModels> moved_;
+  std::optional<ViewPair> shown_pair_;
   /// The last adaptation's outcome for the analysis thread's selector: used or not, and
   /// the earlier frame of its pair.
   struct PairOutcome {
@@ -104,7 +121,7 @@ class LiveNode::Impl {
 
   AlertBoard alerts_;
 
-  std::thread compose_thread_, analysis_thread_, adaptation_thread_, output_thread_;
+  std::thread compose_thread_, analysis_thread_, adaptation_thread_, pelvis_thread_, output_thread_;
   bool running_ = false;
   bool started_ = false;  // once: a stopped node's queues stay closed
 };
@@ -115,6 +132,7 @@ LiveNode::Impl::Impl(const geometry::Scene& scene, NodeOptions options, std::vec
                                                                                options_.detector.cols, options_.detector.rows)
                                     : std::nullopt),
       sinks_(std::move(sinks)),
+      pelvis_(scene, options_.pelvis, options_.deform),
       mode_(options_.mode),
       input_(options_.input_queue),
       output_(options_.output_queue),
@@ -131,6 +149,12 @@ LiveNode::Impl::Impl(const geometry::Scene& scene, NodeOptions options, std::vec
   m->ready = Clock::now();
   model_ = m;
   log().info("node: {} vessels prepared for deformation in {:.0f} ms", scene.vessels.size(), deformer_->precompute_ms());
+  if (pelvis_.active()) {
+    stats_.pelvis_status = "looking for it in the bones (two views needed)";
+    log().info("node: the pelvis will be looked for in the bones of the fluoroscopy, and the models moved with it");
+  } else if (options_.pelvis.enabled) {
+    log().info("node: the scene has no pelvis (scene.json \"pelvis\"): the models stay where the registration put them");
+  }
   for (std::size_t i = 0; i < scene.vessels.size(); ++i)
     if (!deformer_->proxy_refused(i).empty())
       log().warn("node: vessel '{}' is solved on its own {} vertices (slower, less even): {}", scene.vessels[i].name,
@@ -149,6 +173,7 @@ void LiveNode::Impl::start(acquisition::FrameSource& frames, acquisition::CArmGe
   compose_thread_ = std::thread([this] { compose_loop(); });
   analysis_thread_ = std::thread([this] { analysis_loop(); });
   adaptation_thread_ = std::thread([this] { adaptation_loop(); });
+  pelvis_thread_ = std::thread([this] { pelvis_loop(); });
   output_thread_ = std::thread([this] { output_loop(); });
   running_ = true;
   try {
@@ -200,6 +225,8 @@ void LiveNode::Impl::stop() {
   compose_thread_.join();
   analysis_.close();
   analysis_thread_.join();
+  bone_views_.close();
+  pelvis_thread_.join();
   pairs_.close();
   adaptation_thread_.join();
   output_.close();
@@ -333,9 +360,11 @@ void LiveNode::Impl::compose_loop() {
     const bool analyse = view && !g->stale && g->state.fluoro_on;
     const std::shared_ptr<const PublishedModel> model = this->model();
     bool failed = false;  // the last adaptation
+    std::string pelvis_status;
     {
       std::lock_guard lock(stats_mutex_);
       failed = !stats_.last_failure.empty();
+      pelvis_status = stats_.pelvis_status;
       if (!held_s) {
         stats_.frames_wrong_size += size_ok ? 0 : 1;
         stats_.stale_geometry_frames += g && g->stale ? 1 : 0;
@@ -345,7 +374,7 @@ void LiveNode::Impl::compose_loop() {
     const overlay::RoadmapMode mode = mode_.load();
     ComposedFrame out;
     // A live frame is not a stall, even while the stall it ends is still to be cleared.
-    out.status = {status_lines(g, *model, failed, mode, last_latency_ms, Clock::now()),
+    out.status = {status_lines(g, *model, failed, pelvis_status, mode, last_latency_ms, Clock::now()),
                   alerts_.current(held_s ? std::string_view() : std::string_view("video-stall"))};
     if (held_s) {
       // First and in the alert colour; its changing age is not an alert of its own (no log).
@@ -416,6 +445,7 @@ void LiveNode::Impl::compose_loop() {
 
 void LiveNode::Impl::analysis_loop() {
   ViewPairSelector selector(options_.adaptation.reconstruction.min_separation_deg, options_.pairs);
+  std::optional<FrameView> last_bone_view;
   while (std::optional<Analysis> a = analysis_.take()) {
     if (adapting_.load()) {
       // Held, not dropped: it may be the last frame of a short run of fluoroscopy. Once the
@@ -454,6 +484,13 @@ void LiveNode::Impl::analysis_loop() {
       }
       alerts_.clear("not-fluoroscopy");
     }
+    // The bones: the first frame of each view goes to the pelvis thread.
+    if (pelvis_.active() && !(last_bone_view && same_bone_view(*last_bone_view, a->view, options_.pelvis))) {
+      last_bone_view = a->view;
+      bone_views_.push({detector.clone(), a->view,
+                        "frame " + std::to_string(a->frame.sequence) + ", " +
+                            angulation_text(a->view.view.primary_angle_deg, a->view.view.secondary_angle_deg)});
+    }
     FrameAnalysis r = analyse_frame(detector, a->view, options_.candidate);
     const double waited_ms = ms_between(a->frame.host_arrival, analysis_start), took_ms = ms_between(analysis_start, Clock::now());
     {
@@ -488,11 +525,25 @@ void LiveNode::Impl::adaptation_loop() {
       }
     } done{adapting_};
     try {
-      // Warm-started from the model on screen (only this thread publishes).
+      // The models as registered or moved with the pelvis; warm-started from the model on
+      // screen (only this thread publishes) when it bent the same ones.
+      const std::shared_ptr<const PelvisMovedModels> moved = moved_models();
+      bool again = false;  // the pair on screen adapted again (the pelvis moved the models): no new view
+      {
+        std::lock_guard lock(moved_mutex_);
+        again = shown_pair_ && shown_pair_->earlier.id() == pair->earlier.id() && shown_pair_->later.id() == pair->later.id();
+      }
       const auto shown = model();
-      auto m = std::make_shared<const AdaptedModel>(adapt_model(*deformer_, *pair, options_.adaptation,
-                                                                shown->adapted ? &shown->adapted->deformation : nullptr));
-      publish(m);
+      const bool same_models = shown->pelvis.get() == (moved ? &moved->pose : nullptr);
+      auto m = std::make_shared<const AdaptedModel>(
+          adapt_model(moved ? *moved->deformer : *deformer_, *pair, options_.adaptation,
+                      shown->adapted && same_models ? &shown->adapted->deformation : nullptr));
+      // The pose is shared with the models it moved: the published model keeps them alive.
+      publish(m, moved ? std::shared_ptr<const geometry::PelvisRegistration>(moved, &moved->pose) : nullptr);
+      {
+        std::lock_guard lock(moved_mutex_);
+        shown_pair_ = *pair;
+      }
       const double ready_ms = static_cast<double>(steady_ns(Clock::now()) - pair->later.time_ns) * 1e-6;
       const auto& contained = m->deformation.containment;
       const bool outside = deform::leaves_device_outside(contained);
@@ -500,7 +551,7 @@ void LiveNode::Impl::adaptation_loop() {
         std::lock_guard lock(stats_mutex_);
         ++stats_.adaptations;
         stats_.last_failure.clear();
-        adaptation_latencies_.add(ready_ms);
+        if (!again) adaptation_latencies_.add(ready_ms);
         stats_.models_device_outside += outside ? 1 : 0;
         stats_.last_device_outside_length_mm = contained.outside_length_mm;
         stats_.last_device_outside_max_depth_mm = contained.outside_max_depth_mm;
@@ -518,10 +569,12 @@ void LiveNode::Impl::adaptation_loop() {
       } else {
         alerts_.clear("device-outside");
       }
-      log().info("adapted model from frames {}+{}: device {} points, residual {:.2f} px; reconstruction {:.1f} ms, "
-                 "deformation {:.1f} ms; ready {:.0f} ms after the second view arrived",
-                 m->frame_earlier, m->frame_later, m->reconstruction.points.size(), m->reconstruction.mean_residual_px,
-                 m->reconstruct_ms, m->deform_ms, ready_ms);
+      log().info("adapted model from frames {}+{}{}: device {} points, residual {:.2f} px; reconstruction {:.1f} ms, "
+                 "deformation {:.1f} ms; {}",
+                 m->frame_earlier, m->frame_later, moved ? " (models moved with the pelvis)" : "",
+                 m->reconstruction.points.size(), m->reconstruction.mean_residual_px, m->reconstruct_ms, m->deform_ms,
+                 again ? std::string("the same views adapted again")
+                       : fmt::format("ready {:.0f} ms after the second view arrived", ready_ms));
       if (log().should_log(spdlog::level::debug))
         for (const auto& r : m->deformation.reports)
           log().debug("  {}: {}; {} handles, {} constrained; {} iterations in {} round(s){}; {:.1f} ms", r.name, r.role,
@@ -546,11 +599,88 @@ void LiveNode::Impl::adaptation_loop() {
   }
 }
 
-void LiveNode::Impl::publish(std::shared_ptr<const AdaptedModel> adapted) {
+void LiveNode::Impl::pelvis_loop() {
+  for (;;) {
+    std::optional<BoneView> b = bone_views_.pop(std::chrono::milliseconds(100));
+    if (!b) {
+      if (bone_views_.closed()) break;
+      continue;
+    }
+    if (!pelvis_.offer(b->detector, b->view, b->name)) {
+      std::lock_guard lock(stats_mutex_);
+      stats_.pelvis_views = pelvis_.views();
+      continue;
+    }
+    const auto t0 = Clock::now();
+    const geometry::PelvisRegistration found = pelvis_.register_views();
+    const double register_ms = ms_between(t0, Clock::now());
+    const std::string outcome = describe(found);
+    log().info("pelvis {} (registered in {:.0f} ms{})", outcome, register_ms,
+               pelvis_.moves_models(found) ? "; the models move with it" : "");
+    for (const auto& v : found.views)
+      if (!v.used) log().info("pelvis: view {} not used: {}", v.name, v.reason);
+    std::string status;
+    std::shared_ptr<const PelvisMovedModels> now_moved;
+    if (pelvis_.moves_models(found)) {
+      try {
+        now_moved = pelvis_.move_models(found);
+        log().info("pelvis: models moved with it and prepared in {:.0f} ms", now_moved->deformer->precompute_ms());
+      } catch (const std::exception& e) {
+        status = "found, but the models cannot move with it (see the log)";
+        log().warn("pelvis {}, but the models cannot move with it: {}; they stay as they were", outcome, e.what());
+      }
+    }
+    const std::shared_ptr<const PelvisMovedModels> moved = now_moved ? now_moved : moved_models();
+    const auto pose_text = [](const geometry::PelvisRegistration& r) {
+      return fmt::format("{:.1f} mm, {:.1f}° from the registration", r.shift_mm.norm(),
+                         Eigen::AngleAxisd(r.rotation).angle() * 180.0 / std::numbers::pi);
+    };
+    if (status.empty())
+      status = found.found ? pose_text(found) + "; models moved with it"
+               : moved     ? "not found again (see the log); models moved as found before: " + pose_text(moved->pose)
+                           : "not found (see the log); models where the registration put them";
+    {
+      std::lock_guard lock(stats_mutex_);
+      stats_.pelvis_views = pelvis_.views();
+      ++stats_.pelvis_registrations;
+      stats_.pelvis_found += found.found ? 1 : 0;
+      stats_.pelvis_moves += now_moved ? 1 : 0;
+      stats_.last_pelvis = outcome;
+      stats_.pelvis_status = status;
+      if (moved) {
+        stats_.pelvis_shift_mm = {moved->pose.shift_mm.x(), moved->pose.shift_mm.y(), moved->pose.shift_mm.z()};
+        stats_.pelvis_turn_deg = Eigen::AngleAxisd(moved->pose.rotation).angle() * 180.0 / std::numbers::pi;
+      }
+    }
+    if (!now_moved) continue;
+    std::optional<ViewPair> again;
+    {
+      std::lock_guard lock(moved_mutex_);
+      moved_ = now_moved;
+      again = shown_pair_;
+    }
+    // The model on screen was bent from where the models were: its pair is adapted again
+    // from where they are now, unless a newer pair is waiting (it will be).
+    if (again && pairs_.put_if_empty(std::move(*again))) {
+      log().info("pelvis: the model on screen is adapted again from the moved models");
+      std::lock_guard lock(stats_mutex_);
+      ++stats_.pairs;
+    }
+  }
+}
+
+std::shared_ptr<const PelvisMovedModels> LiveNode::Impl::moved_models() const {
+  std::lock_guard lock(moved_mutex_);
+  return moved_;
+}
+
+void LiveNode::Impl::publish(std::shared_ptr<const AdaptedModel> adapted,
+                             std::shared_ptr<const geometry::PelvisRegistration> pelvis) {
   auto roadmap = std::make_shared<overlay::RoadmapModel>(*initial_roadmap_);
   show_adapted(*roadmap, *adapted);
   auto m = std::make_shared<PublishedModel>();
   m->adapted = std::move(adapted);
+  m->pelvis = std::move(pelvis);
   m->roadmap = std::move(roadmap);
   m->ready = Clock::now();
   std::lock_guard lock(model_mutex_);

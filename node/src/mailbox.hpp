@@ -99,6 +99,17 @@ class LatestSlot {
     cv_.notify_one();
     return replaced;
   }
+  /// Puts an item only when none is waiting (a newer one would be replaced by it); false
+  /// when one is, or once closed.
+  bool put_if_empty(T item) {
+    {
+      std::lock_guard lock(m_);
+      if (closed_ || item_.has_value()) return false;
+      item_ = std::move(item);
+    }
+    cv_.notify_one();
+    return true;
+  }
   /// Waits for an item (nullopt once closed).
   std::optional<T> take() {
     std::unique_lock lock(m_);

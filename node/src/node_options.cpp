@@ -78,6 +78,7 @@ void check_options(const NodeOptions& o) {
   try {
     (void)ViewPairSelector(o.adaptation.reconstruction.min_separation_deg, o.pairs);
     (void)acquisition::FrameLossMonitor(o.frame_loss);
+    check_options(o.pelvis);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(std::string("node options: ") + e.what());
   }

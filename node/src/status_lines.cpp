@@ -9,8 +9,8 @@
 namespace evar::node {
 
 std::vector<std::string> status_lines(const std::optional<acquisition::FrameGeometry>& g, const PublishedModel& model,
-                                      bool last_adaptation_failed, overlay::RoadmapMode mode, double latency_ms,
-                                      std::chrono::steady_clock::time_point now) {
+                                      bool last_adaptation_failed, const std::string& pelvis, overlay::RoadmapMode mode,
+                                      double latency_ms, std::chrono::steady_clock::time_point now) {
   std::vector<std::string> lines;
   if (g) {
     std::string state = fmt::format("{}  SID {:.0f} mm", angulation_text(g->state.primary_deg, g->state.secondary_deg),
@@ -28,6 +28,7 @@ std::vector<std::string> status_lines(const std::optional<acquisition::FrameGeom
                                 model.adapted->frame_earlier, model.adapted->frame_later,
                                 std::chrono::duration<double>(now - model.ready).count()));
   }
+  if (!pelvis.empty()) lines.push_back("pelvis: " + pelvis);
   lines.push_back(fmt::format("roadmap: {}   latency {:.0f} ms", overlay::to_string(mode), latency_ms));
   return lines;
 }

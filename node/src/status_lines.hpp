@@ -1,7 +1,7 @@
 #pragma once
 // The status block's state lines, as drawn on every frame: the C-arm's angulation and
-// distance with what keeps the roadmap back, which model is shown and how old it is, the
-// roadmap mode and the latency; and the line that marks a held frame.
+// distance with what keeps the roadmap back, which model is shown and how old it is, where
+// the pelvis was found, the roadmap mode and the latency; and the line that marks a held frame.
 #include <chrono>
 #include <optional>
 #include <string>
@@ -14,10 +14,11 @@
 namespace evar::node {
 
 /// `geometry`: the frame's C-arm geometry, if any; `last_adaptation_failed`: the model shown
-/// is the last good one, not the newest pair's; `now`: for the model's age.
+/// is the last good one, not the newest pair's; `pelvis`: the pelvis's line
+/// (NodeStatistics::pelvis_status, none when empty); `now`: for the model's age.
 std::vector<std::string> status_lines(const std::optional<acquisition::FrameGeometry>& geometry, const PublishedModel& model,
-                                      bool last_adaptation_failed, overlay::RoadmapMode mode, double latency_ms,
-                                      std::chrono::steady_clock::time_point now);
+                                      bool last_adaptation_failed, const std::string& pelvis, overlay::RoadmapMode mode,
+                                      double latency_ms, std::chrono::steady_clock::time_point now);
 
 /// "LAST IMAGE HELD: no video for 3 s" (whole seconds; `showing_fails`: frames came but
 /// none could be shown).

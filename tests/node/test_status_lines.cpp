@@ -22,7 +22,7 @@ acquisition::FrameGeometry geometry_at(double primary, double secondary) {
 TEST(StatusLines, SayTheViewTheModelAndTheRoadmapAndWhatHoldsTheRoadmapBack) {
   const auto now = Clock::now();
   node::PublishedModel preoperative;
-  auto lines = node::status_lines(geometry_at(35, -15), preoperative, false, overlay::RoadmapMode::Both, 12.4, now);
+  auto lines = node::status_lines(geometry_at(35, -15), preoperative, false, "", overlay::RoadmapMode::Both, 12.4, now);
   ASSERT_EQ(lines.size(), 3u);
   EXPECT_EQ(lines[0], "LAO 35  CAU 15  SID 1196 mm");
   EXPECT_EQ(lines[1], "model: preoperative (undeformed), waiting for two views of the device");
@@ -34,11 +34,11 @@ TEST(StatusLines, SayTheViewTheModelAndTheRoadmapAndWhatHoldsTheRoadmapBack) {
   g.moving = true;
   g.stale = true;
   g.age_ns = 2'340'000'000;
-  lines = node::status_lines(g, preoperative, false, overlay::RoadmapMode::Both, 0.0, now);
+  lines = node::status_lines(g, preoperative, false, "", overlay::RoadmapMode::Both, 0.0, now);
   EXPECT_EQ(lines[0], "RAO 20  CRA 10  SID 1196 mm  beam off  C-arm moving: roadmap hidden  geometry 2.3 s old");
 
   // No geometry: no state line.
-  EXPECT_EQ(node::status_lines(std::nullopt, preoperative, false, overlay::RoadmapMode::Both, 0.0, now).size(), 2u);
+  EXPECT_EQ(node::status_lines(std::nullopt, preoperative, false, "", overlay::RoadmapMode::Both, 0.0, now).size(), 2u);
 }
 
 TEST(StatusLines, AnAdaptedModelSaysItsFramesAndAgeAndThatItIsStaleAfterAFailure) {
@@ -49,10 +49,20 @@ TEST(StatusLines, AnAdaptedModelSaysItsFramesAndAgeAndThatItIsStaleAfterAFailure
   adapted->frame_later = 40;
   m.adapted = adapted;
   m.ready = now - std::chrono::seconds(7);
-  auto lines = node::status_lines(std::nullopt, m, false, overlay::RoadmapMode::Both, 0.0, now);
+  auto lines = node::status_lines(std::nullopt, m, false, "", overlay::RoadmapMode::Both, 0.0, now);
   EXPECT_EQ(lines[0], "model: adapted from frames 12+40, 7 s ago");
-  lines = node::status_lines(std::nullopt, m, true, overlay::RoadmapMode::Both, 0.0, now);
+  lines = node::status_lines(std::nullopt, m, true, "", overlay::RoadmapMode::Both, 0.0, now);
   EXPECT_EQ(lines[0], "model: STALE (last adaptation failed), adapted from frames 12+40, 7 s ago");
+}
+
+// Where the node looks for the pelvis, its line comes between the model's and the roadmap's.
+TEST(StatusLines, ThePelvisLineSaysWhereThePelvisWasFound) {
+  const node::PublishedModel preoperative;
+  const auto lines = node::status_lines(std::nullopt, preoperative, false, "12.3 mm, 4.1° from the registration; models moved with it",
+                                        overlay::RoadmapMode::Both, 0.0, Clock::now());
+  ASSERT_EQ(lines.size(), 3u);
+  EXPECT_EQ(lines[1], "pelvis: 12.3 mm, 4.1° from the registration; models moved with it");
+  EXPECT_EQ(lines[2].rfind("roadmap:", 0), 0u) << lines[2];
 }
 
 TEST(StatusLines, AHeldFrameSaysWhyAndForHowManyWholeSeconds) {

@@ -46,7 +46,9 @@ struct PelvisRegistrationOptions {
   double min_bone_fraction = 0.03;  ///< of a view's matched pixels, the share over the bones
   double min_separation_deg = 15.0; ///< between two views' rays to the bones, to fix the depth
   int max_rounds = 15;              ///< render, match, solve, until settled (else refused)
-  double settled_mm = 1.0;          ///< settled: a round's step moves no bone further than this
+  /// Settled: a round's step moves no bone further than this, or three turning rounds in a row
+  /// keep every bone within it (noisy matches swing the steps about the pose).
+  double settled_mm = 1.0;
   bool turn = true;                 ///< solve for the turn too where the blocks allow (false: translation only)
   int blocks_across = 8;            ///< a block's side is the frame's width over this (64 px at 512)
   int min_blocks = 8;               ///< matched blocks (over two views or more) a turn needs

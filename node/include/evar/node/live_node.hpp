@@ -8,7 +8,10 @@
 //                     status block; eligible frames (beam on, C-arm still, geometry fresh)
 //                     offered to analysis (latest only)
 //                   → output queue (8, oldest dropped) → output thread → sinks
-//   analysis thread : device segmentation, candidates, view pairs → adaptation (latest only)
+//   analysis thread : device segmentation, candidates, view pairs → adaptation (latest only);
+//                     the first frame of each view of the bones → pelvis thread
+//   pelvis thread   : the pelvis registered in the bones; found elsewhere, the models are
+//                     moved with it for the next adaptation (node/pelvis_tracker.hpp)
 //   adaptation thread: reconstruction and deformation; the new model is published and the
 //                     compositor switches to it on the next frame
 //

@@ -15,6 +15,7 @@
 #include "evar/geometry/video_mapping.hpp"
 #include "evar/node/device_candidate.hpp"
 #include "evar/node/model_adaptation.hpp"
+#include "evar/node/pelvis_tracker.hpp"
 #include "evar/node/view_pair_selector.hpp"
 #include "evar/overlay/frame_compositor.hpp"
 
@@ -31,6 +32,9 @@ struct NodeOptions {
   ViewPairOptions pairs;
   AdaptationOptions adaptation;
   deform::DeformOptions deform;
+  /// The pelvis found in the analysed frames where the scene has its bones, and the models
+  /// moved with it before they are bent (node/pelvis_tracker.hpp); on its own thread.
+  PelvisTrackingOptions pelvis;
   /// The roadmap layer is drawn in the background: no frame waits for a new view's or model's layer.
   overlay::CompositorOptions compositor{.supersample = 2, .window_level = {}, .layer_in_background = true};
   overlay::RoadmapMode mode = overlay::RoadmapMode::Both;

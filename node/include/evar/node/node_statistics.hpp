@@ -1,6 +1,7 @@
 #pragma once
 // What the live node counts: frames in, composited, held and dropped, analyses, pairs and
 // adaptations, health events, and latency percentiles.
+#include <array>
 #include <cstddef>
 #include <cstdint>
 #include <optional>
@@ -40,6 +41,14 @@ struct NodeStatistics {
   std::uint64_t models_device_outside = 0;
   double last_device_outside_length_mm = 0.0, last_device_outside_max_depth_mm = 0.0;
   std::optional<std::int64_t> carm_clock_offset_ns;
+  /// The pelvis found in the bones (NodeOptions::pelvis): views of it kept, registrations
+  /// tried, found, and the times the models were moved with it; the last registration's
+  /// outcome (node::describe) and, when the models were moved, the pose they were moved by.
+  std::uint64_t pelvis_views = 0, pelvis_registrations = 0, pelvis_found = 0, pelvis_moves = 0;
+  std::string last_pelvis;
+  std::string pelvis_status;  ///< the status line's text ("" when the node does not look for the pelvis)
+  std::optional<std::array<double, 3>> pelvis_shift_mm;
+  double pelvis_turn_deg = 0.0;
 };
 
 /// p50/p99/max of a sample (nearest rank); zeros for none.

@@ -9,6 +9,7 @@
 #include <string>
 
 #include "evar/geometry/carm_projection.hpp"
+#include "evar/geometry/pelvis_registration.hpp"
 #include "evar/node/frame_view.hpp"
 #include "evar/node/model_adaptation.hpp"
 #include "evar/overlay/frame_compositor.hpp"
@@ -21,6 +22,9 @@ struct PublishedModel {
   std::shared_ptr<const AdaptedModel> adapted;   ///< null for version 0
   std::shared_ptr<const overlay::RoadmapModel> roadmap;
   std::chrono::steady_clock::time_point ready;
+  /// The pelvis's pose the adapted model's vessels were moved by before they were bent
+  /// (node/pelvis_tracker.hpp); null: where the registration put them.
+  std::shared_ptr<const geometry::PelvisRegistration> pelvis;
 };
 
 struct ComposedFrame {
