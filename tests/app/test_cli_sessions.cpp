@@ -192,6 +192,17 @@ TEST_F(Cli, EvalOfAPaperDifficultySessionReportsItsPhysicsAndTheResidual) {
     EXPECT_LT((found - truth).norm(), 0.25 * (truth - x).norm()) << lm.label << ": truth moved " << (truth - x).norm() << " mm";
   }
   EXPECT_EQ(ostia, 2);
+  // The node's report says what it did with the pelvis (the node itself:
+  // tests/node/test_live_node_pelvis.cpp).
+  const auto run = evarnode({"run", "--replay", (out / "s").string(), "--speed", "4", "--no-video", "--no-igtl", "--out",
+                             (out / "run").string(), "--no-progress"});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto pelvis = nlohmann::json::parse(std::ifstream(out / "run" / "run_report.json"))["pelvis"];
+  EXPECT_TRUE(pelvis["looked_for"].get<bool>()) << pelvis.dump();
+  EXPECT_GE(pelvis["views"].get<int>(), 2) << pelvis.dump();
+  EXPECT_GE(pelvis["registrations"].get<int>(), 1) << pelvis.dump();
+  EXPECT_FALSE(pelvis["last"].get<std::string>().empty()) << pelvis.dump();
+  EXPECT_NE(run.err.find("pelvis"), std::string::npos) << run.err;
 }
 
 // A recording without ground truth cannot be evaluated: said with the file and the field.

@@ -84,6 +84,23 @@ TEST(NodeConfig, TheViewGapIsReadInSecondsAndBoundedWithItsField) {
   fs::remove(file);
 }
 
+// "pelvis": the node looks for the pelvis in the bones unless told not to; anything but a
+// boolean is refused with the field and what it means.
+TEST(NodeConfig, ThePelvisIsLookedForUnlessTurnedOff) {
+  const fs::path file = fs::temp_directory_path() / ("evar_node_pelvis_" + std::to_string(::getpid()) + ".json");
+  const auto with = [&](const std::string& extra) {
+    std::ofstream(file) << R"({"format": "evarnode-node", "version": 1)" << extra << "}";
+    return file;
+  };
+  EXPECT_TRUE(evar::app::read_node_config(with("")).pelvis);
+  EXPECT_TRUE(evar::app::read_node_config(with(R"(, "pelvis": true)")).pelvis);
+  EXPECT_FALSE(evar::app::read_node_config(with(R"(, "pelvis": false)")).pelvis);
+  const std::string error = evar::test::error_message([&] { evar::app::read_node_config(with(R"(, "pelvis": "off")")); });
+  EXPECT_THAT(error, HasSubstr(".json: pelvis: expected true"));
+  EXPECT_THAT(error, HasSubstr("or false"));
+  fs::remove(file);
+}
+
 TEST(NodeConfig, ADetectorOfMorePixelsThanAnyImageReadIsRefused) {
   const fs::path file = fs::temp_directory_path() / ("evar_node_detector_" + std::to_string(::getpid()) + ".json");
   const auto with = [&](int cols, int rows) {
