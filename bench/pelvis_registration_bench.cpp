@@ -17,7 +17,8 @@ using namespace evar;
 
 geometry::CArmView view(double primary_deg) {
   return {.primary_angle_deg = primary_deg, .source_to_detector_mm = 1200.0, .source_to_isocenter_mm = 800.0,
-          .detector_cols = 512, .detector_rows = 512, .row_spacing_mm = 0.6, .col_spacing_mm = 0.6};
+          .detector_cols = 512, .detector_rows = 512, .row_spacing_mm = 0.6, .col_spacing_mm = 0.6,
+          .projection_matrix = std::nullopt};
 }
 
 struct Problem {

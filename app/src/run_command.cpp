@@ -241,6 +241,7 @@ int run_node(const RunCommand& cmd) {
                     {"waited_for_adaptation", s.analysis_waited}, {"candidates", s.candidates},
                     {"pairs", s.pairs}, {"pairs_superseded", s.pairs_superseded}}},
       {"adaptation", {{"models", s.adaptations}, {"failures", s.adaptation_failures}, {"last_failure", s.last_failure},
+                      {"again_after_pelvis", s.readaptations},
                       {"models_device_outside", s.models_device_outside},
                       {"last_device_outside_length_mm", s.last_device_outside_length_mm},
                       {"last_device_outside_max_depth_mm", s.last_device_outside_max_depth_mm},

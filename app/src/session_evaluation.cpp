@@ -109,6 +109,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   std::shared_ptr<const node::PelvisMovedModels> moved;
   const deform::SceneDeformer* deformer = &registered;
   bool deformer_changed = false;
+  std::optional<node::ViewPair> shown_pair;  // the pair the model came from
   geometry::Polyline true_device;
   for (const auto& p : geometry::read_curve(directory / session.truth->device, 2).points) true_device.push_back(p.position_lps);
   // Where the registration given to the node is off (sessions at the paper's difficulty),
@@ -169,8 +170,18 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
           moved = pelvis.move_models(found);
           deformer = moved->deformer.get();
           deformer_changed = true;
-        } catch (const base::InputError& e) {
+        } catch (const std::exception& e) {
+          result.pelvis->found = false;
           result.pelvis->refused = std::string("found, but the models cannot move with it: ") + e.what();
+        }
+        // As the node: the model on screen is adapted again from the moved models (kept as
+        // it was when that fails, as the node keeps its last good model).
+        if (deformer_changed && model && shown_pair) {
+          try {
+            model = std::make_shared<const node::AdaptedModel>(node::adapt_model(*deformer, *shown_pair, options.adaptation));
+            deformer_changed = false;
+          } catch (const node::AdaptationError&) {
+          }
         }
       }
     }
@@ -186,6 +197,7 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
               node::adapt_model(*deformer, *pair, options.adaptation,
                                 model && !deformer_changed ? &model->deformation : nullptr));
           deformer_changed = false;
+          shown_pair = *pair;
           ++result.adaptations;
           selector.succeeded(pair->earlier.id());
           DeviceError e = device_error(model->reconstruction.points, true_device);

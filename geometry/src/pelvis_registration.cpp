@@ -174,14 +174,20 @@ cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, 
   return out;
 }
 
+void check_options(const PelvisRegistrationOptions& options) {
+  if (options.step_px < 1 || options.blocks_across < 1 || options.max_rounds < 1 || options.min_blocks < 0 ||
+      !(options.max_shift_mm > 0.0 && options.max_shift_mm <= 500.0) || !(options.max_turn_deg > 0.0) || !(options.settled_mm > 0.0) ||
+      !std::isfinite(options.min_correlation) || !std::isfinite(options.min_separation_deg) ||
+      !std::isfinite(options.min_bone_fraction))
+    throw std::invalid_argument("register_pelvis: implausible options (a step of at least 1 px, blocks no smaller, "
+                                "at least one round, a searched distance over 0 and up to 500 mm, a turn limit over 0, "
+                                "a settled step over 0)");
+}
+
 PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vector<PelvisView>& views,
                                    const PelvisRegistrationOptions& options) {
   if (bones_ct.V.rows() == 0 || bones_ct.F.rows() == 0) throw std::invalid_argument("register_pelvis: no bones");
-  if (options.step_px < 1 || options.blocks_across < 1 || options.max_rounds < 1 ||
-      !(options.max_shift_mm > 0.0 && options.max_shift_mm <= 500.0) || !(options.max_turn_deg > 0.0) || !(options.settled_mm > 0.0) ||
-      !std::isfinite(options.min_correlation) || !std::isfinite(options.min_separation_deg))
-    throw std::invalid_argument("register_pelvis: implausible options (a step of at least 1 px, blocks no smaller, "
-                                "at least one round, a searched distance over 0 and up to 500 mm, a turn limit over 0)");
+  check_options(options);
   if (views.empty()) throw std::invalid_argument("register_pelvis: no views");
   const RayCaster caster(bones_ct);
   PelvisRegistration out;
@@ -191,7 +197,11 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
   Eigen::Matrix3d R = Eigen::Matrix3d::Identity();
   Eigen::Vector3d t = Eigen::Vector3d::Zero();
   bool translation_settled = false;
-  std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>> turning_poses;  // (R, t) after each turning round in a row
+  // The turning rounds' steps (turn as its motion 50 mm out, then translation, mm): a step
+  // against the last one's direction means the rounds swing about the pose (noisy block
+  // matches overshoot), and every later step is halved once more.
+  Eigen::Matrix<double, 6, 1> last_turning_step = Eigen::Matrix<double, 6, 1>::Zero();
+  double damping = 1.0;
   for (int round = 0; round < options.max_rounds; ++round) {
     // The bones where the pose so far puts them: x ↦ R(x − c) + c + t.
     Eigen::Matrix4d pose = Eigen::Matrix4d::Identity();
@@ -329,8 +339,11 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
       // At most two degrees a round: a linearized turn is good to a few degrees, and blocks
       // are matched within ±3 pixels, so a large step overshoots and the rounds swing.
       const double scale = std::min(1.0, (2.0 * std::numbers::pi / 180.0) / std::max(x.head<3>().norm() / kLeverMm, 1e-12));
-      d_theta = scale * x.head<3>() / kLeverMm;
-      d_t = scale * x.tail<3>();
+      const Eigen::Matrix<double, 6, 1> step = scale * x;
+      if (step.dot(last_turning_step) < 0.0) damping *= 0.5;
+      last_turning_step = step;
+      d_theta = damping * step.head<3>() / kLeverMm;
+      d_t = damping * step.tail<3>();
       turned = true;
     }
     if (!turned) d_t = A_t.colPivHouseholderQr().solve(b_t);
@@ -345,31 +358,12 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
                     base::quantity_text(turn_deg, "deg", 1);
       return out;
     }
-    // Settled when the step moves no bone by more than settled_mm (with the turn, once solved
-    // for), or when the turning rounds keep every bone within settled_mm of where the last
-    // three put it: noisy block matches make the steps swing about the pose, not away from it.
-    // Complete: the turn solved for, or not measurable in these views (then a translation).
-    const bool complete = turned || !turn_measurable;
+    // Settled when the step moves no bone by more than settled_mm, the turn included once it
+    // has been solved for (else the translation alone, where the turn is not measurable).
+    const bool complete = turned || (!turn_measurable && !out.turned);
     if (d_t.norm() + angle * extent_mm < options.settled_mm && complete) {
       out.found = true;
       break;
-    }
-    if (turned) turning_poses.push_back({R, t});
-    else turning_poses.clear();
-    if (turning_poses.size() >= 3) {
-      double spread_mm = 0.0;
-      const auto n = turning_poses.size();
-      for (std::size_t i = n - 3; i < n; ++i)
-        for (std::size_t j = i + 1; j < n; ++j) {
-          const auto& [Ri, ti] = turning_poses[i];
-          const auto& [Rj, tj] = turning_poses[j];
-          // A bone point x moves by (Rj − Ri)(x − c) + (tj − ti) between the two poses.
-          spread_mm = std::max(spread_mm, (tj - ti).norm() + Eigen::AngleAxisd(Rj * Ri.transpose()).angle() * extent_mm);
-        }
-      if (spread_mm < options.settled_mm) {
-        out.found = true;
-        break;
-      }
     }
   }
   if (!out.found) {

@@ -69,6 +69,8 @@ class LiveNode::Impl {
   void pelvis_loop();
   void output_loop();
   void publish(std::shared_ptr<const AdaptedModel> adapted, std::shared_ptr<const geometry::PelvisRegistration> pelvis);
+  /// Puts the pair on screen once more for the adaptation thread (the models moved).
+  void adapt_again(ViewPair pair);
   /// The models the adaptations bend: moved with the pelvis found, or null (as registered).
   std::shared_ptr<const PelvisMovedModels> moved_models() const;
   /// Samples the source's counts (compose thread) and raises or clears the frame-loss alert.
@@ -88,13 +90,21 @@ class LiveNode::Impl {
   BoundedQueue<acquisition::Frame> input_;
   BoundedQueue<ComposedFrame> output_;
   LatestSlot<Analysis> analysis_;
-  LatestSlot<ViewPair> pairs_;
+  struct PairJob {  // a pair for the adaptation thread
+    ViewPair pair;
+    bool again = false;  // the pair on screen once more, from the models the pelvis moved (no new view)
+  };
+  LatestSlot<PairJob> pairs_;
   BoundedQueue<BoneView> bone_views_{4};
-  // The models moved with the pelvis (null: as registered), and the pair the model on screen
-  // came from, adapted again when the models move.
+  // The models moved with the pelvis (null: as registered); the pair the model on screen came
+  // from; whether an adaptation is running. When the models move, the pair on screen is
+  // adapted again: by the pelvis thread when no adaptation runs, else by the adaptation
+  // thread once it is done (it bent the models as they were).
   mutable std::mutex moved_mutex_;
   std::shared_ptr<const PelvisMovedModels> moved_;
   std::optional<ViewPair> shown_pair_;
+  bool adapting_pair_ = false;
+  std::atomic<bool> stopping_{false};  // the pelvis thread registers nothing more
   /// The last adaptation's outcome for the analysis thread's selector: used or not, and
   /// the earlier frame of its pair.
   struct PairOutcome {
@@ -225,6 +235,7 @@ void LiveNode::Impl::stop() {
   compose_thread_.join();
   analysis_.close();
   analysis_thread_.join();
+  stopping_.store(true);
   bone_views_.close();
   pelvis_thread_.join();
   pairs_.close();
@@ -507,7 +518,7 @@ void LiveNode::Impl::analysis_loop() {
       log().info("view pair: frames {} and {}, {:.0f}° apart: adapting (the second view waited {:.0f} ms and was "
                  "segmented in {:.0f} ms)",
                  pair->earlier.frame, pair->later.frame, pair->separation_deg, waited_ms, took_ms);
-      pairs_.put(std::move(*pair));
+      pairs_.put(PairJob{std::move(*pair), false});
       std::lock_guard lock(stats_mutex_);
       ++stats_.pairs;
     }
@@ -515,7 +526,12 @@ void LiveNode::Impl::analysis_loop() {
 }
 
 void LiveNode::Impl::adaptation_loop() {
-  while (std::optional<ViewPair> pair = pairs_.take()) {
+  // The models the model on screen was bent from (only this thread publishes): a later
+  // adaptation warm-starts from it only when it bends the same ones.
+  std::shared_ptr<const PelvisMovedModels> published_with;
+  while (std::optional<PairJob> job = pairs_.take()) {
+    const ViewPair& pair = job->pair;
+    const bool again = job->again;
     adapting_.store(true);
     struct Done {
       std::atomic<bool>& flag;
@@ -524,41 +540,47 @@ void LiveNode::Impl::adaptation_loop() {
         flag.notify_all();
       }
     } done{adapting_};
+    // The models as registered or as the pelvis moved them.
+    std::shared_ptr<const PelvisMovedModels> moved;
+    {
+      std::lock_guard lock(moved_mutex_);
+      moved = moved_;
+      adapting_pair_ = true;
+    }
+    // Done: if the models moved meanwhile, the pair on screen (this one if it was used) is
+    // adapted again from them.
+    const auto finished = [&](bool used) {
+      std::optional<ViewPair> once_more;
+      {
+        std::lock_guard lock(moved_mutex_);
+        adapting_pair_ = false;
+        if (used) shown_pair_ = pair;
+        if (moved_ != moved) once_more = shown_pair_;
+      }
+      if (once_more) adapt_again(std::move(*once_more));
+    };
     try {
-      // The models as registered or moved with the pelvis; warm-started from the model on
-      // screen (only this thread publishes) when it bent the same ones.
-      const std::shared_ptr<const PelvisMovedModels> moved = moved_models();
-      bool again = false;  // the pair on screen adapted again (the pelvis moved the models): no new view
-      {
-        std::lock_guard lock(moved_mutex_);
-        again = shown_pair_ && shown_pair_->earlier.id() == pair->earlier.id() && shown_pair_->later.id() == pair->later.id();
-      }
       const auto shown = model();
-      const bool same_models = shown->pelvis.get() == (moved ? &moved->pose : nullptr);
       auto m = std::make_shared<const AdaptedModel>(
-          adapt_model(moved ? *moved->deformer : *deformer_, *pair, options_.adaptation,
-                      shown->adapted && same_models ? &shown->adapted->deformation : nullptr));
-      // The pose is shared with the models it moved: the published model keeps them alive.
-      publish(m, moved ? std::shared_ptr<const geometry::PelvisRegistration>(moved, &moved->pose) : nullptr);
-      {
-        std::lock_guard lock(moved_mutex_);
-        shown_pair_ = *pair;
-      }
-      const double ready_ms = static_cast<double>(steady_ns(Clock::now()) - pair->later.time_ns) * 1e-6;
+          adapt_model(moved ? *moved->deformer : *deformer_, pair, options_.adaptation,
+                      shown->adapted && published_with == moved ? &shown->adapted->deformation : nullptr));
+      publish(m, moved ? std::make_shared<const geometry::PelvisRegistration>(moved->pose) : nullptr);
+      published_with = moved;
+      const double ready_ms = static_cast<double>(steady_ns(Clock::now()) - pair.later.time_ns) * 1e-6;
       const auto& contained = m->deformation.containment;
       const bool outside = deform::leaves_device_outside(contained);
       {
         std::lock_guard lock(stats_mutex_);
         ++stats_.adaptations;
         stats_.last_failure.clear();
-        if (!again) adaptation_latencies_.add(ready_ms);
+        if (!again) adaptation_latencies_.add(ready_ms);  // the second view's wait, which a pair once more is not
         stats_.models_device_outside += outside ? 1 : 0;
         stats_.last_device_outside_length_mm = contained.outside_length_mm;
         stats_.last_device_outside_max_depth_mm = contained.outside_max_depth_mm;
       }
-      {
+      if (!again) {  // the selector hears of the pairs it formed
         std::lock_guard lock(outcome_mutex_);
-        pair_outcome_ = PairOutcome{true, pair->earlier.id()};
+        pair_outcome_ = PairOutcome{true, pair.earlier.id()};
       }
       alerts_.clear("adaptation");
       // Shown, since it is still closer to the anatomy than the preoperative one, but said.
@@ -581,71 +603,97 @@ void LiveNode::Impl::adaptation_loop() {
                       r.control_points, r.constrained_vertices, r.iterations, r.rounds,
                       r.converged ? "" : " (NOT converged)",
                       r.timings.control_points_ms + r.timings.factor_ms + r.timings.iterate_ms);
+      finished(true);
     } catch (const std::exception& e) {
       {
         std::lock_guard lock(stats_mutex_);
         ++stats_.adaptation_failures;
-        stats_.last_failure = "frames " + std::to_string(pair->earlier.frame) + "+" + std::to_string(pair->later.frame) +
+        stats_.last_failure = "frames " + std::to_string(pair.earlier.frame) + "+" + std::to_string(pair.later.frame) +
                               ": " + e.what();
       }
-      {
+      if (!again) {
         std::lock_guard lock(outcome_mutex_);
-        pair_outcome_ = PairOutcome{false, pair->earlier.id()};
+        pair_outcome_ = PairOutcome{false, pair.earlier.id()};
       }
-      alerts_.set("adaptation", std::string("frames ") + std::to_string(pair->earlier.frame) + "+" +
-                                  std::to_string(pair->later.frame) + ": " + e.what() + "; last good model kept",
+      alerts_.set("adaptation", std::string("frames ") + std::to_string(pair.earlier.frame) + "+" +
+                                  std::to_string(pair.later.frame) + ": " + e.what() + "; last good model kept",
                 options_.alert_hold);
+      finished(false);
     }
   }
 }
 
+void LiveNode::Impl::adapt_again(ViewPair pair) {
+  // Not over a newer pair waiting: that one bends the moved models anyway.
+  {
+    std::lock_guard lock(stats_mutex_);
+    ++stats_.readaptations;
+  }
+  if (pairs_.put_if_empty(PairJob{std::move(pair), true})) {
+    log().info("pelvis: the model on screen is adapted again from the moved models");
+  } else {
+    std::lock_guard lock(stats_mutex_);
+    --stats_.readaptations;
+  }
+}
+
 void LiveNode::Impl::pelvis_loop() {
+  const auto pose_text = [](const geometry::PelvisRegistration& r) {
+    return fmt::format("{:.1f} mm, {:.1f}° from the registration", r.shift_mm.norm(),
+                       Eigen::AngleAxisd(r.rotation).angle() * 180.0 / std::numbers::pi);
+  };
   for (;;) {
     std::optional<BoneView> b = bone_views_.pop(std::chrono::milliseconds(100));
+    if (stopping_.load()) break;  // what is left is not registered: the node stops
     if (!b) {
       if (bone_views_.closed()) break;
       continue;
     }
-    if (!pelvis_.offer(b->detector, b->view, b->name)) {
-      std::lock_guard lock(stats_mutex_);
-      stats_.pelvis_views = pelvis_.views();
-      continue;
-    }
-    const auto t0 = Clock::now();
-    const geometry::PelvisRegistration found = pelvis_.register_views();
-    const double register_ms = ms_between(t0, Clock::now());
-    const std::string outcome = describe(found);
-    log().info("pelvis {} (registered in {:.0f} ms{})", outcome, register_ms,
-               pelvis_.moves_models(found) ? "; the models move with it" : "");
-    for (const auto& v : found.views)
-      if (!v.used) log().info("pelvis: view {} not used: {}", v.name, v.reason);
     std::string status;
+    std::optional<geometry::PelvisRegistration> found;
     std::shared_ptr<const PelvisMovedModels> now_moved;
-    if (pelvis_.moves_models(found)) {
-      try {
-        now_moved = pelvis_.move_models(found);
-        log().info("pelvis: models moved with it and prepared in {:.0f} ms", now_moved->deformer->precompute_ms());
-      } catch (const std::exception& e) {
-        status = "found, but the models cannot move with it (see the log)";
-        log().warn("pelvis {}, but the models cannot move with it: {}; they stay as they were", outcome, e.what());
+    try {
+      if (!pelvis_.offer(b->detector, b->view, b->name)) {
+        std::lock_guard lock(stats_mutex_);
+        stats_.pelvis_views = pelvis_.views();
+        continue;
       }
+      const auto t0 = Clock::now();
+      found = pelvis_.register_views();
+      const bool moves = pelvis_.moves_models(*found);
+      log().info("pelvis {} (registered in {:.0f} ms{})", describe(*found), ms_between(t0, Clock::now()),
+                 moves ? "; the models move with it" : "");
+      for (const auto& v : found->views)
+        if (!v.used) log().info("pelvis: view {} not used: {}", v.name, v.reason);
+      if (moves) {
+        try {
+          now_moved = pelvis_.move_models(*found);
+          log().info("pelvis: models moved with it and prepared in {:.0f} ms", now_moved->deformer->precompute_ms());
+        } catch (const std::exception& e) {
+          status = "found, but the models cannot move with it (see the log)";
+          log().warn("pelvis {}, but the models cannot move with it: {}; they stay as they were", describe(*found), e.what());
+        }
+      }
+    } catch (const std::exception& e) {
+      // Whatever the registration met (memory, an image it could not read): said, and the
+      // node goes on with the models as they are.
+      status = "not looked for in this view: it failed (see the log)";
+      log().error("pelvis: {}: {}; the models stay as they are", b->name, e.what());
     }
     const std::shared_ptr<const PelvisMovedModels> moved = now_moved ? now_moved : moved_models();
-    const auto pose_text = [](const geometry::PelvisRegistration& r) {
-      return fmt::format("{:.1f} mm, {:.1f}° from the registration", r.shift_mm.norm(),
-                         Eigen::AngleAxisd(r.rotation).angle() * 180.0 / std::numbers::pi);
-    };
-    if (status.empty())
-      status = found.found ? pose_text(found) + "; models moved with it"
-               : moved     ? "not found again (see the log); models moved as found before: " + pose_text(moved->pose)
-                           : "not found (see the log); models where the registration put them";
+    if (status.empty() && found)
+      status = !found->found ? (moved ? "not found again (see the log); models moved as found before: " + pose_text(moved->pose)
+                                      : "not found (see the log); models where the registration put them")
+               : moved       ? pose_text(*found) + "; models moved with it"
+                             : pose_text(*found) + "; models where the registration put them (within " +
+                                   fmt::format("{:.1f}", options_.pelvis.remake_mm) + " mm)";
     {
       std::lock_guard lock(stats_mutex_);
       stats_.pelvis_views = pelvis_.views();
-      ++stats_.pelvis_registrations;
-      stats_.pelvis_found += found.found ? 1 : 0;
+      stats_.pelvis_registrations += found ? 1 : 0;
+      stats_.pelvis_found += found && found->found ? 1 : 0;
       stats_.pelvis_moves += now_moved ? 1 : 0;
-      stats_.last_pelvis = outcome;
+      if (found) stats_.last_pelvis = describe(*found);
       stats_.pelvis_status = status;
       if (moved) {
         stats_.pelvis_shift_mm = {moved->pose.shift_mm.x(), moved->pose.shift_mm.y(), moved->pose.shift_mm.z()};
@@ -653,19 +701,16 @@ void LiveNode::Impl::pelvis_loop() {
       }
     }
     if (!now_moved) continue;
-    std::optional<ViewPair> again;
+    // The model on screen was bent from where the models were: its pair is adapted again from
+    // where they are now, here when no adaptation runs, else by the adaptation thread when
+    // it is done.
+    std::optional<ViewPair> once_more;
     {
       std::lock_guard lock(moved_mutex_);
       moved_ = now_moved;
-      again = shown_pair_;
+      if (!adapting_pair_) once_more = shown_pair_;
     }
-    // The model on screen was bent from where the models were: its pair is adapted again
-    // from where they are now, unless a newer pair is waiting (it will be).
-    if (again && pairs_.put_if_empty(std::move(*again))) {
-      log().info("pelvis: the model on screen is adapted again from the moved models");
-      std::lock_guard lock(stats_mutex_);
-      ++stats_.pairs;
-    }
+    if (once_more) adapt_again(std::move(*once_more));
   }
 }
 

@@ -21,6 +21,11 @@ void check_options(const PelvisTrackingOptions& o) {
   if (!(o.same_table_mm > 0.0) || !std::isfinite(o.same_table_mm)) bad("same_table_mm", "must be positive");
   if (o.max_views < 2) bad("max_views", "must be 2 or more (two views fix the pelvis's depth)");
   if (!(o.remake_mm >= 0.0) || !std::isfinite(o.remake_mm)) bad("remake_mm", "must be 0 or more");
+  try {
+    geometry::check_options(o.registration);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(std::string("pelvis: registration: ") + e.what());
+  }
 }
 
 bool same_bone_view(const FrameView& a, const FrameView& b, const PelvisTrackingOptions& options) {
@@ -70,8 +75,11 @@ geometry::PelvisRegistration PelvisTracker::register_views() {
     return r;
   }
   r = geometry::register_pelvis(scene_.pelvis, bones, options_.registration);
-  // The registration reports every view given, in order.
-  if (r.views.size() == views_.size()) {
+  // Refused: the views its last round could not use are forgotten (a frame without bones, a
+  // menu on the monitor), to be offered again when the C-arm comes back to them. Found, all
+  // stay: a view that dropped out of the last round was used before it. The registration
+  // reports every view given, in order.
+  if (!r.found && r.views.size() == views_.size()) {
     std::vector<Kept> kept;
     for (std::size_t i = 0; i < views_.size(); ++i)
       if (r.views[i].used) kept.push_back(std::move(views_[i]));

@@ -92,7 +92,16 @@ TEST_F(LiveNodePelvis, ThePelvisFoundInTheBonesMovesTheModelsTheNodeBendsAndTheS
   ASSERT_TRUE(model->adapted) << text;
   ASSERT_NE(model->pelvis, nullptr) << "the last model was bent from the models as registered\n" << text;
   EXPECT_TRUE(model->pelvis->found);
-  EXPECT_EQ(s.pairs, s.adaptations + s.adaptation_failures + s.pairs_superseded);
+  EXPECT_EQ(s.pairs + s.readaptations, s.adaptations + s.adaptation_failures + s.pairs_superseded);
+  // The model on screen is the newest pair's: a pair adapted again never comes back over a
+  // newer one. Only the pairs the views formed count towards the second view's wait.
+  std::uint64_t newest_later = 0;
+  for (auto at = text.find("view pair: frames "); at != std::string::npos; at = text.find("view pair: frames ", at + 1)) {
+    const auto and_at = text.find(" and ", at);
+    newest_later = std::max<std::uint64_t>(newest_later, std::stoull(text.substr(and_at + 5)));
+  }
+  EXPECT_EQ(model->adapted->frame_later, newest_later) << text;
+  EXPECT_EQ(s.adaptation_ms.n, s.adaptations - s.readaptations) << text;
   // The screen's pelvis line: from the first frame on, and what it says after the move.
   ASSERT_GT(shown->size(), 0u);
   EXPECT_TRUE(test::ScreenLog::line(shown->frame(0), "pelvis: looking for it in the bones")) << "the first frame";

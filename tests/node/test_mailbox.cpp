@@ -51,6 +51,23 @@ TEST(LatestSlot, KeepsTheNewestAndCountsWhatWasNeverTakenAlsoAtClose) {
   EXPECT_EQ(slot.superseded(), 2u);
 }
 
+// An item put only when none waits never replaces a newer one (the pair on screen adapted
+// again after the pelvis moved the models must not push out a new view's pair).
+TEST(LatestSlot, PutIfEmptyNeverReplacesWhatWaits) {
+  LatestSlot<int> slot;
+  EXPECT_TRUE(slot.put_if_empty(1));
+  EXPECT_FALSE(slot.put_if_empty(2));
+  EXPECT_EQ(slot.try_take(), 1);
+  EXPECT_EQ(slot.superseded(), 0u);
+  EXPECT_TRUE(slot.put_if_empty(3));
+  slot.put(4);  // a newer item still replaces it
+  EXPECT_EQ(slot.superseded(), 1u);
+  EXPECT_EQ(slot.try_take(), 4);
+  slot.close();
+  EXPECT_FALSE(slot.put_if_empty(5));
+  EXPECT_EQ(slot.try_take(), std::nullopt);
+}
+
 TEST(LatestSlot, ATakeThatWaitsIsReleasedByClose) {
   LatestSlot<int> slot;
   std::thread consumer([&] { EXPECT_FALSE(slot.take()); });

@@ -46,8 +46,8 @@ struct PelvisRegistrationOptions {
   double min_bone_fraction = 0.03;  ///< of a view's matched pixels, the share over the bones
   double min_separation_deg = 15.0; ///< between two views' rays to the bones, to fix the depth
   int max_rounds = 15;              ///< render, match, solve, until settled (else refused)
-  /// Settled: a round's step moves no bone further than this, or three turning rounds in a row
-  /// keep every bone within it (noisy matches swing the steps about the pose).
+  /// Settled: a round's step moves no bone further than this (the turn's steps are halved
+  /// each time one reverses the last, so rounds that swing about the pose settle).
   double settled_mm = 1.0;
   bool turn = true;                 ///< solve for the turn too where the blocks allow (false: translation only)
   int blocks_across = 8;            ///< a block's side is the frame's width over this (64 px at 512)
@@ -77,6 +77,10 @@ struct PelvisRegistration {
   int rounds = 0;
   std::string refused;       ///< why nothing was found ("" when found)
 };
+
+/// std::invalid_argument "register_pelvis: implausible options (...)" for options no
+/// registration runs with.
+void check_options(const PelvisRegistrationOptions& options);
 
 /// Registers the pelvis `bones_ct` (CT LPS) to the views: its pose in the CT's axes, a turn
 /// where the blocks allow, else a translation (what deform/pelvis_shift.hpp takes). Never

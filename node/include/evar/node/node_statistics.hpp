@@ -24,8 +24,11 @@ struct NodeStatistics {
   std::uint64_t frames_not_fluoroscopy = 0;
   std::uint64_t frames_held = 0;     ///< the last frame shown again while there was no video (not in frames_composited)
   /// Frames and pairs handed on but never analysed or adapted: replaced by a newer one, or
-  /// left when the node stopped (so pairs = adaptations + adaptation_failures + pairs_superseded).
+  /// left when the node stopped (with readaptations below, they make the adaptations).
   std::uint64_t analysed = 0, analysis_skipped = 0, candidates = 0, pairs = 0, pairs_superseded = 0;
+  /// The pair on screen adapted once more because the pelvis moved the models (no new view):
+  /// pairs + readaptations = adaptations + adaptation_failures + pairs_superseded.
+  std::uint64_t readaptations = 0;
   std::uint64_t analysis_waited = 0;  ///< frames whose analysis waited for an adaptation to finish
   std::uint64_t analysis_replaced = 0;  ///< of those, frames skipped for a newer one (in analysis_skipped)
   std::uint64_t adaptations = 0, adaptation_failures = 0;

@@ -39,7 +39,8 @@ struct PelvisTrackingOptions {
   geometry::PelvisRegistrationOptions registration;
 };
 
-/// std::invalid_argument "pelvis: <field>: <what is wrong>" for options no tracker runs with.
+/// std::invalid_argument "pelvis: <field>: <what is wrong>" for options no tracker runs with
+/// (the registration's own included).
 void check_options(const PelvisTrackingOptions& options);
 
 /// Whether two frames show the bones from one view (PelvisTrackingOptions::same_view_deg
@@ -78,9 +79,9 @@ class PelvisTracker {
   bool offer(const cv::Mat& detector, const FrameView& view, std::string name);
   std::size_t views() const { return views_.size(); }
 
-  /// Registers the pelvis in the views kept (two at least, else refused). Views the match
-  /// did not use (no bones in them, a frame that was not fluoroscopy) are forgotten, so
-  /// that a later frame of theirs is offered again.
+  /// Registers the pelvis in the views kept (two at least, else refused). When it is
+  /// refused, the views the match did not use (no bones in them, a frame that was not
+  /// fluoroscopy) are forgotten, so that a later frame of theirs is offered again.
   geometry::PelvisRegistration register_views();
 
   /// True when `found` was found and lies farther than remake_mm from the pose the models
