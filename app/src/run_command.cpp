@@ -238,6 +238,8 @@ int run_node(const RunCommand& cmd) {
                   {"stale_geometry", s.stale_geometry_frames}, {"c_arm_moving", s.moving_frames}}},
       {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped},
                     {"not_fluoroscopy", s.frames_not_fluoroscopy},
+                    {"video_mapping_checks", s.video_mapping_checks}, {"video_mapping_misfits", s.video_mapping_misfits},
+                    {"last_video_mapping_misfit", s.last_video_mapping_misfit},
                     {"waited_for_adaptation", s.analysis_waited}, {"candidates", s.candidates},
                     {"pairs", s.pairs}, {"pairs_superseded", s.pairs_superseded}}},
       {"adaptation", {{"models", s.adaptations}, {"failures", s.adaptation_failures}, {"last_failure", s.last_failure},

@@ -1,6 +1,9 @@
 #include "evar/geometry/video_area.hpp"
 
 #include <algorithm>
+#include <cmath>
+#include <cstdio>
+#include <iterator>
 #include <opencv2/imgproc.hpp>
 #include <stdexcept>
 
@@ -100,6 +103,34 @@ VideoArea find_video_area(const std::vector<cv::Mat>& frames) {
   std::sort(area.text_regions.begin(), area.text_regions.end(),
             [](const PixelRect& a, const PixelRect& b) { return a.y != b.y ? a.y < b.y : a.x < b.x; });
   return area;
+}
+
+std::string video_mapping_misfit(const cv::Mat& frame, const VideoMapping& mapping, double tolerance_px) {
+  VideoArea area;
+  try {
+    area = find_video_area({frame});
+  } catch (const std::invalid_argument&) {
+    return "";  // no picture to tell by
+  }
+  const PixelRect& f = area.image_rect;
+  const PixelRect& m = mapping.image_rect;
+  struct Side {
+    const char* where;
+    double past_px;
+  };
+  const Side sides[] = {{"left of", m.x - f.x},
+                        {"right of", (f.x + f.width) - (m.x + m.width)},
+                        {"above", m.y - f.y},
+                        {"below", (f.y + f.height) - (m.y + m.height)}};
+  const Side* worst = std::max_element(std::begin(sides), std::end(sides),
+                                       [](const Side& a, const Side& b) { return a.past_px < b.past_px; });
+  if (!(worst->past_px > tolerance_px)) return "";
+  char text[256];
+  std::snprintf(text, sizeof text,
+                "the image area reaches %ld px %s the mapping's image rectangle (found [%.0f, %.0f, %.0f, %.0f], mapped "
+                "[%.0f, %.0f, %.0f, %.0f])",
+                std::lround(worst->past_px), worst->where, f.x, f.y, f.width, f.height, m.x, m.y, m.width, m.height);
+  return text;
 }
 
 VideoMapping proposed_mapping(const VideoArea& area, int rotation_deg, bool mirror) {

@@ -13,6 +13,7 @@
 #include <opencv2/core.hpp>
 
 #include "alert_board.hpp"
+#include "evar/geometry/video_area.hpp"
 #include "evar/geometry/video_frame.hpp"
 #include "held_frame_policy.hpp"
 #include "evar/node/logging.hpp"
@@ -457,6 +458,8 @@ void LiveNode::Impl::compose_loop() {
 void LiveNode::Impl::analysis_loop() {
   ViewPairSelector selector(options_.adaptation.reconstruction.min_separation_deg, options_.pairs);
   std::optional<FrameView> last_bone_view;
+  Clock::time_point last_mapping_check{};
+  int misfits_in_a_row = 0;
   while (std::optional<Analysis> a = analysis_.take()) {
     if (adapting_.load()) {
       // Held, not dropped: it may be the last frame of a short run of fluoroscopy. Once the
@@ -494,6 +497,25 @@ void LiveNode::Impl::analysis_loop() {
         continue;
       }
       alerts_.clear("not-fluoroscopy");
+      // Does the picture still lie where the mapping says? (Cheap enough every few seconds.)
+      if (analysis_start - last_mapping_check >= options_.video_mapping_check) {
+        last_mapping_check = analysis_start;
+        const std::string misfit = geometry::video_mapping_misfit(wrap(a->frame), *options_.video_mapping);
+        misfits_in_a_row = misfit.empty() ? 0 : misfits_in_a_row + 1;
+        {
+          std::lock_guard lock(stats_mutex_);
+          ++stats_.video_mapping_checks;
+          if (!misfit.empty()) {
+            ++stats_.video_mapping_misfits;
+            stats_.last_video_mapping_misfit = misfit;
+          }
+        }
+        if (misfits_in_a_row >= 2)
+          alerts_.set("video-mapping", "VIDEO MAPPING DOES NOT FIT: " + misfit + "; the roadmap may be misplaced (evarnode calibrate-video)",
+                      std::nullopt);
+        else if (misfit.empty())
+          alerts_.clear("video-mapping");
+      }
     }
     // The bones: the first frame of each view goes to the pelvis thread.
     if (pelvis_.active() && !(last_bone_view && same_bone_view(*last_bone_view, a->view, options_.pelvis))) {

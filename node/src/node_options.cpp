@@ -70,6 +70,7 @@ void check_options(const NodeOptions& o) {
   positive("video_stall", o.video_stall);
   positive("held_frame_interval", o.held_frame_interval);
   positive("alert_hold", o.alert_hold);
+  positive("video_mapping_check", o.video_mapping_check);
   positive("carm_notice_hold", o.carm_notice_hold);
   if (o.input_queue == 0) bad("input_queue", "0 frames; a queue holds at least 1");
   if (o.output_queue == 0) bad("output_queue", "0 frames; a queue holds at least 1");

@@ -240,3 +240,45 @@ TEST(VideoOutOptions, AMappingThatDoesNotFitTheDetectorIsRefusedByName) {
 }
 
 }  // namespace
+
+// The picture no longer where the mapping says (the monitor's layout changed, or the mapping
+// was made for another): said on screen while it lasts, the log and the counts say what does
+// not fit; with the right mapping nothing is said.
+TEST_F(VideoOutReplay, AMappingThatNoLongerFitsThePictureIsSaidOnScreen) {
+  class MisfitRecorder final : public node::OutputSink {
+   public:
+    std::string name() const override { return "misfit recorder"; }
+    void write(const node::ComposedFrame& f) override {
+      for (const auto& a : f.status.alerts)
+        if (a.rfind("VIDEO MAPPING DOES NOT FIT", 0) == 0) said.push_back(a);
+    }
+    std::vector<std::string> said;
+  };
+  for (const bool wrong : {false, true}) {
+    SCOPED_TRACE(wrong ? "the mapping 10 px below the picture" : "the session's mapping");
+    node::NodeOptions o = options();
+    o.video_mapping_check = std::chrono::milliseconds(1);  // every analysed frame
+    if (wrong) o.video_mapping->image_rect.y += 10.0;
+    auto recorder = std::make_unique<MisfitRecorder>();
+    MisfitRecorder& shown = *recorder;
+    std::vector<std::unique_ptr<node::OutputSink>> sinks;
+    sinks.push_back(std::move(recorder));
+    node::LiveNode node(*scene_, o, std::move(sinks));
+    session::SessionReplay replay(generated_->session, {0.0, 1});
+    node.start(replay.frames(), replay.carm());
+    ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
+    node.stop();
+    const node::NodeStatistics s = node.statistics();
+    EXPECT_GE(s.video_mapping_checks, 3u);
+    if (!wrong) {
+      EXPECT_EQ(s.video_mapping_misfits, 0u) << s.last_video_mapping_misfit;
+      EXPECT_TRUE(shown.said.empty()) << shown.said.front();
+      continue;
+    }
+    EXPECT_EQ(s.video_mapping_misfits, s.video_mapping_checks);
+    EXPECT_NE(s.last_video_mapping_misfit.find("10 px above the mapping's image rectangle"), std::string::npos)
+        << s.last_video_mapping_misfit;
+    ASSERT_FALSE(shown.said.empty());
+    EXPECT_NE(shown.said.front().find("the roadmap may be misplaced"), std::string::npos) << shown.said.front();
+  }
+}

@@ -30,6 +30,14 @@ struct VideoArea {
 /// found (naming what was seen).
 VideoArea find_video_area(const std::vector<cv::Mat>& frames);
 
+/// Whether a grabbed frame still shows its image where `mapping` says (the node's check that
+/// the mapping fits, issue 31): "" when it does or the frame cannot tell (nothing but black:
+/// the beam off, no picture), else what does not fit, e.g. "the image area reaches 8 px left
+/// of the mapping's image rectangle (found [92, 8, 480, 480], mapped [100, 8, 480, 480])".
+/// Only image content past the mapped rectangle by more than `tolerance_px` counts: a picture
+/// smaller than the rectangle may be collimator shutters closed over its edges.
+std::string video_mapping_misfit(const cv::Mat& frame, const VideoMapping& mapping, double tolerance_px = 3.0);
+
 /// The mapping the area proposes, with the display's turn and mirror (which the frames do not
 /// show) as the operator gives them.
 VideoMapping proposed_mapping(const VideoArea& area, int rotation_deg, bool mirror);

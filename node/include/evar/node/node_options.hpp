@@ -27,6 +27,11 @@ struct NodeOptions {
   /// of them (issue 31). Frames must have its video size; the analysis reads the detector
   /// image out of them and the roadmap is drawn through it; frames keep their video size.
   std::optional<geometry::VideoMapping> video_mapping;
+  /// Under a video mapping, an analysed frame is checked this often for image content past
+  /// the mapping's image rectangle (geometry::video_mapping_misfit); two misfits in a row
+  /// raise an alert until a check fits again (the monitor's layout or zoom changed, or the
+  /// mapping was wrong): the roadmap may be misplaced.
+  std::chrono::milliseconds video_mapping_check{2000};
   Eigen::Matrix4d registration = Eigen::Matrix4d::Identity();  ///< CT → C-arm at table 0
   CandidateOptions candidate;
   ViewPairOptions pairs;

@@ -22,6 +22,10 @@ struct NodeStatistics {
   /// Analysed frames whose image area did not show fluoroscopy (under a video mapping:
   /// geometry::not_fluoroscopy), not searched for a device.
   std::uint64_t frames_not_fluoroscopy = 0;
+  /// Under a video mapping: frames checked for fitting it, those that did not fit, and what
+  /// the last misfit was (NodeOptions::video_mapping_check).
+  std::uint64_t video_mapping_checks = 0, video_mapping_misfits = 0;
+  std::string last_video_mapping_misfit;
   std::uint64_t frames_held = 0;     ///< the last frame shown again while there was no video (not in frames_composited)
   /// Frames and pairs handed on but never analysed or adapted: replaced by a newer one, or
   /// left when the node stopped (with readaptations below, they make the adaptations).
