@@ -12,7 +12,8 @@ namespace {
 
 constexpr std::size_t kHeaderBytes = 4;         // version, type, sequence
 constexpr std::size_t kCrcBytes = 4;
-constexpr std::size_t kGeometryBodyBytes = 37;  // see docs/CARM_LINK_PROTOCOL.md
+constexpr std::size_t kGeometryBodyBytesV1 = 37;  // see docs/CARM_LINK_PROTOCOL.md
+constexpr std::size_t kGeometryBodyBytes = 38;    // version 2: and the zoom mode
 constexpr std::size_t kStatusFixedBytes = 10;   // time, level, text length
 constexpr double kMilliDegPerDeg = 1000.0;
 constexpr double kCentiMmPerMm = 100.0;
@@ -175,6 +176,9 @@ std::vector<std::uint8_t> encode(const GeometryMessage& m) {
   for (int k = 0; k < 3; ++k)
     w.i32(static_cast<std::int32_t>(to_wire(s.table_mm[static_cast<std::size_t>(k)], kCentiMmPerMm, 2.0e7, table_names[k])));
   w.u8(static_cast<std::uint8_t>((s.fluoro_on ? kFlagFluoro : 0) | (s.moving ? kFlagMoving : 0)));
+  if (s.zoom_mode < 0 || s.zoom_mode > 255)
+    throw std::invalid_argument("C-arm link: zoom_mode " + std::to_string(s.zoom_mode) + " outside 0-255");
+  w.u8(static_cast<std::uint8_t>(s.zoom_mode));
   return frame(w);
 }
 
@@ -249,9 +253,9 @@ void Decoder::finish_frame(const MessageCallback& on_message) {
     return fail(stats_.crc_errors, size + "CRC mismatch: frame says " + hex32(said) + ", bytes give " + hex32(computed));
   Reader r(bytes.first(n));
   const std::uint8_t version = r.u8();
-  if (version != kVersion)
+  if (version < kOldestVersion || version > kVersion)
     return fail(stats_.version_errors, size + "protocol version " + std::to_string(version) + " (this node speaks " +
-                                           std::to_string(kVersion) + ")");
+                                           std::to_string(kOldestVersion) + " to " + std::to_string(kVersion) + ")");
   const std::uint8_t type = r.u8();
   const std::uint16_t sequence = r.u16();
   const std::size_t body = n - kHeaderBytes;
@@ -261,7 +265,8 @@ void Decoder::finish_frame(const MessageCallback& on_message) {
   };
 
   if (type == static_cast<std::uint8_t>(MessageType::Geometry)) {
-    if (body != kGeometryBodyBytes) return wrong_length("geometry", kGeometryBodyBytes);
+    const std::size_t expected = version == 1 ? kGeometryBodyBytesV1 : kGeometryBodyBytes;
+    if (body != expected) return wrong_length(version == 1 ? "version 1 geometry" : "geometry", expected);
     GeometryMessage m;
     m.sequence = sequence;
     CArmState& s = m.state;
@@ -271,6 +276,7 @@ void Decoder::finish_frame(const MessageCallback& on_message) {
     std::array<std::int32_t, 3> table{};
     for (auto& t : table) t = r.i32();
     const std::uint8_t flags = r.u8();
+    const std::uint8_t zoom_mode = version == 1 ? 0 : r.u8();
     if (primary < -180000 || primary > 180000)
       return fail(stats_.invalid_fields, size + "primary angle " + std::to_string(primary) + " m° outside ±180°");
     if (secondary < -90000 || secondary > 90000)
@@ -287,6 +293,7 @@ void Decoder::finish_frame(const MessageCallback& on_message) {
     for (std::size_t k = 0; k < 3; ++k) s.table_mm[k] = table[k] / kCentiMmPerMm;
     s.fluoro_on = (flags & kFlagFluoro) != 0;
     s.moving = (flags & kFlagMoving) != 0;
+    s.zoom_mode = zoom_mode;
     return accept(stats_.geometry, sequence, Message{m}, on_message);
   }
   if (type == static_cast<std::uint8_t>(MessageType::Status)) {

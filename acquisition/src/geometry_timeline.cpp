@@ -120,7 +120,8 @@ std::optional<FrameGeometry> GeometryTimeline::at_carm_time(std::int64_t tn) con
                            std::abs(a.sod_mm - b.sod_mm) > options_.settled_tolerance_mm;
   for (std::size_t k = 0; k < 3; ++k)
     distances_changed = distances_changed || std::abs(a.table_mm[k] - b.table_mm[k]) > options_.settled_tolerance_mm;
-  g.moving = a.moving || b.moving || angles_changed || distances_changed;
+  // A zoom change between them: frames in between may show either field of view.
+  g.moving = a.moving || b.moving || angles_changed || distances_changed || a.zoom_mode != b.zoom_mode;
   g.stale = g.age_ns > stale_ns;
   return g;
 }

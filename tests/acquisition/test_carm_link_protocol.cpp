@@ -25,6 +25,7 @@ wire::GeometryMessage sample(std::uint16_t seq) {
   m.state.table_mm = {-12.345, 250.5, -1000.004};
   m.state.fluoro_on = seq % 2 == 0;
   m.state.moving = seq % 3 == 0;
+  m.state.zoom_mode = 1 + seq % 4;
   return m;
 }
 
@@ -88,9 +89,45 @@ TEST(CArmLinkProtocol, GeometryRoundTripsToTheWireResolution) {
     for (int k = 0; k < 3; ++k) EXPECT_NEAR(g.state.table_mm[k], m.state.table_mm[k], 0.005);
     EXPECT_EQ(g.state.fluoro_on, m.state.fluoro_on);
     EXPECT_EQ(g.state.moving, m.state.moving);
+    EXPECT_EQ(g.state.zoom_mode, m.state.zoom_mode);
   }
   EXPECT_EQ(d.stats().geometry, 5u);
   EXPECT_EQ(d.stats().errors(), 0u);
+}
+
+// Version 2 added the zoom mode after the flags. An adapter speaking version 1 (geometry of
+// 37 bytes) is still heard, its zoom mode 0 (not said); a version 1 geometry of version 2's
+// length is not.
+TEST(CArmLinkProtocol, Version1GeometryIsStillHeardWithoutAZoomMode) {
+  Bytes v1;
+  {
+    const Bytes f = wire::encode(sample(6));
+    ASSERT_TRUE(wire::cobs_decode(std::span(f).subspan(1, f.size() - 2), v1));
+    v1.resize(v1.size() - 4 - 1);  // without its CRC and the zoom mode
+    v1[0] = 1;
+  }
+  wire::Decoder d;
+  const auto got = decode_all(d, raw_frame(v1));
+  ASSERT_EQ(got.size(), 1u) << d.last_error();
+  const auto& g = std::get<wire::GeometryMessage>(got[0]);
+  EXPECT_EQ(g.state.zoom_mode, 0);
+  EXPECT_NEAR(g.state.primary_deg, sample(6).state.primary_deg, 0.0005);
+  EXPECT_EQ(g.state.fluoro_on, sample(6).state.fluoro_on);
+  Bytes long_v1 = v1;
+  long_v1.push_back(2);
+  EXPECT_TRUE(decode_all(d, raw_frame(long_v1)).empty());
+  EXPECT_NE(d.last_error().find("version 1 geometry body of 38 bytes (expected 37)"), std::string::npos) << d.last_error();
+  // A status message is the same in both versions.
+  Bytes status;
+  {
+    const Bytes f = wire::encode(wire::StatusMessage{8, 5, wire::StatusLevel::Warning, "collimator moving"});
+    ASSERT_TRUE(wire::cobs_decode(std::span(f).subspan(1, f.size() - 2), status));
+    status.resize(status.size() - 4);
+    status[0] = 1;
+  }
+  const auto said = decode_all(d, raw_frame(status));
+  ASSERT_EQ(said.size(), 1u) << d.last_error();
+  EXPECT_EQ(std::get<wire::StatusMessage>(said[0]).text, "collimator moving");
 }
 
 TEST(CArmLinkProtocol, StatusRoundTrips) {
@@ -118,6 +155,9 @@ TEST(CArmLinkProtocol, TheSenderRefusesWhatTheWireCannotCarry) {
   m = sample(1);
   m.state.sid_mm = 1000.004;  // both 100000 on the wire: the receiver would reject it
   m.state.sod_mm = 1000.0;
+  EXPECT_THROW(wire::encode(m), std::invalid_argument);
+  m = sample(1);
+  m.state.zoom_mode = 256;
   EXPECT_THROW(wire::encode(m), std::invalid_argument);
   EXPECT_THROW(wire::encode(wire::StatusMessage{0, 0, wire::StatusLevel::Info, std::string(201, 'x')}),
                std::invalid_argument);
@@ -213,8 +253,8 @@ TEST(CArmLinkProtocol, WellFramedNonsenseIsRejectedByField) {
   std::vector<Case> cases;
   {
     Bytes p = good_payload;
-    p[0] = 2;
-    cases.push_back({"version", p, "protocol version 2"});
+    p[0] = 3;
+    cases.push_back({"version", p, "protocol version 3 (this node speaks 1 to 2)"});
   }
   {
     Bytes p = good_payload;
@@ -224,7 +264,7 @@ TEST(CArmLinkProtocol, WellFramedNonsenseIsRejectedByField) {
   {
     Bytes p = good_payload;
     p.pop_back();
-    cases.push_back({"length", p, "geometry body of 36 bytes"});
+    cases.push_back({"length", p, "geometry body of 37 bytes (expected 38)"});
   }
   {
     Bytes p = good_payload;
@@ -234,7 +274,7 @@ TEST(CArmLinkProtocol, WellFramedNonsenseIsRejectedByField) {
   }
   {
     Bytes p = good_payload;
-    p.back() = 0x80;
+    p[4 + 36] = 0x80;  // flags, body offset 36
     cases.push_back({"flags", p, "reserved flag bits"});
   }
   for (const auto& c : cases) {

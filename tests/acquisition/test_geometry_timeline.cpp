@@ -269,6 +269,7 @@ TEST(GeometryTimeline, ThePrimaryAngleIsInterpolatedTheShortWayRound) {
 
 // A table pan moves the image as a turn does: frames during it are marked moving even
 // when the C-arm does not set its flag.
+// A table pan, a detector move or a zoom change moves the image as a turn does.
 TEST(GeometryTimeline, ATablePanOrDetectorMoveIsMovement) {
   Scenario sc;
   auto samples = sc.samples(3.0);
@@ -279,8 +280,12 @@ TEST(GeometryTimeline, ATablePanOrDetectorMoveIsMovement) {
     if (i == 26) samples[i].table_mm[2] = 10.0;  // the table moves 10 mm between 2.5 and 2.6 s
     if (i > 26) samples[i].table_mm[2] = 10.0;
     if (i > 28) samples[i].sid_mm = 1100.0;      // and the detector comes down between 2.8 and 2.9 s
+    samples[i].zoom_mode = i > 23 ? 2 : 1;       // and the zoom changes between 2.3 and 2.4 s
     tl.add(samples[i]);
   }
+  EXPECT_FALSE(tl.at(sc.at(2.25))->moving);
+  EXPECT_TRUE(tl.at(sc.at(2.35))->moving);
+  EXPECT_EQ(tl.at(sc.at(2.45))->state.zoom_mode, 2);
   EXPECT_FALSE(tl.at(sc.at(2.45))->moving);
   EXPECT_TRUE(tl.at(sc.at(2.55))->moving);
   EXPECT_FALSE(tl.at(sc.at(2.65))->moving);

@@ -21,6 +21,9 @@ struct CArmPose {
   std::array<double, 3> table_mm{};  ///< table position (x, y, z)
   bool fluoro_on = false;
   bool moving = false;               ///< geometry not settled
+  /// The C-arm's zoom (magnification, field-of-view) mode as the link numbers it, 1-255;
+  /// 0: not said (a link of protocol version 1, or a C-arm without zoom modes).
+  int zoom_mode = 0;
 };
 
 struct CArmState : CArmPose {

@@ -1,5 +1,5 @@
 #pragma once
-// The C-arm link, version 1: how a C-arm-side adapter sends geometry samples and status to
+// The C-arm link, version 2: how a C-arm-side adapter sends geometry samples and status to
 // the node over a byte stream (serial or USB). docs/CARM_LINK_PROTOCOL.md is the
 // specification; this header is its implementation.
 //
@@ -19,7 +19,11 @@
 
 namespace evar::acquisition::carm_link {
 
-inline constexpr std::uint8_t kVersion = 1;
+/// The version encode() writes: 2, whose geometry carries the zoom mode. A receiver also
+/// takes version 1 (geometry without it: zoom mode 0), which adapters without a zoom readout
+/// may keep sending.
+inline constexpr std::uint8_t kVersion = 2;
+inline constexpr std::uint8_t kOldestVersion = 1;
 /// Longest encoded message (COBS bytes, delimiter excluded) a receiver accepts.
 inline constexpr std::size_t kMaxEncodedBytes = 255;
 inline constexpr std::size_t kMaxStatusText = 200;
