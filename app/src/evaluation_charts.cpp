@@ -109,14 +109,24 @@ void paper_lines(plstream& pls, double x0, double x1, bool vertical, double y_to
   pls.lsty(1);
 }
 
+std::string sessions_text(std::size_t n) { return std::to_string(n) + (n == 1 ? " session" : " sessions"); }
+
+// What the adapted models were bent from: moved with the pelvis found in the bones (the
+// node's default), or where the registration put them (`eval --no-pelvis`, or scenes
+// without the pelvis's bones), so that two runs' charts are not taken for one another.
+std::string adapted_label(const std::vector<CaseEvaluation>& cases) {
+  const bool pelvis = std::any_of(cases.begin(), cases.end(), [](const CaseEvaluation& c) { return c.pelvis.has_value(); });
+  return pelvis ? "adapted, pelvis found" : "adapted, as registered";
+}
+
 // The legend in the top margin: each series' name in its colour.
-void legend(plstream& pls) {
+void legend(plstream& pls, const std::string& adapted) {
   pls.col0(kInitial);
   pls.mtex("t", 0.8, 0.0, 0.0, "initial (preoperative)");
   pls.col0(kAdapted);
-  pls.mtex("t", 0.8, 0.22, 0.0, "adapted");
+  pls.mtex("t", 0.8, 0.20, 0.0, adapted.c_str());
   pls.col0(kPaper);
-  pls.mtex("t", 0.8, 0.34, 0.0, ("- - - the paper's Table 1 means: initial " + mm(kPaperInitialMm) + " mm, adapted " +
+  pls.mtex("t", 0.8, 0.42, 0.0, ("- - - the paper's Table 1 means: initial " + mm(kPaperInitialMm) + " mm, adapted " +
                                  mm(kPaperAdaptedMm) + " mm").c_str());
   pls.col0(kBlack);
 }
@@ -160,10 +170,10 @@ void write_per_case_chart(const std::filesystem::path& path, const std::vector<C
     page->box("bcnst", last - first < 15.0 ? 1.0 : 5.0, 1, "bcnstv", 0.0, 0);
     page->lab("session (its number among those given to eval)", "distance at the isocenter (mm)", "");
     const std::string title = name + ": internal iliac ostium of the iliac carrying the device, " +
-                              std::to_string(rows.size()) + " sessions, mean " + mm(mean(rows, &Pair::initial)) +
+                              sessions_text(rows.size()) + ", mean " + mm(mean(rows, &Pair::initial)) +
                               " -> " + mm(mean(rows, &Pair::adapted)) + " mm";
     page->mtex("t", 2.4, 0.5, 0.5, title.c_str());
-    legend(*page);
+    legend(*page, adapted_label(cases));
   }
   page.finish();
 }
@@ -198,8 +208,8 @@ void write_distribution_chart(const std::filesystem::path& path, const std::vect
     page->box("bcnst", 0.0, 0, "bcnstv", top <= 12.0 ? 1.0 : 0.0, top <= 12.0 ? 1 : 0);  // whole sessions
     page->lab("distance at the isocenter (mm), 2 mm bins", "sessions", "");
     page->mtex("t", 2.4, 0.5, 0.5, (name + ": internal iliac ostium of the iliac carrying the device, " +
-                                    std::to_string(rows.size()) + " sessions").c_str());
-    legend(*page);
+                                    sessions_text(rows.size())).c_str());
+    legend(*page, adapted_label(cases));
   }
   page.finish();
 }
