@@ -178,10 +178,10 @@ void check_options(const PelvisRegistrationOptions& options) {
   if (options.step_px < 1 || options.blocks_across < 1 || options.max_rounds < 1 || options.min_blocks < 0 ||
       !(options.max_shift_mm > 0.0 && options.max_shift_mm <= 500.0) || !(options.max_turn_deg > 0.0) || !(options.settled_mm > 0.0) ||
       !std::isfinite(options.min_correlation) || !std::isfinite(options.min_separation_deg) ||
-      !std::isfinite(options.min_bone_fraction))
+      !std::isfinite(options.min_bone_fraction) || !(options.truncate_below >= 0.0 && options.truncate_below < 1.0))
     throw std::invalid_argument("register_pelvis: implausible options (a step of at least 1 px, blocks no smaller, "
                                 "at least one round, a searched distance over 0 and up to 500 mm, a turn limit over 0, "
-                                "a settled step over 0)");
+                                "a settled step over 0, a truncation share from 0 to under 1)");
 }
 
 PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vector<PelvisView>& views,
@@ -335,6 +335,7 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
     // ±3 matched pixels about their view's shift, so before that they measure the
     // translation's error, not the turn.
     if (turn_measurable && translation_settled) {
+      svd->setThreshold(options.truncate_below);
       const Eigen::VectorXd x = svd->solve(b_6);
       // At most two degrees a round: a linearized turn is good to a few degrees, and blocks
       // are matched within ±3 pixels, so a large step overshoots and the rounds swing.

@@ -195,8 +195,10 @@ TEST(PelvisRegistration, TheTurnSettlesWhateverTheFramesNoise) {
 // A simulated session at the paper's difficulty (the pelvis well off where the registration
 // put it, frames with the simulator's full content: vessels, wire, soft tissue, noise), its
 // views taken from their first frames in turn, as the node takes whichever it analysed: two
-// views either refuse or find where the pelvis carried the internal iliac ostia; three views
-// find it every time (the turning steps that swing about the pose are damped).
+// views either refuse or find where the pelvis carried the internal iliac ostia to within 5
+// mm and a quarter of how far it carried them (two views pin the turn down less well);
+// three views find it every time, within 3 mm (the turning steps that swing about the pose
+// are damped).
 TEST(PelvisRegistration, ASessionsViewsFindThePelvisWhicheverFramesAreTakenOrRefuse) {
   const auto dir = std::filesystem::temp_directory_path() / ("evar_pelvis_session_" + std::to_string(::getpid()));
   std::filesystem::remove_all(dir);
@@ -228,11 +230,13 @@ TEST(PelvisRegistration, ASessionsViewsFindThePelvisWhicheverFramesAreTakenOrRef
   const Eigen::Matrix4d M = s.ct_to_carm.inverse() * *s.truth->ct_to_carm;
   const auto shift_json = nlohmann::json::parse(std::ifstream(dir / "patient" / "patient.json"))["posture_change"]["pelvis_shift_mm"];
   const Eigen::Vector3d shift(shift_json[0].get<double>(), shift_json[1].get<double>(), shift_json[2].get<double>());
+  double least_motion_mm = 1e9;  // how far the pelvis carried the internal iliac ostia
   const auto error_mm = [&](const PelvisRegistration& r) {
     double worst = 0.0;
     for (const auto& lm : scene.landmarks) {
       if (lm.label.rfind("internal_iliac", 0) != 0) continue;
       const Eigen::Vector3d x = lm.position_lps, truth = (M * (x + shift).homogeneous()).head<3>();
+      least_motion_mm = std::min(least_motion_mm, (truth - x).norm());
       worst = std::max(worst, (r.rotation * (x - r.pivot_mm) + r.pivot_mm + r.shift_mm - truth).norm());
     }
     return worst;
@@ -241,7 +245,9 @@ TEST(PelvisRegistration, ASessionsViewsFindThePelvisWhicheverFramesAreTakenOrRef
     ASSERT_LT(k, std::min({by_view[0].size(), by_view[1].size(), by_view[2].size()}));
     const PelvisRegistration two = register_pelvis(scene.pelvis, {by_view[0][k], by_view[1][k]});
     if (two.found) {
-      EXPECT_LT(error_mm(two), 3.0) << "two views, frames " << k;
+      const double e = error_mm(two);
+      EXPECT_LT(e, 5.0) << "two views, frames " << k;
+      EXPECT_LT(e, 0.25 * least_motion_mm) << "two views, frames " << k << ": the ostia moved " << least_motion_mm << " mm";
     }
     const PelvisRegistration three = register_pelvis(scene.pelvis, {by_view[0][k], by_view[1][k], by_view[2][k]});
     ASSERT_TRUE(three.found) << "three views, frames " << k << ": " << three.refused;

@@ -53,6 +53,11 @@ struct PelvisRegistrationOptions {
   int blocks_across = 8;            ///< a block's side is the frame's width over this (64 px at 512)
   int min_blocks = 8;               ///< matched blocks (over two views or more) a turn needs
   double max_turn_deg = 10.0;       ///< a larger turn is refused as a disagreement of the views
+  /// Combinations of turn and translation that the blocks measure at under this share of
+  /// the best-measured one (singular values of the solve) are left out of each step (a
+  /// truncated SVD): from two views a turn about an axis both see alike is nearly a
+  /// translation, and noise would turn the pelvis along it round after round.
+  double truncate_below = 0.05;
 };
 
 struct PelvisViewMatch {
