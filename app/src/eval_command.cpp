@@ -120,7 +120,7 @@ nlohmann::json pelvis_json(const std::optional<geometry::PelvisRegistration>& r)
                      {"shift_px", {v.shift_px.x(), v.shift_px.y()}}, {"reason", v.reason}});
   return {{"found", r->found},
           {"shift_mm", r->found ? nlohmann::json{r->shift_mm.x(), r->shift_mm.y(), r->shift_mm.z()} : nlohmann::json()},
-          {"turn_deg", r->found ? nlohmann::json(Eigen::AngleAxisd(r->rotation).angle() * 180.0 / std::numbers::pi) : nlohmann::json()},
+          {"turn_deg", r->found ? nlohmann::json(r->turn_deg()) : nlohmann::json()},
           {"rotation", r->found ? nlohmann::json{{r->rotation(0, 0), r->rotation(0, 1), r->rotation(0, 2)},
                                                  {r->rotation(1, 0), r->rotation(1, 1), r->rotation(1, 2)},
                                                  {r->rotation(2, 0), r->rotation(2, 1), r->rotation(2, 2)}}

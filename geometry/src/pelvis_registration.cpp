@@ -174,6 +174,8 @@ cv::Mat bone_thickness_image(const RayCaster& bones, const ProjectionMatrix& P, 
   return out;
 }
 
+double PelvisRegistration::turn_deg() const { return Eigen::AngleAxisd(rotation).angle() * 180.0 / std::numbers::pi; }
+
 void check_options(const PelvisRegistrationOptions& options) {
   if (options.step_px < 1 || options.blocks_across < 1 || options.max_rounds < 1 || options.min_blocks < 0 ||
       !(options.max_shift_mm > 0.0 && options.max_shift_mm <= 500.0) || !(options.max_turn_deg > 0.0) || !(options.settled_mm > 0.0) ||

@@ -662,7 +662,7 @@ void LiveNode::Impl::adapt_again(ViewPair pair) {
 void LiveNode::Impl::pelvis_loop() {
   const auto pose_text = [](const geometry::PelvisRegistration& r) {
     return fmt::format("{:.1f} mm, {:.1f}° from the registration", r.shift_mm.norm(),
-                       Eigen::AngleAxisd(r.rotation).angle() * 180.0 / std::numbers::pi);
+                       r.turn_deg());
   };
   for (;;) {
     std::optional<BoneView> b = bone_views_.pop(std::chrono::milliseconds(100));
@@ -719,7 +719,7 @@ void LiveNode::Impl::pelvis_loop() {
       stats_.pelvis_status = status;
       if (moved) {
         stats_.pelvis_shift_mm = {moved->pose.shift_mm.x(), moved->pose.shift_mm.y(), moved->pose.shift_mm.z()};
-        stats_.pelvis_turn_deg = Eigen::AngleAxisd(moved->pose.rotation).angle() * 180.0 / std::numbers::pi;
+        stats_.pelvis_turn_deg = moved->pose.turn_deg();
       }
     }
     if (!now_moved) continue;

@@ -44,9 +44,8 @@ PelvisMovedModels::PelvisMovedModels(const geometry::Scene& registered, const ge
 std::string describe(const geometry::PelvisRegistration& r) {
   if (!r.found) return "not found: " + r.refused;
   const auto used = std::count_if(r.views.begin(), r.views.end(), [](const auto& v) { return v.used; });
-  const double turn_deg = Eigen::AngleAxisd(r.rotation).angle() * 180.0 / std::numbers::pi;
   return fmt::format("found in {} of {} views: moved {:.1f} mm{}", used, r.views.size(), r.shift_mm.norm(),
-                     r.turned ? fmt::format(", turned {:.1f}°", turn_deg) : std::string(" (translation only)"));
+                     r.turned ? fmt::format(", turned {:.1f}°", r.turn_deg()) : std::string(" (translation only)"));
 }
 
 PelvisTracker::PelvisTracker(const geometry::Scene& scene, PelvisTrackingOptions options, deform::DeformOptions deform)

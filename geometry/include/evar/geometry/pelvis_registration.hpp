@@ -81,6 +81,9 @@ struct PelvisRegistration {
   double residual_px = 0.0;  ///< RMS of the used views' shifts in the last round (what the pose before it left)
   int rounds = 0;
   std::string refused;       ///< why nothing was found ("" when found)
+
+  /// How far `rotation` turns the pelvis (degrees, about its own axis).
+  double turn_deg() const;
 };
 
 /// std::invalid_argument "register_pelvis: implausible options (...)" for options no
