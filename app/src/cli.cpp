@@ -296,6 +296,9 @@ int run_cli(const std::vector<std::string>& args) {
   ss->add_option("--video-out", sim_session.video_out,
                  "a video mapping (docs/FORMATS.md, \"Video mapping\"): the frames are the C-arm monitor's picture "
                  "through it (scaled, bordered, turned, mirrored, text burned in), as a box on the video output grabs them");
+  ss->add_flag("--zoom-change", sim_session.zoom_change,
+               "the C-arm has two zoom modes (1: the whole detector, 2: its central two thirds in as many pixels), "
+               "listed in session.json; the last fluoroscopy run switches to mode 2 halfway (docs/FORMATS.md, \"Zoom modes\")");
   ss->add_flag("!--no-progress", sim_session.progress, "no progress bar");
 
   ReplayCommand replay;
@@ -396,6 +399,11 @@ int run_cli(const std::vector<std::string>& args) {
                      "(`evarnode calibrate-video`; needs --detector-px); the session carries it")
           ->check(CLI::ExistingFile),
       rd->add_option("--detector-px", record.detector_px, "with --video-mapping: the detector's cols and rows")->expected(2),
+      rd->add_option("--zoom-modes", record.zoom_modes,
+                     "a node.json with the C-arm's \"detector\" and \"zoom_modes\" (docs/FORMATS.md, \"Zoom modes\"): the\n"
+                     "session lists them and records each C-arm state's mode; its detector is node.json's (--pixel-spacing\n"
+                     "must agree, --detector-px is not needed). Without it a mode the C-arm link says is not kept")
+          ->check(CLI::ExistingFile),
       rd->add_option("--seconds", record.seconds, "stop after this long")->check(CLI::PositiveNumber),
       rd->add_option("--frames", record.frames_to_write, "stop after this many frames are written")->check(CLI::PositiveNumber)};
   auto* recover = rd->add_option("--recover", record.recover,

@@ -82,6 +82,7 @@ struct SimSessionCommand {
   std::string difficulty = "mild";
   std::string physics = "beam";
   std::filesystem::path video_out;  ///< a video mapping file: frames as the C-arm monitor shows them
+  bool zoom_change = false;         ///< two zoom modes, switched in the last fluoroscopy run
   bool progress = true;
 };
 int run_sim_session(const SimSessionCommand& cmd);
@@ -118,6 +119,7 @@ struct RecordCommand {
   double pixel_spacing_mm = 0.0;
   std::filesystem::path video_mapping;  ///< the frames are a C-arm's video output (with detector_px)
   std::vector<int> detector_px;         ///< cols and rows of the detector behind the video output
+  std::filesystem::path zoom_modes;     ///< a node.json whose detector and zoom_modes the C-arm has
   std::optional<double> device_thickness_mm;
   std::optional<double> seconds;
   std::optional<int> frames_to_write;

@@ -23,7 +23,8 @@ void snapshot(const std::filesystem::path& path, const CaseEvaluation& c) {
   const auto model = std::make_shared<const overlay::RoadmapModel>(node::roadmap_model(*c.scene, c.model.get()));
   const session::FrameRecord& record = session.frames[c.snapshot_frame];
   const session::CArmSample* sample = session::carm_at(session, record.timestamp_ns);
-  const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm, session::to_carm_state(*sample, 0));
+  const node::FrameView view =
+      node::frame_view(session::view_of(session, *sample), session.ct_to_carm, session::to_carm_state(*sample, 0));
   const cv::Mat image = session::read_detector_frame(session, c.snapshot_frame);
   overlay::FrameCompositor compositor({4, {}});
   const std::string line =

@@ -89,7 +89,19 @@ NodeConfig read_node_config(const std::filesystem::path& path) {
       if (!value.is_boolean()) bad_field(path, key, "expected true (find the pelvis in the bones, the default) or false");
       c.pelvis = value.get<bool>();
     } else if (key == "geometry_stale_ms") c.geometry_stale_ms = number_field(path, value, key, 10, 600000, "ms");
+    else if (key == "zoom_modes" || key == "zoom_mode") continue;  // below: they need the detector
     else bad_field(path, key, "unknown setting");
+  }
+  if (const auto it = j.find("zoom_modes"); it != j.end()) {
+    if (!c.detector)
+      bad_field(path, "zoom_modes", "needs \"detector\": the physical detector whose parts the modes show");
+    c.zoom_modes = geometry::parse_zoom_modes(*it, *c.detector, path);
+  }
+  if (const auto it = j.find("zoom_mode"); it != j.end()) {
+    if (c.zoom_modes.empty()) bad_field(path, "zoom_mode", "needs \"zoom_modes\", the modes to fix one of");
+    if (!it->is_number_integer() || !geometry::find_zoom_mode(c.zoom_modes, it->get<int>()))
+      bad_field(path, "zoom_mode", "must be the number of one of zoom_modes, found " + it->dump());
+    c.zoom_mode = it->get<int>();
   }
   return c;
 }

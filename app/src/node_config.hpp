@@ -11,18 +11,22 @@
 //   "fps": 30,
 //   "device_diameter_mm": 0.89, "min_contrast": 0.25, "min_separation_deg": 20,
 //   "geometry_stale_ms": 250, "max_view_gap_s": 120, "pelvis": true,
-//   "video_mapping": {"format": "evarnode-video-mapping", ...}   or   "mapping.json"
+//   "video_mapping": {"format": "evarnode-video-mapping", ...}   or   "mapping.json",
+//   "zoom_modes": [{"mode": 1, "name": "48 cm", "field_of_view_dimensions_mm": [384, 384], ...}],
+//   "zoom_mode": 1
 // }
 // Everything but format and version is optional for replays (the session has the patient,
 // the registration and the detector).
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <vector>
 
 #include <Eigen/Core>
 
 #include "evar/geometry/detector.hpp"
 #include "evar/geometry/video_mapping.hpp"
+#include "evar/geometry/zoom_mode.hpp"
 #include "source_factory.hpp"
 
 namespace evar::app {
@@ -34,6 +38,10 @@ struct NodeConfig {
   /// The frames are the C-arm's video output (the monitor's picture): where the detector
   /// image lies in them. Given inline or as a file (`evarnode calibrate-video` writes one).
   std::optional<geometry::VideoMapping> video_mapping;
+  /// The C-arm's zoom modes (geometry/zoom_mode.hpp); `detector` is then the physical one.
+  std::vector<geometry::ZoomMode> zoom_modes;
+  /// Not 0: every frame is in this mode whatever the C-arm link says.
+  int zoom_mode = 0;
   std::optional<FrameSourceSpec> frames;
   std::optional<std::string> carm;
   std::optional<double> fps;

@@ -3,6 +3,7 @@
 // `evarnode record --recover OUT`, the session of a recording that was killed.
 
 #include <algorithm>
+#include <cmath>
 #include <cstdio>
 #include <cstring>
 #include <memory>
@@ -15,6 +16,7 @@
 #include "evar/node/logging.hpp"
 #include "evar/session/session_recorder.hpp"
 #include "interrupt.hpp"
+#include "node_config.hpp"
 #include "progress_bar.hpp"
 #include "source_factory.hpp"
 
@@ -62,8 +64,23 @@ int run_record(const RecordCommand& cmd) {
       throw base::InputError("record: --video-mapping needs --detector-px COLS ROWS (the detector behind the video output)");
     o.video_mapping = geometry::read_video_mapping(cmd.video_mapping);
     o.detector_px = {cmd.detector_px[0], cmd.detector_px[1]};
-  } else if (!cmd.detector_px.empty()) {
+  } else if (!cmd.detector_px.empty() && cmd.zoom_modes.empty()) {
     throw base::InputError("record: --detector-px goes with --video-mapping (without it the frames are the detector's own)");
+  }
+  if (!cmd.zoom_modes.empty()) {
+    const NodeConfig config = read_node_config(cmd.zoom_modes);
+    if (config.zoom_modes.empty())
+      throw base::InputError(cmd.zoom_modes.string() + ": zoom_modes: missing (record --zoom-modes takes a node.json that lists them)");
+    const geometry::DetectorSpec& d = *config.detector;  // read_node_config requires it with zoom_modes
+    if (std::abs(d.col_spacing_mm - cmd.pixel_spacing_mm) > 1e-9 || std::abs(d.row_spacing_mm - cmd.pixel_spacing_mm) > 1e-9)
+      throw base::InputError("record: --pixel-spacing " + std::to_string(cmd.pixel_spacing_mm) + " mm is not " +
+                             cmd.zoom_modes.string() + "'s detector spacing (" + std::to_string(d.col_spacing_mm) + " x " +
+                             std::to_string(d.row_spacing_mm) + " mm, square pixels needed)");
+    if (!cmd.detector_px.empty() && (cmd.detector_px[0] != d.cols || cmd.detector_px[1] != d.rows))
+      throw base::InputError("record: --detector-px differs from " + cmd.zoom_modes.string() + "'s detector (" +
+                             std::to_string(d.cols) + " x " + std::to_string(d.rows) + "); leave it out");
+    o.detector_px = {d.cols, d.rows};
+    o.zoom_modes = config.zoom_modes;
   }
   o.device_thickness_mm = cmd.device_thickness_mm;
   session::SessionRecorder recorder(o, *frames, *carm);
@@ -107,6 +124,13 @@ int run_record(const RecordCommand& cmd) {
              cmd.out.string(), session.frames.size(), session.carm.size(), s.seconds, frames->statistics().dropped,
              s.frames_not_recorded + s.frames_refused + s.frames_write_failed);
   if (s.carm_refused > 0) node::log().warn("{} C-arm states had values the format refuses and were not recorded", s.carm_refused);
+  if (s.carm_zoom_unlisted > 0 && cmd.zoom_modes.empty())
+    node::log().warn("{} C-arm states said a zoom mode, but the recording lists none (record --zoom-modes node.json): "
+                     "the session takes their frames as the detector's",
+                     s.carm_zoom_unlisted);
+  else if (s.carm_zoom_unlisted > 0)
+    node::log().warn("{} C-arm states were in a zoom mode the recording's zoom_modes do not list and were not recorded",
+                     s.carm_zoom_unlisted);
   if (!s.last_error.empty()) node::log().warn("last problem: {}", s.last_error);
   node::log().info("report: {}", (cmd.out / "record_report.json").string());
   return 0;

@@ -64,6 +64,7 @@ int run_node(const RunCommand& cmd) {
     scene_path = cmd.replay / session->scene;
     options.detector = session->detector;
     options.video_mapping = session->video_mapping;  // checked against the detector when read
+    options.zoom_modes = session->zoom_modes;        // and against each zoom mode
     // Frames and C-arm samples of a session share the recording's clock, whatever the speed.
     options.frames_on_carm_clock = true;
     options.registration = session->ct_to_carm;
@@ -89,7 +90,10 @@ int run_node(const RunCommand& cmd) {
     options.registration = geometry::read_registration(*config->registration);
     options.detector = *config->detector;
     options.video_mapping = config->video_mapping;
-    if (options.video_mapping)
+    options.zoom_modes = config->zoom_modes;
+    options.zoom_mode = config->zoom_mode;
+    // With zoom modes each mode's image must fit the mapping (node::check_options names the mode).
+    if (options.video_mapping && options.zoom_modes.empty())
       if (const auto problem = geometry::video_mapping_fit_problem(*options.video_mapping, options.detector.cols,
                                                                    options.detector.rows);
           !problem.empty())
@@ -190,6 +194,15 @@ int run_node(const RunCommand& cmd) {
       // detector's, or the video output's.
       spec.width = options.video_mapping ? options.video_mapping->video_cols : options.detector.cols;
       spec.height = options.video_mapping ? options.video_mapping->video_rows : options.detector.rows;
+      if (!options.video_mapping && !options.zoom_modes.empty()) {
+        // The image of the mode fixed, else of the first listed (the mode the C-arm starts in
+        // is not known before its link says it).
+        const geometry::ZoomMode& z = options.zoom_mode != 0 ? *geometry::find_zoom_mode(options.zoom_modes, options.zoom_mode)
+                                                             : options.zoom_modes.front();
+        const auto shown = geometry::frame_mapping(std::nullopt, z);
+        spec.width = shown ? shown->video_cols : z.cols;
+        spec.height = shown ? shown->video_rows : z.rows;
+      }
     }
     live_frames = make_frame_source(spec);
     live_carm = make_carm_source(*config->carm);
@@ -233,7 +246,7 @@ int run_node(const RunCommand& cmd) {
       {"seconds", seconds},
       {"frames", {{"in", s.frames_in}, {"composited", s.frames_composited}, {"with_roadmap", s.frames_with_roadmap},
                   {"dropped_input", s.dropped_input}, {"dropped_output", s.dropped_output},
-                  {"lost_by_source", s.frames_lost_by_source}, {"wrong_size", s.frames_wrong_size},
+                  {"lost_by_source", s.frames_lost_by_source}, {"wrong_size", s.frames_wrong_size}, {"zoom_unknown", s.frames_zoom_unknown},
                   {"held_while_no_video", s.frames_held},
                   {"stale_geometry", s.stale_geometry_frames}, {"c_arm_moving", s.moving_frames}}},
       {"analysis", {{"analysed", s.analysed}, {"skipped_busy", s.analysis_skipped},

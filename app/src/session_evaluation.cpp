@@ -138,13 +138,23 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
   node::ViewPairSelector selector(options.adaptation.reconstruction.min_separation_deg, options.pairs);
   std::shared_ptr<const node::AdaptedModel> model;
   OstiumErrors errors(scene.landmarks, session.truth->ostia);
-  // Frames that are the monitor's picture: the device is searched for where it shows the field.
-  node::CandidateOptions candidate = options.candidate;
-  if (session.video_mapping) {
-    const geometry::VideoToDetector map(*session.video_mapping, session.detector.cols, session.detector.rows);
-    candidate.field_mask = geometry::detector_field_mask(*session.video_mapping, map);
-    candidate.hidden_mask = geometry::detector_text_mask(*session.video_mapping, map);
-  }
+  // Frames that are the monitor's picture (or a zoom mode's turned, flipped or round image):
+  // the device is searched for where they show the field. One set of masks per zoom mode.
+  std::map<int, node::CandidateOptions> candidates;
+  const auto candidate_for = [&](const session::CArmSample& sample) -> const node::CandidateOptions& {
+    const geometry::ZoomMode* zoom = session::zoom_mode_of(session, sample);
+    const int key = zoom ? zoom->number : 0;
+    if (const auto it = candidates.find(key); it != candidates.end()) return it->second;
+    node::CandidateOptions c = options.candidate;
+    const auto mapping = zoom ? geometry::frame_mapping(session.video_mapping, *zoom) : session.video_mapping;
+    if (mapping) {
+      const geometry::VideoToDetector map(*mapping, zoom ? zoom->cols : session.detector.cols,
+                                          zoom ? zoom->rows : session.detector.rows);
+      c.field_mask = geometry::detector_field_mask(*mapping, map);
+      c.hidden_mask = geometry::detector_text_mask(*mapping, map);
+    }
+    return candidates.emplace(key, std::move(c)).first->second;
+  };
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const session::FrameRecord& record = session.frames[i];
     const session::CArmSample* sample = session::carm_at(session, record.timestamp_ns);
@@ -152,8 +162,9 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
       if (progress) progress(i + 1, session.frames.size());
       continue;
     }
-    const node::FrameView view = node::frame_view(session.detector, session.ct_to_carm,
-                                      session::to_carm_state(*sample, 0));
+    const node::FrameView view =
+        node::frame_view(session::view_of(session, *sample), session.ct_to_carm, session::to_carm_state(*sample, 0));
+    const node::CandidateOptions& candidate = candidate_for(*sample);
     const cv::Mat image = session::read_detector_frame(session, i);
     // As the node: a video-out frame whose image area is not fluoroscopy is not searched.
     node::FrameAnalysis analysis;

@@ -17,6 +17,7 @@ int run_sim_session(const SimSessionCommand& cmd) {
   plan.fluoro_fps = cmd.fluoro_fps;
   plan.difficulty = sim::parse_difficulty(cmd.difficulty);
   plan.physics = sim::parse_truth_physics(cmd.physics);
+  plan.zoom_change = cmd.zoom_change;
   if (!cmd.video_out.empty()) {
     plan.video_out = geometry::read_video_mapping(cmd.video_out);
     if (const auto problem = geometry::video_mapping_fit_problem(*plan.video_out, plan.detector_px, plan.detector_px);
@@ -32,6 +33,8 @@ int run_sim_session(const SimSessionCommand& cmd) {
     node::log().info("frames are the monitor's picture: {} x {}, the detector image in [{}, {}, {}, {}]", s.video_mapping->video_cols,
                      s.video_mapping->video_rows, s.video_mapping->image_rect.x, s.video_mapping->image_rect.y,
                      s.video_mapping->image_rect.width, s.video_mapping->image_rect.height);
+  for (const auto& z : s.zoom_modes)
+    node::log().info("zoom mode {} \"{}\": {} x {} pixels of {:.3f} mm", z.number, z.name, z.cols, z.rows, z.col_spacing_mm);
   node::log().info("session seed {}: {} frames (detector {}x{} px), {} C-arm samples, device in the {}, {} true ostium positions; {:.1f} s",
              cmd.seed, s.frames.size(), s.detector.cols, s.detector.rows, s.carm.size(), generated.carrier,
              s.truth ? s.truth->ostia.size() : 0, generated.render_seconds);

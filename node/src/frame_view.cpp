@@ -8,8 +8,14 @@ namespace evar::node {
 
 FrameView frame_view(const geometry::DetectorSpec& detector, const Eigen::Matrix4d& registration,
                      const acquisition::CArmState& state) {
+  return frame_view(geometry::view_of(detector, state.primary_deg, state.secondary_deg, state.sid_mm, state.sod_mm),
+                    registration, state);
+}
+
+FrameView frame_view(const geometry::CArmView& view, const Eigen::Matrix4d& registration,
+                     const acquisition::CArmState& state) {
   FrameView f;
-  f.view = geometry::view_of(detector, state.primary_deg, state.secondary_deg, state.sid_mm, state.sod_mm);
+  f.view = view;
   f.ct_to_carm = geometry::patient_to_carm(registration, Eigen::Vector3d(state.table_mm[0], state.table_mm[1], state.table_mm[2]));
   f.P_ct = geometry::registered(geometry::projection_matrix(f.view), f.ct_to_carm);
   return f;

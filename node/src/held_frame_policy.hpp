@@ -15,6 +15,8 @@
 
 namespace evar::node {
 
+struct FrameField;
+
 class HeldFramePolicy {
  public:
   using Clock = std::chrono::steady_clock;
@@ -25,6 +27,7 @@ class HeldFramePolicy {
     std::optional<acquisition::FrameGeometry> geometry;
     std::optional<FrameView> view;
     bool size_ok = false;
+    const FrameField* field = nullptr;  // the zoom mode it was shown in
   };
 
   HeldFramePolicy(std::chrono::milliseconds video_stall, std::chrono::milliseconds held_frame_interval)

@@ -15,6 +15,7 @@
 #include "alert_board.hpp"
 #include "evar/geometry/video_area.hpp"
 #include "evar/geometry/video_frame.hpp"
+#include "frame_field.hpp"
 #include "held_frame_policy.hpp"
 #include "evar/node/logging.hpp"
 #include "latency_window.hpp"
@@ -57,6 +58,7 @@ class LiveNode::Impl {
   struct Analysis {  // a frame offered to the analysis thread
     acquisition::Frame frame;
     FrameView view;
+    const FrameField* field = nullptr;
   };
   struct BoneView {  // the first analysed frame of a view, offered to the pelvis thread
     cv::Mat detector;
@@ -78,7 +80,9 @@ class LiveNode::Impl {
   void watch_frame_loss(acquisition::FrameLossMonitor& monitor);
 
   NodeOptions options_;
-  std::optional<geometry::VideoToDetector> video_;  // set: frames are the C-arm's video output
+  // What a frame is, per zoom mode (or the detector's alone): its pixels, the mapping the
+  // frames hold them through, the frames' size. Made from options_ once (points into it).
+  std::vector<FrameField> fields_;
   std::vector<std::unique_ptr<OutputSink>> sinks_;
   std::unique_ptr<deform::SceneDeformer> deformer_;  // on the scene as registered
   PelvisTracker pelvis_;                             // the pelvis thread's only
@@ -139,20 +143,13 @@ class LiveNode::Impl {
 
 LiveNode::Impl::Impl(const geometry::Scene& scene, NodeOptions options, std::vector<std::unique_ptr<OutputSink>> sinks)
     : options_((check_options(options), std::move(options))),
-      video_(options_.video_mapping ? std::optional<geometry::VideoToDetector>(std::in_place, *options_.video_mapping,
-                                                                               options_.detector.cols, options_.detector.rows)
-                                    : std::nullopt),
+      fields_(frame_fields(options_)),
       sinks_(std::move(sinks)),
       pelvis_(scene, options_.pelvis, options_.deform),
       mode_(options_.mode),
       input_(options_.input_queue),
       output_(options_.output_queue),
       timeline_(options_.timeline) {
-  // Under a video mapping the device is searched for only where the monitor shows the field.
-  if (video_) {
-    options_.candidate.field_mask = geometry::detector_field_mask(*options_.video_mapping, *video_);
-    options_.candidate.hidden_mask = geometry::detector_text_mask(*options_.video_mapping, *video_);
-  }
   deformer_ = std::make_unique<deform::SceneDeformer>(scene, options_.deform);
   initial_roadmap_ = std::make_shared<const overlay::RoadmapModel>(roadmap_model(scene, nullptr));
   auto m = std::make_shared<PublishedModel>();
@@ -335,24 +332,42 @@ void LiveNode::Impl::compose_loop() {
     bool size_ok = false;
     std::optional<acquisition::FrameGeometry> g;
     std::optional<FrameView> view;
+    const FrameField* field = nullptr;  // what the frame is: the zoom mode it was taken in
+    bool zoom_unknown = false;
     if (held_s) {
       size_ok = holding.held().size_ok;
       g = holding.held().geometry;
       view = holding.held().view;
+      field = holding.held().field;
     } else {
-      // Under a video mapping a frame is the monitor's picture, of the video size.
-      const int cols = video_ ? video_->video_cols() : options_.detector.cols;
-      const int rows = video_ ? video_->video_rows() : options_.detector.rows;
-      size_ok = f->width == cols && f->height == rows;
-      if (!size_ok)
-        alerts_.set("frame-size",
-                  "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the " +
-                      (video_ ? "video mapping's " : "detector's ") + std::to_string(cols) + " x " +
-                      std::to_string(rows) + ": no roadmap",
-                  options_.alert_hold);
       {
         std::lock_guard lock(timeline_mutex_);
         g = options_.frames_on_carm_clock ? timeline_.at_carm_time(f->device_time_ns) : timeline_.at(f->device_time_on_host);
+      }
+      // The zoom mode the frame was taken in (the C-arm link's, or node.json's); without a
+      // geometry yet the frame's size is checked against the mode it would be in.
+      std::string zoom_problem;
+      field = field_of(fields_, options_, g ? g->state.zoom_mode : 0, zoom_problem);
+      if (!field && g) {
+        zoom_unknown = true;
+        alerts_.set("zoom-mode", zoom_problem + ": no roadmap", options_.alert_hold);
+      } else if (field && g) {
+        alerts_.clear("zoom-mode");
+      }
+      // Under a video mapping a frame is the monitor's picture, of the video size.
+      if (field) {
+        size_ok = f->width == field->frame_cols && f->height == field->frame_rows;
+        if (!size_ok)
+          alerts_.set("frame-size",
+                      "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the " +
+                          (field->mapping ? "video mapping's " : "detector's ") + std::to_string(field->frame_cols) +
+                          " x " + std::to_string(field->frame_rows) +
+                          (field->zoom ? " (" + field->label() + ")" : std::string()) + ": no roadmap",
+                      options_.alert_hold);
+      } else {
+        size_ok = std::any_of(fields_.begin(), fields_.end(), [&](const FrameField& k) {
+          return f->width == k.frame_cols && f->height == k.frame_rows;
+        });
       }
       if (!g) {
         alerts_.set("geometry", "no C-arm geometry yet: roadmap hidden", std::nullopt);
@@ -360,9 +375,9 @@ void LiveNode::Impl::compose_loop() {
         // The alert names the condition; its changing age goes into the status line.
         if (g->stale) alerts_.set("geometry", "C-arm geometry stale: roadmap at the last known position", std::nullopt);
         else alerts_.clear("geometry");
-        if (!g->moving && size_ok) {
+        if (!g->moving && size_ok && field) {
           try {
-            view = frame_view(options_.detector, options_.registration, g->state);
+            view = field->view(options_.detector, options_.registration, g->state);
           } catch (const std::invalid_argument& e) {
             alerts_.set("geometry-unusable", std::string("C-arm geometry unusable: ") + e.what(), options_.alert_hold);
           }
@@ -378,7 +393,8 @@ void LiveNode::Impl::compose_loop() {
       failed = !stats_.last_failure.empty();
       pelvis_status = stats_.pelvis_status;
       if (!held_s) {
-        stats_.frames_wrong_size += size_ok ? 0 : 1;
+        stats_.frames_wrong_size += size_ok || zoom_unknown ? 0 : 1;
+        stats_.frames_zoom_unknown += zoom_unknown ? 1 : 0;
         stats_.stale_geometry_frames += g && g->stale ? 1 : 0;
         stats_.moving_frames += g && g->moving ? 1 : 0;
       }
@@ -386,7 +402,8 @@ void LiveNode::Impl::compose_loop() {
     const overlay::RoadmapMode mode = mode_.load();
     ComposedFrame out;
     // A live frame is not a stall, even while the stall it ends is still to be cleared.
-    out.status = {status_lines(g, *model, failed, pelvis_status, mode, last_latency_ms, Clock::now()),
+    out.status = {status_lines(g, *model, failed, pelvis_status, mode, last_latency_ms, Clock::now(),
+                               field ? field->label() : std::string()),
                   alerts_.current(held_s ? std::string_view() : std::string_view("video-stall"))};
     if (held_s) {
       // First and in the alert colour; its changing age is not an alert of its own (no log).
@@ -395,8 +412,10 @@ void LiveNode::Impl::compose_loop() {
     }
     if (view) {
       // The roadmap is drawn where the frame shows the detector's pixels.
-      out.P_ct = video_ ? geometry::projection_on_video(view->P_ct, *video_) : view->P_ct;
-      out.mm_per_px = mm_at_isocenter_per_px(view->view) / (video_ ? video_->video_px_per_detector_px() : 1.0);
+      out.P_ct = field->video ? geometry::projection_on_video(view->P_ct, *field->video) : view->P_ct;
+      const double video_scale = field->video ? field->video->video_px_per_detector_px() : 1.0;
+      out.mm_per_px = mm_at_isocenter_per_px(view->view) / video_scale;
+      out.detector_mm_per_px = view->view.col_spacing_mm / video_scale;
       out.detector_view = view;
     }
     try {
@@ -446,9 +465,10 @@ void LiveNode::Impl::compose_loop() {
     kept.geometry = g;
     kept.view = view;
     kept.size_ok = size_ok;
+    kept.field = field;
     if (analyse) {
       kept.frame = *f;
-      analysis_.put(Analysis{std::move(*f), *view});
+      analysis_.put(Analysis{std::move(*f), *view, field});
     } else {
       kept.frame = std::move(*f);
     }
@@ -484,11 +504,12 @@ void LiveNode::Impl::analysis_loop() {
     const auto analysis_start = Clock::now();
     // The device is found on the detector's pixels: under a video mapping they are read
     // back out of the frame's image rectangle.
-    const cv::Mat detector = video_ ? geometry::detector_image(wrap(a->frame), *video_) : wrap(a->frame);
+    const FrameField& field = *a->field;
+    const cv::Mat detector = field.video ? geometry::detector_image(wrap(a->frame), *field.video) : wrap(a->frame);
     // The monitor may show something else than fluoroscopy (a menu, a dialog, nothing):
     // not searched for a device, and said while it lasts.
-    if (video_) {
-      if (const std::string why = geometry::not_fluoroscopy(detector, options_.candidate.field_mask); !why.empty()) {
+    if (options_.video_mapping) {
+      if (const std::string why = geometry::not_fluoroscopy(detector, field.candidate.field_mask); !why.empty()) {
         alerts_.set("not-fluoroscopy", "video: not fluoroscopy: " + why, options_.alert_hold);
         log().debug("frame {}: not fluoroscopy: {}", a->frame.sequence, why);
         std::lock_guard lock(stats_mutex_);
@@ -500,7 +521,7 @@ void LiveNode::Impl::analysis_loop() {
       // Does the picture still lie where the mapping says? (Cheap enough every few seconds.)
       if (analysis_start - last_mapping_check >= options_.video_mapping_check) {
         last_mapping_check = analysis_start;
-        const std::string misfit = geometry::video_mapping_misfit(wrap(a->frame), *options_.video_mapping);
+        const std::string misfit = geometry::video_mapping_misfit(wrap(a->frame), *field.mapping);
         misfits_in_a_row = misfit.empty() ? 0 : misfits_in_a_row + 1;
         {
           std::lock_guard lock(stats_mutex_);
@@ -524,7 +545,7 @@ void LiveNode::Impl::analysis_loop() {
                         "frame " + std::to_string(a->frame.sequence) + ", " +
                             angulation_text(a->view.view.primary_angle_deg, a->view.view.secondary_angle_deg)});
     }
-    FrameAnalysis r = analyse_frame(detector, a->view, options_.candidate);
+    FrameAnalysis r = analyse_frame(detector, a->view, field.candidate);
     const double waited_ms = ms_between(a->frame.host_arrival, analysis_start), took_ms = ms_between(analysis_start, Clock::now());
     {
       std::lock_guard lock(stats_mutex_);

@@ -1,5 +1,7 @@
 #include "evar/node/node_options.hpp"
 
+#include <algorithm>
+
 #include <Eigen/LU>
 #include <cmath>
 #include <stdexcept>
@@ -36,9 +38,25 @@ void check_options(const NodeOptions& o) {
     bad("detector", std::to_string(d.cols) + " x " + std::to_string(d.rows) + " pixels; the detector needs a size");
   positive("detector.row_spacing_mm", d.row_spacing_mm, "mm");
   positive("detector.col_spacing_mm", d.col_spacing_mm, "mm");
-  if (o.video_mapping)
+  if (o.video_mapping && o.zoom_modes.empty())
     if (const auto problem = geometry::video_mapping_fit_problem(*o.video_mapping, d.cols, d.rows); !problem.empty())
       bad("video_mapping", problem);
+  // With zoom modes the detector is the physical one; each mode's image is shown through the
+  // display's mapping turned and flipped as the mode turns and flips it.
+  std::vector<int> numbers;
+  for (std::size_t k = 0; k < o.zoom_modes.size(); ++k) {
+    const geometry::ZoomMode& z = o.zoom_modes[k];
+    const std::string at = "zoom_modes[" + std::to_string(k) + "]";
+    if (const auto problem = geometry::zoom_mode_problem(z, d); !problem.empty()) bad(at, problem);
+    if (std::find(numbers.begin(), numbers.end(), z.number) != numbers.end())
+      bad(at + ".mode", std::to_string(z.number) + " is given twice");
+    numbers.push_back(z.number);
+    if (const auto mapping = geometry::frame_mapping(o.video_mapping, z))
+      if (const auto problem = geometry::video_mapping_fit_problem(*mapping, z.cols, z.rows); !problem.empty())
+        bad(o.video_mapping ? "video_mapping" : at, "in zoom mode " + std::to_string(z.number) + " \"" + z.name + "\": " + problem);
+  }
+  if (o.zoom_mode != 0 && std::find(numbers.begin(), numbers.end(), o.zoom_mode) == numbers.end())
+    bad("zoom_mode", std::to_string(o.zoom_mode) + " is not one of zoom_modes; fix a mode node.json lists");
 
   if (!o.registration.allFinite()) bad("registration", "not finite");
   if ((o.registration.row(3) - Eigen::RowVector4d(0, 0, 0, 1)).cwiseAbs().maxCoeff() > 1e-9)

@@ -256,7 +256,8 @@ void IgtlSink::write(const ComposedFrame& frame) {
   const auto now = std::chrono::steady_clock::now();
   if (last_sent_ && std::chrono::duration<double, std::milli>(now - *last_sent_).count() < min_interval_ms_) return;
   last_sent_ = now;
-  server_.send_image("evarnode", *frame.image, mm_per_px_, frame.device_time_ns);
+  server_.send_image("evarnode", *frame.image, frame.detector_mm_per_px > 0.0 ? frame.detector_mm_per_px : mm_per_px_,
+                     frame.device_time_ns);
 }
 
 void IgtlSink::model_changed(const PublishedModel& model) {

@@ -10,11 +10,13 @@ namespace evar::node {
 
 std::vector<std::string> status_lines(const std::optional<acquisition::FrameGeometry>& g, const PublishedModel& model,
                                       bool last_adaptation_failed, const std::string& pelvis, overlay::RoadmapMode mode,
-                                      double latency_ms, std::chrono::steady_clock::time_point now) {
+                                      double latency_ms, std::chrono::steady_clock::time_point now,
+                                      const std::string& zoom) {
   std::vector<std::string> lines;
   if (g) {
     std::string state = fmt::format("{}  SID {:.0f} mm", angulation_text(g->state.primary_deg, g->state.secondary_deg),
                                     g->state.sid_mm);
+    if (!zoom.empty()) state += "  " + zoom;
     if (!g->state.fluoro_on) state += "  beam off";
     if (g->moving) state += "  C-arm moving: roadmap hidden";
     if (g->stale) state += fmt::format("  geometry {:.1f} s old", static_cast<double>(g->age_ns) * 1e-9);

@@ -15,10 +15,12 @@ namespace evar::node {
 
 /// `geometry`: the frame's C-arm geometry, if any; `last_adaptation_failed`: the model shown
 /// is the last good one, not the newest pair's; `pelvis`: the pelvis's line
-/// (NodeStatistics::pelvis_status, none when empty); `now`: for the model's age.
+/// (NodeStatistics::pelvis_status, none when empty); `now`: for the model's age; `zoom`: the
+/// zoom mode's label on the C-arm's line ("zoom 32 cm"; none when empty).
 std::vector<std::string> status_lines(const std::optional<acquisition::FrameGeometry>& geometry, const PublishedModel& model,
                                       bool last_adaptation_failed, const std::string& pelvis, overlay::RoadmapMode mode,
-                                      double latency_ms, std::chrono::steady_clock::time_point now);
+                                      double latency_ms, std::chrono::steady_clock::time_point now,
+                                      const std::string& zoom = "");
 
 /// "LAST IMAGE HELD: no video for 3 s" (whole seconds; `showing_fails`: frames came but
 /// none could be shown).

@@ -5,6 +5,7 @@
 #include <charconv>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <stdexcept>
 #include <string>
 #include <string_view>
@@ -52,6 +53,20 @@ inline std::string exact(double v) {
   const auto [end, ec] = std::to_chars(buf, buf + sizeof buf, v);
   if (ec != std::errc()) throw std::runtime_error("cannot format a number");
   return std::string(buf, end);
+}
+
+/// Whether a table's first line (without its line end) is `header`: for tables whose newer
+/// form adds a column (carm.csv's zoom_mode), read either way.
+/// A file that cannot be read is not: for_each_row then says why.
+inline bool first_line_is(const std::filesystem::path& file, std::string_view header) {
+  std::ifstream in(file, std::ios::binary);
+  std::string text(header.size() + 2, '\0');
+  in.read(text.data(), static_cast<std::streamsize>(text.size()));
+  text.resize(static_cast<std::size_t>(in.gcount()));
+  std::string_view line(text);
+  line = line.substr(0, line.find('\n'));
+  if (!line.empty() && line.back() == '\r') line.remove_suffix(1);
+  return line == header;
 }
 
 /// What to make of a last line with no newline: in a session it means the file was cut

@@ -32,7 +32,7 @@ void map_frames_offline(const std::vector<std::pair<std::int64_t, acquisition::C
 }
 
 Session assemble(const fs::path& out, const RecordingSettings& settings, const RecordedStreams& streams,
-                 std::uint64_t& dropped) {
+                 std::uint64_t& dropped, std::uint64_t& zoom_unlisted) {
   Session s;
   s.directory = out;
   s.scene = "patient/scene.json";
@@ -40,13 +40,22 @@ Session assemble(const fs::path& out, const RecordingSettings& settings, const R
   s.device_thickness_mm = settings.device_thickness_mm;
   s.frames = streams.frames;
   map_frames_offline(streams.device_clock_frames, s.frames);
-  for (const CArmSample& c : carm_on_host_clock(streams.states)) {
-    if (carm_sample_problem(c).empty())
-      s.carm.push_back(c);
-    else
+  s.zoom_modes = settings.zoom_modes;
+  for (CArmSample c : carm_on_host_clock(streams.states)) {
+    if (!carm_sample_problem(c).empty()) {
       ++dropped;
+      continue;
+    }
+    if (s.zoom_modes.empty() && c.zoom_mode != 0) {
+      c.zoom_mode = 0;  // a mode no list describes: the frames are taken as the detector's
+      ++zoom_unlisted;
+    } else if (!s.zoom_modes.empty() && !geometry::find_zoom_mode(s.zoom_modes, c.zoom_mode)) {
+      ++zoom_unlisted;  // the frames then have no geometry rather than a wrong one
+      continue;
+    }
+    s.carm.push_back(c);
   }
-  if (settings.video_mapping) {
+  if (settings.video_mapping || !settings.zoom_modes.empty()) {
     s.detector = {settings.detector_px.first, settings.detector_px.second, settings.pixel_spacing_mm, settings.pixel_spacing_mm};
     s.video_mapping = settings.video_mapping;
   } else if (streams.size) {

@@ -27,7 +27,7 @@ std::string journal_carm_row(const CArmState& s) {
   return std::to_string(s.device_time_ns) + "," + std::to_string(ns_of(s.host_arrival)) + "," + exact(s.primary_deg) + "," +
          exact(s.secondary_deg) + "," + exact(s.sid_mm) + "," + exact(s.sod_mm) + "," + exact(s.table_mm[0]) + "," +
          exact(s.table_mm[1]) + "," + exact(s.table_mm[2]) + "," + (s.fluoro_on ? "1" : "0") + "," + (s.moving ? "1" : "0") +
-         "\n";
+         "," + std::to_string(s.zoom_mode) + "\n";
 }
 
 void write_json_file(const fs::path& file, const nlohmann::ordered_json& j, base::Durability durability) {
@@ -51,10 +51,15 @@ RecordingSettings read_settings(const fs::path& file) {
       geometry::detail::number_field(file, member(file, j, "device_thickness_mm", "device_thickness_mm"), "device_thickness_mm", 0.0, 15.0, "mm");
   s.pixel_spacing_mm =
       geometry::detail::number_field(file, member(file, j, "pixel_spacing_mm", "pixel_spacing_mm"), "pixel_spacing_mm", 1e-9, 10.0, "mm");
-  if (j.contains("video_mapping")) {
-    s.video_mapping = geometry::parse_video_mapping(j["video_mapping"], file, "video_mapping.");
+  if (j.contains("video_mapping") || j.contains("zoom_modes")) {
     const Eigen::VectorXd d = geometry::detail::number_array(file, member(file, j, "detector_px", "detector_px"), "detector_px", 2);
     s.detector_px = {static_cast<int>(d(0)), static_cast<int>(d(1))};
+  }
+  if (j.contains("video_mapping")) s.video_mapping = geometry::parse_video_mapping(j["video_mapping"], file, "video_mapping.");
+  if (j.contains("zoom_modes")) {
+    s.zoom_modes = geometry::parse_zoom_modes(j["zoom_modes"], {s.detector_px.first, s.detector_px.second, s.pixel_spacing_mm,
+                                                                s.pixel_spacing_mm}, file);
+  } else if (s.video_mapping) {
     if (const auto problem = geometry::video_mapping_fit_problem(*s.video_mapping, s.detector_px.first, s.detector_px.second);
         !problem.empty())
       bad_field(file, "video_mapping", problem);

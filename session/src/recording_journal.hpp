@@ -35,6 +35,10 @@ inline constexpr const char* kJournalFramesHeader =
     "frame,timestamp_ns,source,file,cols,rows,device_clock,device_time_ns,host_arrival_ns";
 inline constexpr const char* kJournalCArmHeader =
     "device_time_ns,host_arrival_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,fluoro_on,"
+    "moving,zoom_mode";
+// A journal of a recorder from before the zoom mode's column (recovered as mode 0).
+inline constexpr const char* kJournalCArmHeaderWithoutZoom =
+    "device_time_ns,host_arrival_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,fluoro_on,"
     "moving";
 // C-arm rows and the report reach the disk at least this often (frame rows with each frame).
 inline constexpr auto kJournalPeriod = std::chrono::seconds(1);
@@ -47,7 +51,8 @@ struct RecordingSettings {
   double device_thickness_mm = 0.0;
   double pixel_spacing_mm = 0.0;  // at the detector, square pixels
   std::optional<geometry::VideoMapping> video_mapping;  // frames are the video output
-  std::pair<int, int> detector_px{0, 0};                 // with a video mapping: the detector's size
+  std::pair<int, int> detector_px{0, 0};                 // with a video mapping or zoom modes: the detector's size
+  std::vector<geometry::ZoomMode> zoom_modes;            // the C-arm's, when given
 };
 
 // A recording's streams as they arrived, before they become a session.
@@ -74,9 +79,10 @@ void map_frames_offline(const std::vector<std::pair<std::int64_t, acquisition::C
 
 // The session a recording makes, the same from memory (finish) and from the journal
 // (recovery). C-arm states whose time on the host clock falls outside the format's range
-// are left out and counted in `dropped`.
+// are left out and counted in `dropped`; those whose zoom mode the settings do not list are
+// counted in `zoom_unlisted` (and left out, or kept as the detector's without zoom modes).
 Session assemble(const fs::path& out, const RecordingSettings& settings, const RecordedStreams& streams,
-                 std::uint64_t& dropped);
+                 std::uint64_t& dropped, std::uint64_t& zoom_unlisted);
 
 /// One row of the journal's frames.csv and carm.csv.
 std::string journal_frame_row(const FrameRecord& r, const Frame& f);

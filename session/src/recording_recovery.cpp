@@ -13,6 +13,7 @@ using namespace recording;
 RecoveredRecording recover_recording(const std::filesystem::path& directory) {
   using detail::CutLastLine;
   using detail::fail;
+  using detail::first_line_is;
   using detail::flag;
   using detail::for_each_row;
   using detail::number;
@@ -52,7 +53,9 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
   });
 
   const fs::path carm_csv = journal / "carm.csv";
-  result.cut_row_skipped |= for_each_row(carm_csv, kJournalCArmHeader, 11, CutLastLine::Skip,
+  const bool zoom_column = first_line_is(carm_csv, kJournalCArmHeader);
+  result.cut_row_skipped |= for_each_row(carm_csv, zoom_column ? kJournalCArmHeader : kJournalCArmHeaderWithoutZoom,
+                                         zoom_column ? 12 : 11, CutLastLine::Skip,
                                          [&](std::size_t line, const std::vector<std::string>& f) {
     CArmState s;
     s.device_time_ns = number<std::int64_t>(carm_csv, line, "device_time_ns", f[0]);
@@ -66,6 +69,7 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
       s.table_mm[k] = number<double>(carm_csv, line, k == 0 ? "table_x_mm" : k == 1 ? "table_y_mm" : "table_z_mm", f[6 + k]);
     s.fluoro_on = flag(carm_csv, line, "fluoro_on", f[9]);
     s.moving = flag(carm_csv, line, "moving", f[10]);
+    if (zoom_column) s.zoom_mode = number<int>(carm_csv, line, "zoom_mode", f[11]);
     if (const auto problem = carm_sample_problem(sample_of(s, host_ns)); !problem.empty()) fail(carm_csv, line, problem);
     streams.states.push_back(s);
   });
@@ -80,8 +84,8 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
         ++result.partial_files_removed;
   }
 
-  std::uint64_t dropped = 0;
-  result.session = assemble(directory, settings, streams, dropped);
+  std::uint64_t dropped = 0, zoom_unlisted = 0;
+  result.session = assemble(directory, settings, streams, dropped, zoom_unlisted);
   result.carm_samples = result.session.carm.size();
   if (result.session.frames.empty())
     throw std::runtime_error(directory.string() + ": nothing to recover: " +
@@ -104,6 +108,7 @@ RecoveredRecording recover_recording(const std::filesystem::path& directory) {
                          {"frames", result.session.frames.size()},
                          {"carm_samples", result.carm_samples},
                          {"carm_dropped_out_of_range", dropped},
+                         {"carm_zoom_unlisted", zoom_unlisted},
                          {"cut_row_skipped", result.cut_row_skipped},
                          {"partial_files_removed", result.partial_files_removed}};
   write_json_file(directory / "record_report.json", report);

@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <cstdio>
 #include <cmath>
+#include <fstream>
 #include <functional>
 #include <sstream>
 #include <stdexcept>
@@ -28,6 +29,7 @@ namespace fs = std::filesystem;
 using detail::CutLastLine;
 using detail::exact;
 using detail::fail;
+using detail::first_line_is;
 using detail::flag;
 using detail::for_each_row;
 using detail::limited;
@@ -41,7 +43,45 @@ constexpr const char* kFramesHeader = "frame,timestamp_ns,source,file";
 constexpr const char* kOstiaHeader = "frame,label,u_px,v_px";
 constexpr const char* kCArmHeader =
     "timestamp_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving";
+constexpr const char* kCArmZoomHeader =
+    "timestamp_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving,zoom_mode";
 constexpr int kMaxDetectorSidePx = 16384;
+
+std::pair<int, int> mode_frame_size(const std::optional<geometry::VideoMapping>& display, const geometry::ZoomMode& z) {
+  const auto m = geometry::frame_mapping(display, z);
+  return m ? std::pair{m->video_cols, m->video_rows} : std::pair{z.cols, z.rows};
+}
+
+}  // namespace
+
+std::string zoom_modes_problem(const Session& s) {
+  for (std::size_t k = 0; k < s.zoom_modes.size(); ++k) {
+    const geometry::ZoomMode& z = s.zoom_modes[k];
+    const std::string which = "zoom mode " + std::to_string(z.number);
+    if (const auto p = geometry::zoom_mode_problem(z, s.detector); !p.empty())
+      return "zoom_modes[" + std::to_string(k) + "]." + p;
+    if (const auto m = geometry::frame_mapping(s.video_mapping, z))
+      if (const auto p = geometry::video_mapping_fit_problem(*m, z.cols, z.rows); !p.empty())
+        return "video_mapping: does not fit " + which + ": " + p;
+    const auto size = mode_frame_size(s.video_mapping, z), first = mode_frame_size(s.video_mapping, s.zoom_modes.front());
+    if (size != first)
+      return "zoom_modes: " + which + "'s frames are " + std::to_string(size.first) + " x " + std::to_string(size.second) +
+             ", zoom mode " + std::to_string(s.zoom_modes.front().number) + "'s " + std::to_string(first.first) + " x " +
+             std::to_string(first.second) + "; a session's frames share one size (give the video mapping they are shown through)";
+  }
+  return "";
+}
+
+namespace {
+
+// "" when a sample's zoom mode is one the session lists (0 when it lists none).
+std::string zoom_sample_problem(const Session& s, const CArmSample& c) {
+  if (s.zoom_modes.empty())
+    return c.zoom_mode == 0 ? "" : "zoom_mode: " + std::to_string(c.zoom_mode) + ", but session.json lists no zoom_modes";
+  if (!geometry::find_zoom_mode(s.zoom_modes, c.zoom_mode))
+    return "zoom_mode: " + std::to_string(c.zoom_mode) + " is not one of session.json's zoom_modes";
+  return "";
+}
 
 bool plain_name(const std::string& s) {
   if (s.empty()) return false;
@@ -139,6 +179,7 @@ std::string carm_sample_problem(const CArmSample& c) {
   if (std::abs(c.secondary_deg) > 90.0) return "secondary_deg: " + exact(c.secondary_deg) + " is outside -90 to 90";
   if (!(c.sod_mm > 0.0 && c.sod_mm < c.sid_mm && c.sid_mm <= 5000.0))
     return "sid_mm, sod_mm: need 0 < SOD < SID <= 5000, found SID " + exact(c.sid_mm) + ", SOD " + exact(c.sod_mm);
+  if (c.zoom_mode < 0 || c.zoom_mode > 255) return "zoom_mode: " + std::to_string(c.zoom_mode) + " is outside 0 to 255";
   return {};
 }
 
@@ -181,8 +222,11 @@ Session read_session(const std::filesystem::path& directory) {
   s.detector = {det["cols"].get<int>(), det["rows"].get<int>(), det["row_spacing_mm"].get<double>(),
                 det["col_spacing_mm"].get<double>()};
   if (const auto problem = detector_problem(s.detector); !problem.empty()) fail(json_path, 0, problem);
-  if (j.contains("video_mapping")) {
-    s.video_mapping = geometry::parse_video_mapping(j["video_mapping"], json_path, "video_mapping.");
+  if (j.contains("video_mapping")) s.video_mapping = geometry::parse_video_mapping(j["video_mapping"], json_path, "video_mapping.");
+  if (j.contains("zoom_modes")) {
+    s.zoom_modes = geometry::parse_zoom_modes(j["zoom_modes"], s.detector, json_path);
+    if (const auto problem = zoom_modes_problem(s); !problem.empty()) fail(json_path, 0, problem);
+  } else if (s.video_mapping) {
     if (const auto problem = geometry::video_mapping_fit_problem(*s.video_mapping, s.detector.cols, s.detector.rows);
         !problem.empty())
       fail(json_path, 0, "video_mapping: does not fit the detector: " + problem);
@@ -212,7 +256,12 @@ Session read_session(const std::filesystem::path& directory) {
 
   // C-arm geometry stream.
   const fs::path carm = directory / carm_name;
-  for_each_row(carm, kCArmHeader, 10, CutLastLine::Refuse, [&](std::size_t line, const std::vector<std::string>& f) {
+  // The zoom mode's column: with zoom modes it must be there; without, it may (all 0).
+  const bool zoom_column = first_line_is(carm, kCArmZoomHeader);
+  if (!s.zoom_modes.empty() && !zoom_column)
+    fail(carm, 1, std::string("header: session.json lists zoom_modes, so expected '") + kCArmZoomHeader + "'");
+  for_each_row(carm, zoom_column ? kCArmZoomHeader : kCArmHeader, zoom_column ? 11 : 10, CutLastLine::Refuse,
+               [&](std::size_t line, const std::vector<std::string>& f) {
     CArmSample c;
     c.timestamp_ns = number<std::int64_t>(carm, line, "timestamp_ns", f[0]);
     c.primary_deg = number<double>(carm, line, "primary_deg", f[1]);
@@ -223,7 +272,9 @@ Session read_session(const std::filesystem::path& directory) {
       c.table_mm[static_cast<std::size_t>(k)] = number<double>(carm, line, k == 0 ? "table_x_mm" : k == 1 ? "table_y_mm" : "table_z_mm", f[5 + static_cast<std::size_t>(k)]);
     c.fluoro_on = flag(carm, line, "fluoro_on", f[8]);
     c.moving = flag(carm, line, "moving", f[9]);
+    if (zoom_column) c.zoom_mode = number<int>(carm, line, "zoom_mode", f[10]);
     if (const auto problem = carm_sample_problem(c); !problem.empty()) fail(carm, line, problem);
+    if (const auto problem = zoom_sample_problem(s, c); !problem.empty()) fail(carm, line, problem);
     if (!s.carm.empty() && c.timestamp_ns < s.carm.back().timestamp_ns) fail(carm, line, "timestamp_ns: goes back in time");
     s.carm.push_back(c);
   });
@@ -275,14 +326,26 @@ cv::Mat read_session_frame(const Session& session, std::size_t index) {
 
 cv::Mat read_detector_frame(const Session& session, std::size_t index) {
   cv::Mat frame = read_session_frame(session, index);
-  if (!session.video_mapping) return frame;
-  return geometry::detector_image(frame, geometry::VideoToDetector(*session.video_mapping, session.detector.cols,
-                                                                   session.detector.rows));
+  const CArmSample* c = session.zoom_modes.empty() ? nullptr : carm_at(session, session.frames[index].timestamp_ns);
+  const geometry::ZoomMode* zoom = c ? zoom_mode_of(session, *c) : nullptr;
+  if (!zoom) {
+    if (!session.video_mapping) return frame;
+    return geometry::detector_image(frame, geometry::VideoToDetector(*session.video_mapping, session.detector.cols,
+                                                                     session.detector.rows));
+  }
+  const auto mapping = geometry::frame_mapping(session.video_mapping, *zoom);
+  if (!mapping) return frame;
+  return geometry::detector_image(frame, geometry::VideoToDetector(*mapping, zoom->cols, zoom->rows));
 }
 
 std::pair<int, int> frame_size_px(const Session& session) {
   if (session.video_mapping) return {session.video_mapping->video_cols, session.video_mapping->video_rows};
+  if (!session.zoom_modes.empty()) return mode_frame_size(std::nullopt, session.zoom_modes.front());
   return {session.detector.cols, session.detector.rows};
+}
+
+const geometry::ZoomMode* zoom_mode_of(const Session& session, const CArmSample& sample) {
+  return geometry::find_zoom_mode(session.zoom_modes, sample.zoom_mode);
 }
 
 void write_session_frame(const std::filesystem::path& directory, const FrameRecord& f, const cv::Mat& image) {
@@ -299,11 +362,14 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
   // Everything is checked before anything is written, by the reader's own rules.
   const auto refuse = [](const std::string& what) { throw std::invalid_argument("write_session: " + what); };
   if (const auto problem = detector_problem(session.detector); !problem.empty()) refuse(problem);
-  if (session.video_mapping)
+  if (!session.zoom_modes.empty()) {
+    if (const auto problem = zoom_modes_problem(session); !problem.empty()) refuse(problem);
+  } else if (session.video_mapping) {
     if (const auto problem =
             geometry::video_mapping_fit_problem(*session.video_mapping, session.detector.cols, session.detector.rows);
         !problem.empty())
       refuse("video_mapping: does not fit the detector: " + problem);
+  }
   if (!(session.device_thickness_mm >= 0.0 && session.device_thickness_mm <= 15.0))
     refuse("device_thickness_mm: must be 0 to 15 (mm)");
   if (const auto problem = relative_path_problem(session.scene.generic_string()); !problem.empty())
@@ -320,6 +386,7 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
     const auto& c = session.carm[i];
     const std::string which = "C-arm sample " + std::to_string(i) + ": ";
     if (const auto problem = carm_sample_problem(c); !problem.empty()) refuse(which + problem);
+    if (const auto problem = zoom_sample_problem(session, c); !problem.empty()) refuse(which + problem);
     if (i > 0 && c.timestamp_ns < session.carm[i - 1].timestamp_ns) refuse(which + "timestamp_ns: goes back in time");
   }
   if (session.truth) {
@@ -356,11 +423,13 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
   for (const auto& f : session.frames)
     index += std::to_string(f.frame) + "," + std::to_string(f.timestamp_ns) + "," + f.source + "," + f.file.generic_string() + "\n";
   write_text(directory / "frames" / "index.csv", index);
-  std::string carm = std::string(kCArmHeader) + "\n";
+  const bool zoom_column = !session.zoom_modes.empty();
+  std::string carm = std::string(zoom_column ? kCArmZoomHeader : kCArmHeader) + "\n";
   for (const auto& c : session.carm)
     carm += std::to_string(c.timestamp_ns) + "," + exact(c.primary_deg) + "," + exact(c.secondary_deg) + "," + exact(c.sid_mm) +
             "," + exact(c.sod_mm) + "," + exact(c.table_mm[0]) + "," + exact(c.table_mm[1]) + "," + exact(c.table_mm[2]) +
-            "," + (c.fluoro_on ? "1" : "0") + "," + (c.moving ? "1" : "0") + "\n";
+            "," + (c.fluoro_on ? "1" : "0") + "," + (c.moving ? "1" : "0") +
+            (zoom_column ? "," + std::to_string(c.zoom_mode) : std::string()) + "\n";
   write_text(directory / "carm.csv", carm);
   const geometry::DetectorSpec& d = session.detector;
   nlohmann::ordered_json j{{"format", kFormat},
@@ -373,6 +442,8 @@ void write_session_files(const std::filesystem::path& directory, const Session& 
                            {"streams", {{"frames", "frames/index.csv"}, {"carm", "carm.csv"}}}};
   if (session.video_mapping)
     j["video_mapping"] = nlohmann::ordered_json::parse(geometry::video_mapping_json(*session.video_mapping).dump());
+  if (!session.zoom_modes.empty())
+    j["zoom_modes"] = nlohmann::ordered_json::parse(geometry::zoom_modes_json(session.zoom_modes).dump());
   if (session.truth) {
     const SessionTruth& t = *session.truth;
     std::string ostia = std::string(kOstiaHeader) + "\n";
@@ -399,6 +470,8 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
 }
 
 geometry::CArmView view_of(const Session& session, const CArmSample& c) {
+  if (const geometry::ZoomMode* zoom = zoom_mode_of(session, c))
+    return geometry::zoom_view(session.detector, *zoom, c.primary_deg, c.secondary_deg, c.sid_mm, c.sod_mm);
   return geometry::view_of(session.detector, c.primary_deg, c.secondary_deg, c.sid_mm, c.sod_mm);
 }
 
@@ -427,7 +500,26 @@ ExportSummary export_plus_sequence(const Session& session, const std::filesystem
   // The frames are streamed one at a time (an hour's recording does not fit in memory);
   // Detector images (read_detector_frame): a video-out session's frames are resampled, so
   // the sequence's pixels have the detector's spacing.
-  const int W = session.detector.cols, H = session.detector.rows;
+  // With zoom modes, the image of the modes the frames were taken in: one size and spacing,
+  // as a sequence has.
+  geometry::DetectorSpec image = session.detector;
+  const geometry::ZoomMode* first_zoom = nullptr;
+  for (const auto& f : session.frames) {
+    const CArmSample* c = session.zoom_modes.empty() ? nullptr : carm_at(session, f.timestamp_ns);
+    const geometry::ZoomMode* z = c ? zoom_mode_of(session, *c) : nullptr;
+    if (!z) continue;
+    if (!first_zoom) {
+      first_zoom = z;
+      image = geometry::image_detector(*z);
+    } else if (z->cols != image.cols || z->rows != image.rows || z->col_spacing_mm != image.col_spacing_mm ||
+               z->row_spacing_mm != image.row_spacing_mm) {
+      throw base::InputError(session.directory.string() + ": frame " + std::to_string(f.frame) + " was taken in zoom mode " +
+                             std::to_string(z->number) + " (\"" + z->name + "\"), whose pixels differ from zoom mode " +
+                             std::to_string(first_zoom->number) + "'s; a PLUS sequence has one pixel size: export the "
+                             "frames of each mode from a session of their own");
+    }
+  }
+  const int W = image.cols, H = image.rows;
   const auto spacing = [](double mm) { return std::isfinite(mm) && mm > 0.0 ? exact(mm) : std::string("1"); };
   // PLUS's own header, in its order (its writer keeps the fields in a sorted map). X-ray
   // frames are 2-D grey images like B-mode ones: type BRIGHTNESS, orientation MF (row 0 at
@@ -435,8 +527,8 @@ ExportSummary export_plus_sequence(const Session& session, const std::filesystem
   std::ostringstream h;
   h << "ObjectType = Image\nNDims = 3\nAnatomicalOrientation = RAI\nBinaryData = True\nBinaryDataByteOrderMSB = False\n"
     << "CenterOfRotation = 0 0 0\nCompressedData = False\nDimSize = " << W << " " << H << " " << session.frames.size()
-    << "\nElementNumberOfChannels = 1\nElementSpacing = " << spacing(session.detector.col_spacing_mm) << " "
-    << spacing(session.detector.row_spacing_mm) << " 1\nElementType = MET_USHORT\nKinds = domain domain list\n"
+    << "\nElementNumberOfChannels = 1\nElementSpacing = " << spacing(image.col_spacing_mm) << " "
+    << spacing(image.row_spacing_mm) << " 1\nElementType = MET_USHORT\nKinds = domain domain list\n"
     << "Offset = 0 0 0\nTransformMatrix = 1 0 0 0 1 0 0 0 1\nUltrasoundImageOrientation = MF\n"
     << "UltrasoundImageType = BRIGHTNESS\n";
   ExportSummary summary;

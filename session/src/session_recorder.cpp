@@ -58,6 +58,8 @@ struct SessionRecorder::Impl {
   std::chrono::steady_clock::time_point started;
   RecorderStatistics stats;
   RecordedStreams streams;
+  // The frames' size when the options fix it (a video mapping's, the zoom modes'), else the first frame's.
+  std::optional<std::pair<int, int>> frame_size;
   std::int64_t next_frame = 1;
   std::int64_t last_frame_ns = std::numeric_limits<std::int64_t>::min();
   std::string carm_rows;  // C-arm journal rows not yet written
@@ -72,9 +74,7 @@ struct SessionRecorder::Impl {
     std::lock_guard lock(mutex);
     ++stats.frames_received;
     // Under a video mapping every frame has its video size; else the first frame's is the session's.
-    if (!streams.size)
-      streams.size = options.video_mapping ? std::make_pair(options.video_mapping->video_cols, options.video_mapping->video_rows)
-                                           : std::make_pair(f.width, f.height);
+    if (!streams.size) streams.size = frame_size.value_or(std::make_pair(f.width, f.height));
     if (streams.size->first != f.width || streams.size->second != f.height) {
       ++stats.frames_refused;
       stats.last_error = "frame of " + std::to_string(f.width) + "x" + std::to_string(f.height) + " in a session of " +
@@ -227,6 +227,7 @@ struct SessionRecorder::Impl {
         {"carm",
          {{"samples", s.carm_samples},
           {"refused_invalid", s.carm_refused},
+          {"zoom_unlisted", s.carm_zoom_unlisted},
           {"source", carm.description()},
           {"last_state", acquisition::to_string(s.carm)},
           {"last_reason", s.carm_reason},
@@ -252,10 +253,12 @@ struct SessionRecorder::Impl {
                              {"registration", rows},
                              {"device_thickness_mm", settings.device_thickness_mm},
                              {"pixel_spacing_mm", settings.pixel_spacing_mm}};
-    if (settings.video_mapping) {
+    if (settings.video_mapping)
       j["video_mapping"] = nlohmann::ordered_json::parse(geometry::video_mapping_json(*settings.video_mapping).dump());
+    if (!settings.zoom_modes.empty())
+      j["zoom_modes"] = nlohmann::ordered_json::parse(geometry::zoom_modes_json(settings.zoom_modes).dump());
+    if (settings.video_mapping || !settings.zoom_modes.empty())
       j["detector_px"] = {settings.detector_px.first, settings.detector_px.second};
-    }
     write_json_file(dir / "recording.json", j);
     journal_frames.open(dir / "frames.csv", std::ios::binary | std::ios::trunc);
     journal_carm.open(dir / "carm.csv", std::ios::binary | std::ios::trunc);
@@ -281,13 +284,26 @@ SessionRecorder::SessionRecorder(RecorderOptions options, acquisition::FrameSour
   impl_->scene = geometry::load_scene(impl_->options.scene);
   if (impl_->options.device_thickness_mm && !(*impl_->options.device_thickness_mm >= 0.0 && *impl_->options.device_thickness_mm <= 15.0))
     throw std::invalid_argument("record: device thickness must be 0 to 15 mm");
-  if (impl_->options.video_mapping) {
-    const auto [cols, rows] = impl_->options.detector_px;
+  const auto [cols, rows] = impl_->options.detector_px;
+  if (!impl_->options.zoom_modes.empty()) {
+    // The session's own rules: each mode on the detector, fitting the mapping, one frame size.
+    Session probe;
+    probe.detector = {cols, rows, impl_->options.pixel_spacing_mm, impl_->options.pixel_spacing_mm};
+    probe.video_mapping = impl_->options.video_mapping;
+    probe.zoom_modes = impl_->options.zoom_modes;
+    if (const auto problem = zoom_modes_problem(probe); !problem.empty())
+      throw std::invalid_argument("record: " + problem + " (detector " + std::to_string(cols) + " x " + std::to_string(rows) + ")");
+    const geometry::ZoomMode& first = impl_->options.zoom_modes.front();
+    const auto shown = geometry::frame_mapping(impl_->options.video_mapping, first);
+    impl_->frame_size = shown ? std::make_pair(shown->video_cols, shown->video_rows) : std::make_pair(first.cols, first.rows);
+  } else if (impl_->options.video_mapping) {
     if (const auto problem = geometry::video_mapping_fit_problem(*impl_->options.video_mapping, cols, rows); !problem.empty())
       throw std::invalid_argument("record: " + problem + " (detector " + std::to_string(cols) + " x " + std::to_string(rows) + ")");
+    impl_->frame_size = std::make_pair(impl_->options.video_mapping->video_cols, impl_->options.video_mapping->video_rows);
   }
   impl_->settings = {impl_->options.ct_to_carm, impl_->options.device_thickness_mm.value_or(impl_->scene.device_thickness_mm),
-                     impl_->options.pixel_spacing_mm, impl_->options.video_mapping, impl_->options.detector_px};
+                     impl_->options.pixel_spacing_mm, impl_->options.video_mapping, impl_->options.detector_px,
+                     impl_->options.zoom_modes};
 }
 
 SessionRecorder::~SessionRecorder() {
@@ -350,13 +366,15 @@ Session SessionRecorder::finish() {
   d.journal_frames.close();
   d.journal_carm.close();
 
-  std::uint64_t dropped = 0;
-  Session s = assemble(d.options.out, d.settings, d.streams, dropped);
+  std::uint64_t dropped = 0, zoom_unlisted = 0;
+  Session s = assemble(d.options.out, d.settings, d.streams, dropped, zoom_unlisted);
   RecorderStatistics stats;
   {
     std::lock_guard lock(d.mutex);
     d.stats.carm_samples -= dropped;
     d.stats.carm_refused += dropped;
+    d.stats.carm_zoom_unlisted = zoom_unlisted;
+    if (!d.settings.zoom_modes.empty()) d.stats.carm_samples -= zoom_unlisted;
     stats = d.stats;
   }
   std::error_code ignored;

@@ -52,6 +52,24 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
   s.device_thickness_mm = patient.preoperative.device_thickness_mm;
   s.detector = {plan.detector_px, plan.detector_px, plan.pixel_spacing_mm, plan.pixel_spacing_mm};
   s.video_mapping = plan.video_out;
+  int zoom_now = 0;  // the mode the C-arm is in (0: it has none)
+  if (plan.zoom_change) {
+    const auto make_mode = [&](int number, const std::string& name, double spacing_mm) {
+      geometry::ZoomMode z;
+      z.number = number;
+      z.name = name;
+      z.cols = z.rows = plan.detector_px;
+      z.row_spacing_mm = z.col_spacing_mm = spacing_mm;
+      z.width_mm = z.height_mm = plan.detector_px * spacing_mm;
+      return z;
+    };
+    const double whole_cm = plan.detector_px * plan.pixel_spacing_mm / 10.0;
+    char names[2][32];
+    std::snprintf(names[0], sizeof names[0], "%.0f cm", whole_cm);
+    std::snprintf(names[1], sizeof names[1], "%.0f cm", whole_cm * 2.0 / 3.0);
+    s.zoom_modes = {make_mode(1, names[0], plan.pixel_spacing_mm), make_mode(2, names[1], plan.pixel_spacing_mm * 2.0 / 3.0)};
+    zoom_now = 1;
+  }
   // Registration: CT point (0, 0, 50) (the aneurysm, renal ostia in the field) at the
   // isocenter, turned by a degree or two as a real registration would be.
   SeededUniform uniform(plan.seed ^ 0xC0A4'5E55'1011ULL);
@@ -109,6 +127,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
     c.table_mm = {p.table_mm.x(), p.table_mm.y(), p.table_mm.z()};
     c.fluoro_on = fluoro;
     c.moving = moving;
+    c.zoom_mode = zoom_now;
     s.carm.push_back(c);
   };
   // A C-arm interface streams its state at a steady rate, not only when something changes:
@@ -123,17 +142,26 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
     }
     t = end;
   };
-  const auto run = [&](const ViewPose& p, const std::string& source, double fps, double seconds) {
+  // `zoom_to` (not 0): the C-arm switches to that zoom mode halfway through the run.
+  const auto run = [&](const ViewPose& p, const std::string& source, double fps, double seconds, int zoom_to = 0) {
     sample(p, true, false);
-    const std::size_t in_force = s.carm.size() - 1;  // the rendering's key: one pose per run
+    std::size_t in_force = s.carm.size() - 1;  // the rendering's key: one pose (and mode) per part of a run
     const auto n = static_cast<int>(std::lround(fps * seconds));
+    const std::int64_t t0 = t;
     for (int k = 0; k < n; ++k) {
-      const std::int64_t tk = t + static_cast<std::int64_t>(std::llround(k * 1e9 / fps));
+      const std::int64_t tk = t0 + static_cast<std::int64_t>(std::llround(k * 1e9 / fps));
+      if (zoom_to != 0 && k == n / 2) {
+        // Switched between two pulses: the new mode's first sample comes before its first frame.
+        hold(p, true, tk - static_cast<std::int64_t>(std::llround(0.5e9 / fps)));
+        zoom_now = zoom_to;
+        sample(p, true, false);
+        in_force = s.carm.size() - 1;
+      }
       const double since = k / fps;
       const double contrast = source == "dsa" ? std::clamp((since - 0.5) / 0.5, 0.0, 1.0) : 0.0;
       frames.push_back({tk, in_force, source, contrast});
     }
-    hold(p, true, t + static_cast<std::int64_t>(std::llround(n * 1e9 / fps)));
+    hold(p, true, t0 + static_cast<std::int64_t>(std::llround(n * 1e9 / fps)));
     sample(p, false, false);  // beam off
   };
   const auto move = [&](const ViewPose& a, const ViewPose& b) {
@@ -154,7 +182,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
   move(poses[0], poses[1]);
   run(poses[1], "fluoro", plan.fluoro_fps, plan.fluoro_seconds);
   move(poses[1], poses[2]);
-  run(poses[2], "fluoro", plan.fluoro_fps, plan.fluoro_seconds);
+  run(poses[2], "fluoro", plan.fluoro_fps, plan.fluoro_seconds, plan.zoom_change ? 2 : 0);
   hold(poses[2], false, t + kSecond);
   run(poses[2], "dsa", plan.dsa_fps, plan.dsa_seconds);
 
@@ -198,7 +226,7 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
     const geometry::ProjectionMatrix P = geometry::registered(geometry::projection_matrix(view), T);
     for (const auto& lm : patient.truth.landmarks)
       if (const auto px = geometry::project(P, lm.position_lps);
-          px && px->x() >= -0.5 && px->y() >= -0.5 && px->x() <= s.detector.cols - 0.5 && px->y() <= s.detector.rows - 0.5)
+          px && px->x() >= -0.5 && px->y() >= -0.5 && px->x() <= view.detector_cols - 0.5 && px->y() <= view.detector_rows - 0.5)
         truth.ostia.push_back({record.frame, lm.label, *px});
     if (progress) progress(i + 1, frames.size());
   }

@@ -565,3 +565,52 @@ TEST_F(Cli, CalibrateVideoFindsTheImageAreaOfEveryKindOfMonitorPicture) {
   EXPECT_EQ(against_node.code, 1) << against_node.err;
   EXPECT_NE(against_node.err.find("the 300 x 384 detector"), std::string::npos) << against_node.err;
 }
+
+// A session whose last run switches to a magnified zoom mode (issue 31) evaluates as the same
+// session without the switch, and the node replaying it draws the roadmap in both modes.
+TEST_F(Cli, AZoomChangeSessionEvaluatesAsOneWithoutAndTheNodeFollowsTheMode) {
+  const auto out = scratch("zoom");
+  const std::vector<std::string> sim{"sim", "session", "--seed", "2", "--detector-px", "256", "--fluoro-seconds", "1", "--no-progress"};
+  auto with = [](std::vector<std::string> a, std::initializer_list<std::string> more) {
+    a.insert(a.end(), more);
+    return a;
+  };
+  ASSERT_EQ(evarnode(with(sim, {"--out", (out / "fixed").string()})).code, 0);
+  const auto made = evarnode(with(sim, {"--out", (out / "zoom").string(), "--zoom-change"}));
+  ASSERT_EQ(made.code, 0) << made.err;
+  EXPECT_NE(made.err.find("zoom mode 2 \"20 cm\": 256 x 256 pixels of 0.800 mm"), std::string::npos) << made.err;
+  for (const char* form : {"fixed", "zoom"})
+    ASSERT_EQ(evarnode({"eval", (out / form).string(), "--out", (out / (std::string("e-") + form)).string(), "--no-progress"}).code, 0)
+        << form;
+  const auto cases = [&](const char* form) {
+    return nlohmann::json::parse(std::ifstream(out / (std::string("e-") + form) / "eval.json"))["cases"][0];
+  };
+  const auto fixed = cases("fixed"), zoom = cases("zoom");
+  EXPECT_EQ(zoom["frames_evaluated"], fixed["frames_evaluated"]) << "frames of the magnified mode were left out";
+  ASSERT_EQ(zoom["landmarks"].size(), fixed["landmarks"].size());
+  for (std::size_t k = 0; k < fixed["landmarks"].size(); ++k) {
+    const auto& a = fixed["landmarks"][k];
+    const auto& b = zoom["landmarks"][k];
+    ASSERT_EQ(a["label"], b["label"]);
+    EXPECT_NEAR(b["initial_mm"].get<double>(), a["initial_mm"].get<double>(), 0.2) << a["label"];
+    EXPECT_NEAR(b["adapted_mm"].get<double>(), a["adapted_mm"].get<double>(), 0.2) << a["label"];
+  }
+  // The node measures the ostia in every frame it shows with a model, those of the magnified
+  // mode among them, as eval does (both without the pelvis: see AVideoOutSession…).
+  ASSERT_EQ(evarnode({"eval", (out / "zoom").string(), "--out", (out / "e-plain").string(), "--no-progress", "--no-pelvis"}).code, 0);
+  const auto plain = nlohmann::json::parse(std::ifstream(out / "e-plain" / "eval.json"))["cases"][0]["landmarks"];
+  // In real time: as fast as it goes, the short session is over before the first model.
+  const auto run = evarnode({"run", "--replay", (out / "zoom").string(), "--no-video", "--out",
+                             (out / "run").string(), "--no-progress", "--no-pelvis"});
+  ASSERT_EQ(run.code, 0) << run.err;
+  const auto report = nlohmann::json::parse(std::ifstream(out / "run" / "run_report.json"));
+  EXPECT_EQ(report["frames"]["wrong_size"], 0) << report.dump(2);
+  EXPECT_EQ(report["frames"]["zoom_unknown"], 0) << report.dump(2);
+  EXPECT_GT(report["frames"]["with_roadmap"].get<int>(), 0);
+  ASSERT_EQ(report["evaluation"]["landmarks"].size(), plain.size()) << report.dump(2);
+  for (const auto& l : report["evaluation"]["landmarks"])
+    for (const auto& e : plain)
+      if (e["label"] == l["label"]) {
+        EXPECT_NEAR(l["adapted_mm"].get<double>(), e["adapted_mm"].get<double>(), 0.2) << l["label"];
+      }
+}

@@ -154,3 +154,37 @@ TEST(NodeConfig, TheVideoMappingIsGivenInlineOrAsAFileAndRefusedByField) {
   EXPECT_THAT(error(R"("missing.json")"), HasSubstr("missing.json"));
   fs::remove_all(dir);
 }
+
+TEST(NodeConfig, ZoomModesAreReadAgainstThePhysicalDetectorAndAFixedModeMustBeListed) {
+  const fs::path file = fs::temp_directory_path() / ("evar_node_zoom_" + std::to_string(::getpid()) + ".json");
+  const std::string detector = R"("detector": {"cols": 1024, "rows": 1024, "row_spacing_mm": 0.390625, "col_spacing_mm": 0.390625})";
+  const std::string modes = R"("zoom_modes": [
+      {"mode": 1, "name": "40 cm", "field_of_view_dimensions_mm": [400, 400], "image_size_px": [1024, 1024],
+       "imager_pixel_spacing_mm": [0.390625, 0.390625]},
+      {"mode": 3, "name": "20 cm", "field_of_view_shape": "ROUND", "field_of_view_dimensions_mm": [200],
+       "image_size_px": [512, 512], "imager_pixel_spacing_mm": [0.390625, 0.390625], "field_of_view_origin_px": [100, 412]}])";
+  const auto with = [&](const std::string& fields) {
+    std::ofstream(file) << R"({"format": "evarnode-node", "version": 1, )" << fields << "}";
+    return file;
+  };
+  const auto c = evar::app::read_node_config(with(detector + ", " + modes + R"(, "zoom_mode": 3)"));
+  ASSERT_EQ(c.zoom_modes.size(), 2u);
+  EXPECT_EQ(c.zoom_modes[1].name, "20 cm");
+  EXPECT_EQ(c.zoom_modes[1].shape, evar::geometry::FieldShape::Circle);
+  EXPECT_EQ(c.zoom_modes[1].cols, 512);
+  ASSERT_TRUE(c.zoom_modes[1].origin_rows_cols);
+  EXPECT_EQ(c.zoom_modes[1].origin_rows_cols->y(), 412.0);
+  EXPECT_EQ(c.zoom_mode, 3);
+  const auto error = [&](const std::string& fields) {
+    return evar::test::error_message([&] { evar::app::read_node_config(with(fields)); });
+  };
+  EXPECT_THAT(error(modes), HasSubstr(".json: zoom_modes: needs \"detector\""));
+  EXPECT_THAT(error(detector + R"(, "zoom_mode": 1)"), HasSubstr(".json: zoom_mode: needs \"zoom_modes\""));
+  EXPECT_THAT(error(detector + ", " + modes + R"(, "zoom_mode": 2)"),
+              HasSubstr(".json: zoom_mode: must be the number of one of zoom_modes, found 2"));
+  // The field placed past the detector's right edge.
+  std::string off = modes;
+  off.replace(off.find("[100, 412]"), 10, "[100, 600]");
+  EXPECT_THAT(error(detector + ", " + off), HasSubstr("zoom_modes[1].field_of_view_origin_px: the field placed there"));
+  fs::remove(file);
+}

@@ -36,6 +36,9 @@ TEST(StatusLines, SayTheViewTheModelAndTheRoadmapAndWhatHoldsTheRoadmapBack) {
   g.age_ns = 2'340'000'000;
   lines = node::status_lines(g, preoperative, false, "", overlay::RoadmapMode::Both, 0.0, now);
   EXPECT_EQ(lines[0], "RAO 20  CRA 10  SID 1196 mm  beam off  C-arm moving: roadmap hidden  geometry 2.3 s old");
+  // A C-arm with zoom modes: the mode the frame was taken in.
+  lines = node::status_lines(geometry_at(35, -15), preoperative, false, "", overlay::RoadmapMode::Both, 0.0, now, "zoom 20 cm");
+  EXPECT_EQ(lines[0], "LAO 35  CAU 15  SID 1196 mm  zoom 20 cm");
 
   // No geometry: no state line.
   EXPECT_EQ(node::status_lines(std::nullopt, preoperative, false, "", overlay::RoadmapMode::Both, 0.0, now).size(), 2u);

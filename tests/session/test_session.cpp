@@ -607,3 +607,92 @@ TEST(Session, AVideoOutSessionCarriesItsMappingAndReadsBackTheDetectorImage) {
   EXPECT_NE(error_reading(dir.path).find("session.json: video_mapping: does not fit the detector"), std::string::npos)
       << error_reading(dir.path);
 }
+
+// A session of a C-arm with zoom modes (issue 31): session.json lists them, carm.csv says each
+// sample's, and a frame is the image of its mode (its view, its turn read back); what
+// cannot be is refused by file, line and field.
+TEST(Session, ZoomModesAndEachSamplesModeRoundTripAndWhatCannotBeIsNamed) {
+  TempDir dir;
+  std::vector<cv::Mat> images;
+  auto s = small_session(images);  // 60 x 40 detector of 0.3 mm
+  s.detector.col_spacing_mm = 0.3;
+  const auto mode = [](int number, const std::string& name, double spacing_mm, int rotation_deg) {
+    geometry::ZoomMode z;
+    z.number = number;
+    z.name = name;
+    z.cols = 60;
+    z.rows = 40;
+    z.row_spacing_mm = z.col_spacing_mm = spacing_mm;
+    z.width_mm = 60 * spacing_mm;
+    z.height_mm = 40 * spacing_mm;
+    z.rotation_deg = rotation_deg;
+    return z;
+  };
+  s.zoom_modes = {mode(1, "18 cm", 0.3, 0), mode(2, "12 cm", 0.2, 180)};
+  for (std::size_t k = 0; k < s.carm.size(); ++k) s.carm[k].zoom_mode = k < 2 ? 1 : 2;
+  session::write_session(dir.path, s, images);
+  {
+    std::ifstream carm(dir.path / "carm.csv");
+    std::string header;
+    std::getline(carm, header);
+    EXPECT_EQ(header.substr(header.size() - 10), ",zoom_mode");
+  }
+  const auto r = session::read_session(dir.path);
+  ASSERT_EQ(r.zoom_modes.size(), 2u);
+  EXPECT_EQ(geometry::zoom_modes_json(r.zoom_modes), geometry::zoom_modes_json(s.zoom_modes));
+  for (std::size_t k = 0; k < r.carm.size(); ++k) EXPECT_EQ(r.carm[k].zoom_mode, s.carm[k].zoom_mode);
+  EXPECT_EQ(session::frame_size_px(r), std::make_pair(60, 40));
+  EXPECT_EQ(session::view_of(r, r.carm[0]).col_spacing_mm, 0.3);
+  EXPECT_EQ(session::view_of(r, r.carm[3]).col_spacing_mm, 0.2);
+  // Frame 0 was taken in mode 1 (as it is), frame 1 in mode 2, turned half round.
+  EXPECT_EQ(cv::norm(session::read_detector_frame(r, 0), images[0], cv::NORM_INF), 0.0);
+  cv::Mat turned_back;
+  cv::flip(images[1], turned_back, -1);
+  EXPECT_EQ(cv::norm(session::read_detector_frame(r, 1), turned_back, cv::NORM_INF), 0.0);
+  // A PLUS sequence has one pixel size; these frames have two.
+  try {
+    session::export_plus_sequence(r, dir.path.parent_path() / "zoom.seq.mha");
+    ADD_FAILURE() << "exported frames of two pixel sizes";
+  } catch (const base::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 2 was taken in zoom mode 2 (\"12 cm\"), whose pixels differ"), std::string::npos)
+        << e.what();
+  }
+
+  // A mode the session does not list, in the file and in the writer.
+  replace_in(dir.path / "carm.csv", ",1,2\n", ",1,3\n");
+  EXPECT_NE(error_reading(dir.path).find("carm.csv:5: zoom_mode: 3 is not one of session.json's zoom_modes"), std::string::npos)
+      << error_reading(dir.path);
+  auto unlisted = s;
+  unlisted.carm[3].zoom_mode = 3;
+  EXPECT_THROW(write_afresh(dir.path, unlisted, images), std::invalid_argument);
+  // Zoom modes listed, but carm.csv without the column that says which.
+  auto plain = s;
+  plain.zoom_modes.clear();
+  for (auto& c : plain.carm) c.zoom_mode = 0;
+  write_afresh(dir.path, plain, images);
+  const std::string without = error_reading(dir.path);
+  EXPECT_EQ(without, "no error");
+  auto listed_json = nlohmann::json::parse(std::ifstream(dir.path / "session.json"));
+  listed_json["zoom_modes"] = geometry::zoom_modes_json(s.zoom_modes);
+  std::ofstream(dir.path / "session.json") << listed_json.dump(2);
+  EXPECT_NE(error_reading(dir.path).find("carm.csv:1: header: session.json lists zoom_modes, so expected"), std::string::npos)
+      << error_reading(dir.path);
+  // A mode without zoom modes listed.
+  write_afresh(dir.path, s, images);
+  listed_json = nlohmann::json::parse(std::ifstream(dir.path / "session.json"));
+  listed_json.erase("zoom_modes");
+  std::ofstream(dir.path / "session.json") << listed_json.dump(2);
+  EXPECT_NE(error_reading(dir.path).find("carm.csv:2: zoom_mode: 1, but session.json lists no zoom_modes"), std::string::npos)
+      << error_reading(dir.path);
+  // Modes whose frames differ in size cannot share a session's frames.
+  auto sizes = s;
+  sizes.zoom_modes[1].cols = 30;
+  sizes.zoom_modes[1].width_mm = 30 * 0.2;
+  try {
+    write_afresh(dir.path, sizes, images);
+    ADD_FAILURE() << "written";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("zoom_modes: zoom mode 2's frames are 30 x 40, zoom mode 1's 60 x 40"), std::string::npos)
+        << e.what();
+  }
+}

@@ -442,6 +442,89 @@ TEST_F(Recording, AVideoOutputIsRecordedWithItsMappingAndRecoveredWithIt) {
   EXPECT_EQ(recovered.detector.cols, 64);
 }
 
+// A C-arm with zoom modes (issue 31): the recording lists them and keeps each state's mode,
+// also through a kill and its recovery; a recording that lists none keeps the states, says
+// how many named a mode, and its session takes their frames as the detector's.
+TEST_F(Recording, EachCArmStatesZoomModeIsRecordedWithTheModesAndRecovered) {
+  const auto mode = [](int number, const std::string& name, double spacing_mm) {
+    geometry::ZoomMode z;
+    z.number = number;
+    z.name = name;
+    z.cols = 40;
+    z.rows = 30;
+    z.row_spacing_mm = z.col_spacing_mm = spacing_mm;
+    z.width_mm = 40 * spacing_mm;
+    z.height_mm = 30 * spacing_mm;
+    return z;
+  };
+  Session zoomed = original_;
+  zoomed.zoom_modes = {mode(1, "12 cm", 0.3), mode(2, "8 cm", 0.2)};
+  for (std::size_t k = 0; k < zoomed.carm.size(); ++k) zoomed.carm[k].zoom_mode = k < 2 ? 1 : 2;
+  write_session(root_ / "zoomed", zoomed, images_);
+  zoomed = read_session(root_ / "zoomed");
+  const auto modes_of = [](const Session& s) {
+    std::vector<int> m;
+    for (const auto& c : s.carm) m.push_back(c.zoom_mode);
+    return m;
+  };
+
+  RecorderOptions o = options();
+  o.pixel_spacing_mm = 0.3;
+  o.detector_px = {40, 30};
+  o.zoom_modes = zoomed.zoom_modes;
+  {
+    SessionReplay replay(zoomed, {0.0, 1});
+    SessionRecorder recorder(o, replay.frames(), replay.carm());
+    recorder.start();
+    ASSERT_TRUE(replay.wait(20s));
+    recorder.finish();
+    EXPECT_EQ(recorder.statistics().carm_zoom_unlisted, 0u);
+  }
+  const Session back = read_session(o.out);
+  EXPECT_EQ(geometry::zoom_modes_json(back.zoom_modes), geometry::zoom_modes_json(zoomed.zoom_modes));
+  EXPECT_EQ(modes_of(back), modes_of(zoomed));
+  EXPECT_EQ(back.frames.size(), 12u);
+
+  // Killed midway: the journal keeps the modes.
+  fs::remove_all(o.out);
+  const int status = evar::test::record_then_kill(o, zoomed);
+  ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "child status " << status;
+  recover_recording(o.out);
+  const Session recovered = read_session(o.out);
+  EXPECT_EQ(geometry::zoom_modes_json(recovered.zoom_modes), geometry::zoom_modes_json(zoomed.zoom_modes));
+  EXPECT_EQ(modes_of(recovered), modes_of(zoomed));
+
+  // Without the modes: every state kept as the detector's, and counted.
+  fs::remove_all(o.out);
+  RecorderOptions plain = options();
+  {
+    SessionReplay replay(zoomed, {0.0, 1});
+    SessionRecorder recorder(plain, replay.frames(), replay.carm());
+    recorder.start();
+    ASSERT_TRUE(replay.wait(20s));
+    const Session s = recorder.finish();
+    EXPECT_EQ(recorder.statistics().carm_zoom_unlisted, zoomed.carm.size());
+    EXPECT_EQ(s.carm.size(), zoomed.carm.size());
+  }
+  const Session without = read_session(plain.out);
+  EXPECT_TRUE(without.zoom_modes.empty());
+  EXPECT_EQ(modes_of(without), std::vector<int>(zoomed.carm.size(), 0));
+  const auto report = nlohmann::json::parse(std::ifstream(plain.out / "record_report.json"));
+  EXPECT_EQ(report["carm"]["zoom_unlisted"], zoomed.carm.size()) << report.dump(2);
+
+  // Modes whose frames could not share a session are refused before anything is recorded.
+  fs::remove_all(o.out);
+  o.zoom_modes[1].cols = 20;
+  o.zoom_modes[1].width_mm = 20 * 0.2;
+  SessionReplay unused(zoomed, {0.0, 1});
+  try {
+    SessionRecorder refused(o, unused.frames(), unused.carm());
+    ADD_FAILURE() << "modes of two frame sizes were taken";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("record: zoom_modes: zoom mode 2's frames are 20 x 30"), std::string::npos) << e.what();
+  }
+}
+
 TEST(CArmOnHostClock, FollowsADriftingCArmClockThroughJumpsAndRestarts) {
   // Ten minutes at 10 Hz from a C-arm whose crystal runs 100 ppm fast (60 ms over the run,
   // what one offset for the whole recording would get wrong), arriving 1 to 25 ms late; the

@@ -22,6 +22,10 @@ struct FrameView {
 /// std::invalid_argument for impossible geometry (SOD >= SID, ...).
 FrameView frame_view(const geometry::DetectorSpec& detector, const Eigen::Matrix4d& registration,
                      const acquisition::CArmState& state);
+/// The same for a view made otherwise (a zoom mode's: geometry::zoom_view); the state gives
+/// the table position.
+FrameView frame_view(const geometry::CArmView& view, const Eigen::Matrix4d& registration,
+                     const acquisition::CArmState& state);
 
 /// "LAO 35  CAU 15": the angulation as interventionalists say it (whole degrees).
 std::string angulation_text(double primary_deg, double secondary_deg);

@@ -7,12 +7,14 @@
 #include <chrono>
 #include <cstddef>
 #include <optional>
+#include <vector>
 
 #include "evar/acquisition/frame_loss_monitor.hpp"
 #include "evar/acquisition/geometry_timeline.hpp"
 #include "evar/deform/scene_deformation.hpp"
 #include "evar/geometry/detector.hpp"
 #include "evar/geometry/video_mapping.hpp"
+#include "evar/geometry/zoom_mode.hpp"
 #include "evar/node/device_candidate.hpp"
 #include "evar/node/model_adaptation.hpp"
 #include "evar/node/pelvis_tracker.hpp"
@@ -23,6 +25,14 @@ namespace evar::node {
 
 struct NodeOptions {
   geometry::DetectorSpec detector;                 ///< the frames' detector (size checked per frame)
+  /// The C-arm's zoom modes (issue 31; node.json "zoom_modes"). Given, `detector` is the
+  /// physical detector and a frame is the image of the mode it was taken in: the one the
+  /// C-arm link says (CArmPose::zoom_mode), or `zoom_mode`. A mode not listed, or none said
+  /// with several listed, leaves the frame without a roadmap and says why on screen.
+  std::vector<geometry::ZoomMode> zoom_modes;
+  /// Not 0: every frame is taken in this mode of `zoom_modes`, whatever the link says (a link
+  /// without a zoom readout).
+  int zoom_mode = 0;
   /// Set: the frames are the C-arm's video output, the detector image shown in a rectangle
   /// of them (issue 31). Frames must have its video size; the analysis reads the detector
   /// image out of them and the roadmap is drawn through it; frames keep their video size.

@@ -19,6 +19,9 @@ struct NodeStatistics {
   std::uint64_t frames_in = 0, frames_composited = 0, frames_with_roadmap = 0;
   std::uint64_t dropped_input = 0, dropped_output = 0, frames_lost_by_source = 0;
   std::uint64_t frames_wrong_size = 0;
+  /// Frames taken in a zoom mode node.json does not list, or with none said among several:
+  /// shown without a roadmap (issue 31).
+  std::uint64_t frames_zoom_unknown = 0;
   /// Analysed frames whose image area did not show fluoroscopy (under a video mapping:
   /// geometry::not_fluoroscopy), not searched for a device.
   std::uint64_t frames_not_fluoroscopy = 0;

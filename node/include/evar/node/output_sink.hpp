@@ -37,6 +37,9 @@ struct ComposedFrame {
   /// `model`'s layer is drawn, or none (no geometry, or a new view's layer not ready yet).
   overlay::RoadmapShown roadmap = overlay::RoadmapShown::None;
   double mm_per_px = 0.0;                         ///< at the isocenter, with P_ct
+  /// The frame's pixel at the detector (mm; the zoom mode's imager spacing over the video
+  /// scale), with P_ct; 0 without a view.
+  double detector_mm_per_px = 0.0;
   /// The detector's view behind P_ct: its projection is P_ct itself, or under a video
   /// mapping (NodeOptions::video_mapping) the one P_ct carries onto the video frame.
   std::optional<FrameView> detector_view;

@@ -6,8 +6,9 @@
 //   frames/index.csv   frame,timestamp_ns,source,file   (one row per frame, files 16-bit PNG
 //                      relative to frames/);
 //   carm.csv           timestamp_ns,primary_deg,secondary_deg,sid_mm,sod_mm,
-//                      table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving
-//                      (the C-arm geometry stream);
+//                      table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving[,zoom_mode]
+//                      (the C-arm geometry stream; the zoom mode's column when
+//                      session.json lists the C-arm's zoom_modes);
 //   optionally a ground truth (distorted vessels, true device, true 2D ostia per frame).
 // Readers check everything and name the file and line of any problem; writers refuse what
 // readers would (the same checks), so a written session always reads back.
@@ -25,6 +26,7 @@
 #include "evar/geometry/carm_projection.hpp"
 #include "evar/geometry/detector.hpp"
 #include "evar/geometry/video_mapping.hpp"
+#include "evar/geometry/zoom_mode.hpp"
 
 namespace evar::session {
 
@@ -74,6 +76,11 @@ struct Session {
   /// Set: the frames are the C-arm's video output, the detector image shown in a rectangle
   /// of them (session.json "video_mapping"; docs/FORMATS.md). Frames then have its video size.
   std::optional<geometry::VideoMapping> video_mapping;
+  /// The C-arm's zoom modes (session.json "zoom_modes"; geometry/zoom_mode.hpp): given,
+  /// `detector` is the physical detector, each C-arm sample names the mode in force
+  /// (CArmPose::zoom_mode, one of these) and a frame is the image of the mode at its time.
+  /// The frames of every mode have one size (the video mapping's, or the modes' images').
+  std::vector<geometry::ZoomMode> zoom_modes;
   std::vector<FrameRecord> frames;
   std::vector<CArmSample> carm;
   std::optional<SessionTruth> truth;
@@ -98,12 +105,21 @@ Session read_session(const std::filesystem::path& directory);
 /// whatever its name) of the frames' size, inside the session directory.
 cv::Mat read_session_frame(const Session& session, std::size_t index);
 
-/// A frame's detector image (CV_16UC1, the detector's size): the frame itself, or under a
-/// video mapping resampled out of its image rectangle (geometry::detector_image).
+/// A frame's detector image (CV_16UC1, the detector's size, or its zoom mode's image's): the
+/// frame itself, or under a mapping (the video mapping, a mode's turn or flip) resampled out
+/// of its image rectangle (geometry::detector_image).
 cv::Mat read_detector_frame(const Session& session, std::size_t index);
 
-/// The frames' size in pixels (cols, rows): the detector's, or the video mapping's.
+/// The frames' size in pixels (cols, rows): the detector's, the zoom modes' images', or the
+/// video mapping's.
 std::pair<int, int> frame_size_px(const Session& session);
+
+/// "" when the session's zoom modes fit it (each on the detector, the video mapping fitting
+/// each mode's image, every mode's frames of one size), else what does not, naming the field.
+std::string zoom_modes_problem(const Session& session);
+
+/// The zoom mode a C-arm sample names, or null when the session has no zoom modes.
+const geometry::ZoomMode* zoom_mode_of(const Session& session, const CArmSample& sample);
 
 /// Writes session.json, registration.json, frames/index.csv, carm.csv (and the ostia CSV of
 /// the ground truth, when present) into `directory` (created), and `images[i]` as
@@ -116,7 +132,8 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
 void write_session_frame(const std::filesystem::path& directory, const FrameRecord& record, const cv::Mat& image);
 void write_session_files(const std::filesystem::path& directory, const Session& session);
 
-/// The C-arm view of a sample on the session's detector (geometry::view_of).
+/// The C-arm view of a sample on the session's detector (geometry::view_of), or on its
+/// zoom mode's image (geometry::zoom_view).
 geometry::CArmView view_of(const Session& session, const CArmSample& sample);
 
 /// CT → C-arm world at the sample's table position (geometry::patient_to_carm).

@@ -37,6 +37,11 @@ struct RecorderOptions {
   /// "video_mapping"). `detector_px` is then the detector's cols and rows.
   std::optional<geometry::VideoMapping> video_mapping;
   std::pair<int, int> detector_px{0, 0};
+  /// Set: the C-arm's zoom modes (session.json "zoom_modes"): `detector_px` and
+  /// `pixel_spacing_mm` are then the physical detector's, each C-arm state's mode is recorded
+  /// (states in a mode not listed are not), and frames have the modes' one frame size.
+  /// Without them a mode the link says is not kept (RecorderStatistics::carm_zoom_unlisted).
+  std::vector<geometry::ZoomMode> zoom_modes;
   std::optional<double> device_thickness_mm;  ///< default: the scene's
   std::string source = "fluoro";              ///< frames/index.csv source column
   std::size_t max_queued_frames = 64;         ///< waiting for the disk; beyond, frames are not recorded
@@ -50,6 +55,9 @@ struct RecorderStatistics {
   std::uint64_t frames_write_failed = 0;  ///< their PNG could not be written (disk full, ...)
   std::uint64_t carm_samples = 0;         ///< recorded
   std::uint64_t carm_refused = 0;         ///< not recorded: values the format refuses (carm_sample_problem)
+  /// C-arm states whose zoom mode the recording's zoom_modes do not list: without zoom modes
+  /// recorded as the detector's (the mode dropped), with them not recorded.
+  std::uint64_t carm_zoom_unlisted = 0;
   acquisition::StreamState video = acquisition::StreamState::Stopped, carm = acquisition::StreamState::Stopped;
   std::string video_reason, carm_reason;  ///< the sources' last words
   std::uint64_t carm_notices = 0;         ///< the C-arm link's news (bad frames, a C-arm warning)

@@ -36,6 +36,10 @@ struct SessionPlan {
   /// with the patient, the angulation and a frame counter burned into its text regions),
   /// and session.json carries it. The true ostia stay in detector pixels.
   std::optional<geometry::VideoMapping> video_out;
+  /// Set: the C-arm has two zoom modes, listed in session.json, with the mode of each C-arm
+  /// sample in carm.csv: 1, the whole detector, and 2, its central two thirds in as many
+  /// pixels; the last fluoroscopy run switches from 1 to 2 halfway, and the DSA run is in 2.
+  bool zoom_change = false;
 };
 
 struct GeneratedSession {
