@@ -19,6 +19,7 @@
 #include "evar/geometry/video_mapping.hpp"
 #include "evar/node/logging.hpp"
 #include "json_file.hpp"
+#include "node_config.hpp"
 
 namespace evar::app {
 
@@ -162,23 +163,36 @@ int run_calibrate_video(const CalibrateVideoCommand& cmd) {
     throw base::InputError(std::string("calibrate-video: ") + e.what());
   }
   const geometry::VideoMapping mapping = geometry::proposed_mapping(area, cmd.rotation_deg, cmd.mirror);
-  node::log().info("image area {} ({}, {:.0f} % of its rectangle); {} text region(s) outside it",
-                   rect_text(area.image_rect),
+  node::log().info("image area {} ({}, {:.0f} % of its rectangle); {} text region(s)", rect_text(area.image_rect),
                    area.field_shape == geometry::FieldShape::Circle ? "a circle: image intensifier" : "a rectangle: flat detector",
                    100.0 * area.fill, area.text_regions.size());
+  if (!area.image_text_searched)
+    node::log().warn("graphics burned into the image itself were not looked for: {} (they are what stays the same while "
+                     "the fluoroscopy's noise changes; give several frames of live fluoroscopy)",
+                     frames.size() < 2 ? "one frame"
+                                       : fmt::format("{:.0f} % of the image did not change across the frames", 100.0 * area.still_share));
   // The detector to check against: as given, else node.json's.
   std::optional<std::pair<int, int>> detector;
   if (cmd.detector_px.size() == 2) detector = {cmd.detector_px[0], cmd.detector_px[1]};
   std::optional<nlohmann::ordered_json> node_json;
+  // With zoom modes the picture shows each mode's image as the C-arm delivers it (turned and
+  // flipped as the mode says), not the physical detector: checked against every mode's.
+  std::vector<std::pair<int, int>> mode_images;
   if (!cmd.node.empty()) {
     node_json = read_node_json(cmd.node);
-    if (!detector && node_json->contains("detector") && (*node_json)["detector"].is_object()) {
+    if (!detector && node_json->contains("zoom_modes")) {
+      for (const geometry::ZoomMode& z : read_node_config(cmd.node).zoom_modes)
+        mode_images.push_back(z.rotation_deg % 180 != 0 ? std::make_pair(z.rows, z.cols) : std::make_pair(z.cols, z.rows));
+      detector = mode_images.front();
+    } else if (!detector && node_json->contains("detector") && (*node_json)["detector"].is_object()) {
       const auto& d = (*node_json)["detector"];
       if (d.contains("cols") && d.contains("rows") && d["cols"].is_number_integer() && d["rows"].is_number_integer())
         detector = {d["cols"].get<int>(), d["rows"].get<int>()};
     }
   }
-  const std::string problem = detector ? misfit(mapping, detector->first, detector->second) : std::string();
+  std::string problem = detector ? misfit(mapping, detector->first, detector->second) : std::string();
+  for (const auto& [cols, rows] : mode_images)
+    if (problem.empty() && (problem = misfit(mapping, cols, rows), !problem.empty())) detector = {cols, rows};
   if (detector && problem.empty())
     node::log().info("fits the {} x {} detector: {:.3f} video pixels per detector pixel", detector->first, detector->second,
                      geometry::VideoToDetector(mapping, detector->first, detector->second).video_px_per_detector_px());

@@ -26,7 +26,7 @@ int run_export(const ExportCommand& cmd) {
   std::error_code ec;
   const auto bytes = std::filesystem::file_size(cmd.out, ec);
   node::log().info("wrote {}: {} frames of {} x {} ({:.0f} MB); in 3D Slicer with the SlicerIGSIO extension: File > Add Data",
-             cmd.out.string(), session.frames.size(), session.detector.cols, session.detector.rows,
+             cmd.out.string(), session.frames.size(), summary.cols, summary.rows,
              ec ? 0.0 : static_cast<double>(bytes) / 1e6);
   return 0;
 }

@@ -81,6 +81,7 @@ int run_record(const RecordCommand& cmd) {
                              std::to_string(d.cols) + " x " + std::to_string(d.rows) + "); leave it out");
     o.detector_px = {d.cols, d.rows};
     o.zoom_modes = config.zoom_modes;
+    o.zoom_mode = config.zoom_mode;
   }
   o.device_thickness_mm = cmd.device_thickness_mm;
   session::SessionRecorder recorder(o, *frames, *carm);
@@ -129,8 +130,9 @@ int run_record(const RecordCommand& cmd) {
                      "the session takes their frames as the detector's",
                      s.carm_zoom_unlisted);
   else if (s.carm_zoom_unlisted > 0)
-    node::log().warn("{} C-arm states were in a zoom mode the recording's zoom_modes do not list and were not recorded",
-                     s.carm_zoom_unlisted);
+    node::log().warn("{} C-arm states were in a zoom mode {} does not list: recorded as said, their frames have no known "
+                     "field (not evaluated or exported until the mode is added to the session's zoom_modes)",
+                     s.carm_zoom_unlisted, cmd.zoom_modes.string());
   if (!s.last_error.empty()) node::log().warn("last problem: {}", s.last_error);
   node::log().info("report: {}", (cmd.out / "record_report.json").string());
   return 0;

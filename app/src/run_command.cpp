@@ -142,11 +142,12 @@ int run_node(const RunCommand& cmd) {
     o.bind_address = cmd.igtl_bind;
     o.port = cmd.igtl_port;
     // The image sent is the frame as shown: under a video mapping its pixels are the monitor's.
+    // Each frame says its own spacing (a zoom mode's); this one is for frames of no known mode.
+    const geometry::DetectorSpec image = options.zoom_modes.empty() ? options.detector : geometry::image_detector(options.zoom_modes.front());
+    const auto mapping = options.zoom_modes.empty() ? options.video_mapping : geometry::frame_mapping(options.video_mapping, options.zoom_modes.front());
     const double video_px_per_detector_px =
-        options.video_mapping
-            ? geometry::VideoToDetector(*options.video_mapping, options.detector.cols, options.detector.rows).video_px_per_detector_px()
-            : 1.0;
-    auto s = std::make_unique<node::IgtlSink>(o, scene, options.detector.col_spacing_mm / video_px_per_detector_px, 15.0);
+        mapping ? geometry::VideoToDetector(*mapping, image.cols, image.rows).video_px_per_detector_px() : 1.0;
+    auto s = std::make_unique<node::IgtlSink>(o, scene, image.col_spacing_mm / video_px_per_detector_px, 15.0);
     node::log().info("OpenIGTLink server on {}:{} (3D Slicer: OpenIGTLinkIF, client to this port)", cmd.igtl_bind, s->port());
     igtl = s.get();
     sinks.push_back(std::move(s));

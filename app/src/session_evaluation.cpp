@@ -11,6 +11,7 @@
 #include "evar/node/pelvis_tracker.hpp"
 #include "evar/geometry/video_frame.hpp"
 #include "evar/node/frame_view.hpp"
+#include "evar/node/logging.hpp"
 
 #include <Eigen/Geometry>
 #include <numbers>
@@ -155,10 +156,13 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     }
     return candidates.emplace(key, std::move(c)).first->second;
   };
+  std::size_t zoom_unknown = 0;
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const session::FrameRecord& record = session.frames[i];
     const session::CArmSample* sample = session::carm_at(session, record.timestamp_ns);
-    if (sample == nullptr || sample->moving || !sample->fluoro_on) {
+    // A zoom mode the session does not list: the frame's pixels are unknown (counted, said below).
+    if (sample != nullptr && !session::zoom_known(session, *sample)) ++zoom_unknown;
+    if (sample == nullptr || sample->moving || !sample->fluoro_on || !session::zoom_known(session, *sample)) {
       if (progress) progress(i + 1, session.frames.size());
       continue;
     }
@@ -231,6 +235,9 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     if (progress) progress(i + 1, session.frames.size());
   }
   result.landmarks = errors.result();
+  if (zoom_unknown > 0)
+    node::log().warn("{}: {} frames were taken in a zoom mode session.json does not list and were not evaluated",
+                     directory.string(), zoom_unknown);
   // Which iliac the true device runs in (the deformation's own rule, on the true device),
   // and which vessel each landmark sits on: the paper's Table 1 measures the internal iliac
   // ostia of iliacs carrying a device.

@@ -30,15 +30,38 @@ PixelRect rect_of(const cv::Rect& r) {
 
 }  // namespace
 
+// Boxes round the text in `text` (a mask), letters merged into lines of `k`-wide gaps: each
+// line's own pixels 2 px around, specks of fewer than `least_px` pixels left out.
+std::vector<PixelRect> text_boxes(const cv::Mat& text, int k, int least_px) {
+  cv::Mat lines;
+  cv::dilate(text, lines, cv::getStructuringElement(cv::MORPH_RECT, {odd(2 * k), 3}));
+  std::vector<std::vector<cv::Point>> blobs;
+  cv::findContours(lines, blobs, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+  const cv::Rect frame(0, 0, text.cols, text.rows);
+  std::vector<PixelRect> boxes;
+  for (std::size_t i = 0; i < blobs.size(); ++i) {
+    // The text's own pixels in the merged line (not the merging's reach), 2 px around them.
+    cv::Mat line_mask = cv::Mat::zeros(text.size(), CV_8U);
+    cv::drawContours(line_mask, blobs, static_cast<int>(i), cv::Scalar(255), cv::FILLED);
+    const cv::Mat own = text & line_mask;
+    if (cv::countNonZero(own) < least_px) continue;
+    const cv::Rect r = cv::boundingRect(own);
+    boxes.push_back(rect_of((r + cv::Size(4, 4) - cv::Point(2, 2)) & frame));
+  }
+  return boxes;
+}
+
 VideoArea find_video_area(const std::vector<cv::Mat>& frames) {
   if (frames.empty()) throw std::invalid_argument("no frames to find the image area in");
-  cv::Mat brightest = grey_float(frames.front());
+  cv::Mat brightest = grey_float(frames.front()), darkest = brightest.clone();
   for (std::size_t k = 1; k < frames.size(); ++k) {
     if (frames[k].size() != frames.front().size())
       throw std::invalid_argument("frame " + std::to_string(k + 1) + " is " + std::to_string(frames[k].cols) + " x " +
                                   std::to_string(frames[k].rows) + ", frame 1 " + std::to_string(frames.front().cols) +
                                   " x " + std::to_string(frames.front().rows) + ": frames of one video output");
-    cv::max(brightest, grey_float(frames[k]), brightest);
+    const cv::Mat grey = grey_float(frames[k]);
+    cv::max(brightest, grey, brightest);
+    cv::min(darkest, grey, darkest);
   }
   VideoArea area;
   area.video_cols = brightest.cols;
@@ -85,20 +108,28 @@ VideoArea find_video_area(const std::vector<cv::Mat>& frames) {
   cv::Mat around = image_region.clone();
   if (area.field_shape == FieldShape::Rectangle) around(box).setTo(255);
   cv::dilate(around, around, cv::getStructuringElement(cv::MORPH_RECT, {7, 7}));
-  cv::Mat text = lit & ~around;
-  cv::Mat lines;
-  cv::dilate(text, lines, cv::getStructuringElement(cv::MORPH_RECT, {odd(2 * k), 3}));
-  std::vector<std::vector<cv::Point>> blobs;
-  cv::findContours(lines, blobs, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-  const cv::Rect frame(0, 0, lit.cols, lit.rows);
-  for (std::size_t i = 0; i < blobs.size(); ++i) {
-    // The text's own pixels in the merged line (not the merging's reach), 2 px around them.
-    cv::Mat line_mask = cv::Mat::zeros(lit.size(), CV_8U);
-    cv::drawContours(line_mask, blobs, static_cast<int>(i), cv::Scalar(255), cv::FILLED);
-    const cv::Mat own = text & line_mask;
-    if (cv::countNonZero(own) < 4) continue;  // a speck of noise
-    const cv::Rect r = cv::boundingRect(own);
-    area.text_regions.push_back(rect_of((r + cv::Size(4, 4) - cv::Point(2, 2)) & frame));
+  area.text_regions = text_boxes(lit & ~around, k, 4);
+
+  // Text and graphics burned into the image itself (a side marker, a scale, a label): the
+  // X-ray image changes from frame to frame with its quantum noise, they do not. Pixels of
+  // the image (clear of its edge) that never change across the frames, thin (what an opening
+  // takes away, as the strokes above) and brighter than the image around them by a tenth of
+  // the grey range. Frames that do not differ over more than half the image (one frame, a
+  // frozen one given twice) cannot tell graphics from the image: not searched.
+  if (frames.size() >= 2) {
+    cv::Mat inner;
+    cv::erode(image_region, inner, cv::getStructuringElement(cv::MORPH_ELLIPSE, {7, 7}));
+    const cv::Mat still = (brightest - darkest <= 1e-3 * (bright - lowest)) & inner;
+    const int inner_px = cv::countNonZero(inner);
+    area.still_share = inner_px > 0 ? static_cast<double>(cv::countNonZero(still)) / inner_px : 1.0;
+    area.image_text_searched = area.still_share <= 0.5;
+    if (area.image_text_searched) {
+      cv::Mat still_opened, around_mean;
+      cv::morphologyEx(still, still_opened, cv::MORPH_OPEN, cv::getStructuringElement(cv::MORPH_ELLIPSE, {k, k}));
+      cv::blur(brightest, around_mean, {odd(2 * k), odd(2 * k)});
+      const cv::Mat brighter = brightest - around_mean > 0.1 * (bright - lowest);
+      for (const PixelRect& r : text_boxes(still & ~still_opened & brighter, k, 12)) area.text_regions.push_back(r);
+    }
   }
   std::sort(area.text_regions.begin(), area.text_regions.end(),
             [](const PixelRect& a, const PixelRect& b) { return a.y != b.y ? a.y < b.y : a.x < b.x; });

@@ -6,6 +6,7 @@
 #include <set>
 #include <stdexcept>
 
+#include "evar/geometry/image_header.hpp"
 #include "evar/geometry/json_fields.hpp"
 #include "mesh_formats.hpp"
 
@@ -79,6 +80,9 @@ std::string zoom_mode_problem(const ZoomMode& m, const DetectorSpec& detector) {
   if (m.name.empty()) return "name: empty; give the name the C-arm shows for the mode";
   if (m.cols < 1 || m.rows < 1 || m.cols > kMaxImagePx || m.rows > kMaxImagePx)
     return "image_size_px: " + std::to_string(m.cols) + " x " + std::to_string(m.rows) + "; each must be 1-16384";
+  if (std::int64_t{m.cols} * m.rows > kMaxImagePixels)
+    return "image_size_px: " + std::to_string(m.cols) + " x " + std::to_string(m.rows) + " pixels; at most " +
+           std::to_string(kMaxImagePixels) + " in all (the largest image evarnode reads)";
   if (!(m.row_spacing_mm > 0) || !(m.col_spacing_mm > 0) || !std::isfinite(m.row_spacing_mm) || !std::isfinite(m.col_spacing_mm))
     return "imager_pixel_spacing_mm: must be positive";
   if (m.rotation_deg % 90 != 0 || m.rotation_deg < 0 || m.rotation_deg >= 360)

@@ -360,14 +360,23 @@ void LiveNode::Impl::compose_loop() {
         if (!size_ok)
           alerts_.set("frame-size",
                       "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is not the " +
-                          (field->mapping ? "video mapping's " : "detector's ") + std::to_string(field->frame_cols) +
+                          (options_.video_mapping ? "video mapping's " : field->zoom ? "zoom mode's " : "detector's ") +
+                          std::to_string(field->frame_cols) +
                           " x " + std::to_string(field->frame_rows) +
                           (field->zoom ? " (" + field->label() + ")" : std::string()) + ": no roadmap",
                       options_.alert_hold);
       } else {
-        size_ok = std::any_of(fields_.begin(), fields_.end(), [&](const FrameField& k) {
-          return f->width == k.frame_cols && f->height == k.frame_rows;
-        });
+        // No mode to go by: any mode's size will do; a frame of none is said with them all.
+        std::string sizes;
+        for (const FrameField& k : fields_) {
+          size_ok = size_ok || (f->width == k.frame_cols && f->height == k.frame_rows);
+          sizes += (sizes.empty() ? "" : ", ") + std::to_string(k.frame_cols) + " x " + std::to_string(k.frame_rows);
+        }
+        if (!size_ok)
+          alerts_.set("frame-size",
+                      "frame " + std::to_string(f->width) + " x " + std::to_string(f->height) + " is none of the zoom modes' " +
+                          sizes + ": no roadmap",
+                      options_.alert_hold);
       }
       if (!g) {
         alerts_.set("geometry", "no C-arm geometry yet: roadmap hidden", std::nullopt);
@@ -410,12 +419,13 @@ void LiveNode::Impl::compose_loop() {
       out.status.alerts.insert(out.status.alerts.begin(), held_frame_line(holding.showing_fails(), *held_s));
       out.held = true;
     }
+    // The frame's pixel at the detector, for outputs that carry it (OpenIGTLink's spacing).
+    if (field) out.detector_mm_per_px = field->image.col_spacing_mm / (field->video ? field->video->video_px_per_detector_px() : 1.0);
     if (view) {
       // The roadmap is drawn where the frame shows the detector's pixels.
       out.P_ct = field->video ? geometry::projection_on_video(view->P_ct, *field->video) : view->P_ct;
       const double video_scale = field->video ? field->video->video_px_per_detector_px() : 1.0;
       out.mm_per_px = mm_at_isocenter_per_px(view->view) / video_scale;
-      out.detector_mm_per_px = view->view.col_spacing_mm / video_scale;
       out.detector_view = view;
     }
     try {

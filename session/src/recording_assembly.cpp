@@ -46,12 +46,18 @@ Session assemble(const fs::path& out, const RecordingSettings& settings, const R
       ++dropped;
       continue;
     }
-    if (s.zoom_modes.empty() && c.zoom_mode != 0) {
-      c.zoom_mode = 0;  // a mode no list describes: the frames are taken as the detector's
-      ++zoom_unlisted;
-    } else if (!s.zoom_modes.empty() && !geometry::find_zoom_mode(s.zoom_modes, c.zoom_mode)) {
-      ++zoom_unlisted;  // the frames then have no geometry rather than a wrong one
-      continue;
+    if (s.zoom_modes.empty()) {
+      if (c.zoom_mode != 0) {
+        c.zoom_mode = 0;  // a mode no list describes: the frames are taken as the detector's
+        ++zoom_unlisted;
+      }
+    } else {
+      // As the node decides (node/src/frame_field.cpp): the fixed mode wins; a link that says
+      // none leaves the only mode listed. A mode the list lacks is kept as said: its frames
+      // have no known field (session::zoom_known), rather than the mode before's.
+      if (settings.zoom_mode != 0) c.zoom_mode = settings.zoom_mode;
+      else if (c.zoom_mode == 0 && s.zoom_modes.size() == 1) c.zoom_mode = s.zoom_modes.front().number;
+      if (!geometry::find_zoom_mode(s.zoom_modes, c.zoom_mode)) ++zoom_unlisted;
     }
     s.carm.push_back(c);
   }

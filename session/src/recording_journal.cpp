@@ -59,6 +59,12 @@ RecordingSettings read_settings(const fs::path& file) {
   if (j.contains("zoom_modes")) {
     s.zoom_modes = geometry::parse_zoom_modes(j["zoom_modes"], {s.detector_px.first, s.detector_px.second, s.pixel_spacing_mm,
                                                                 s.pixel_spacing_mm}, file);
+    if (j.contains("zoom_mode")) {
+      const auto& m = j["zoom_mode"];
+      if (!m.is_number_integer() || !geometry::find_zoom_mode(s.zoom_modes, m.get<int>()))
+        bad_field(file, "zoom_mode", "must be the number of one of zoom_modes, found " + m.dump());
+      s.zoom_mode = m.get<int>();
+    }
   } else if (s.video_mapping) {
     if (const auto problem = geometry::video_mapping_fit_problem(*s.video_mapping, s.detector_px.first, s.detector_px.second);
         !problem.empty())

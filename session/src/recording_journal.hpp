@@ -53,6 +53,7 @@ struct RecordingSettings {
   std::optional<geometry::VideoMapping> video_mapping;  // frames are the video output
   std::pair<int, int> detector_px{0, 0};                 // with a video mapping or zoom modes: the detector's size
   std::vector<geometry::ZoomMode> zoom_modes;            // the C-arm's, when given
+  int zoom_mode = 0;                                     // not 0: every frame's, whatever the link says
 };
 
 // A recording's streams as they arrived, before they become a session.
@@ -80,7 +81,7 @@ void map_frames_offline(const std::vector<std::pair<std::int64_t, acquisition::C
 // The session a recording makes, the same from memory (finish) and from the journal
 // (recovery). C-arm states whose time on the host clock falls outside the format's range
 // are left out and counted in `dropped`; those whose zoom mode the settings do not list are
-// counted in `zoom_unlisted` (and left out, or kept as the detector's without zoom modes).
+// counted in `zoom_unlisted` (kept with it, or as the detector's without zoom modes).
 Session assemble(const fs::path& out, const RecordingSettings& settings, const RecordedStreams& streams,
                  std::uint64_t& dropped, std::uint64_t& zoom_unlisted);
 

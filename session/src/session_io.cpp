@@ -74,13 +74,19 @@ std::string zoom_modes_problem(const Session& s) {
 
 namespace {
 
-// "" when a sample's zoom mode is one the session lists (0 when it lists none).
+// "" unless a sample names a zoom mode in a session that lists none. With zoom modes listed,
+// a sample may name one the list lacks (or 0: the link said none): a recording keeps what
+// the C-arm said, and the frames in force then have no known field (zoom_mode_of is null).
 std::string zoom_sample_problem(const Session& s, const CArmSample& c) {
-  if (s.zoom_modes.empty())
-    return c.zoom_mode == 0 ? "" : "zoom_mode: " + std::to_string(c.zoom_mode) + ", but session.json lists no zoom_modes";
-  if (!geometry::find_zoom_mode(s.zoom_modes, c.zoom_mode))
-    return "zoom_mode: " + std::to_string(c.zoom_mode) + " is not one of session.json's zoom_modes";
+  if (s.zoom_modes.empty() && c.zoom_mode != 0)
+    return "zoom_mode: " + std::to_string(c.zoom_mode) + ", but session.json lists no zoom_modes";
   return "";
+}
+
+// What read_detector_frame and export say of a frame taken in a mode the session does not list.
+std::string unknown_zoom(const Session& s, std::size_t index, const CArmSample& c) {
+  return "frame " + std::to_string(s.frames[index].frame) + " was taken in zoom mode " + std::to_string(c.zoom_mode) +
+         ", which session.json's zoom_modes do not list: its pixels are unknown";
 }
 
 bool plain_name(const std::string& s) {
@@ -319,7 +325,9 @@ cv::Mat read_session_frame(const Session& session, std::size_t index) {
   if (image.type() != CV_16UC1) fail(file, 0, "expected a 16-bit single-channel PNG");
   if (const auto [cols, rows] = frame_size_px(session); image.cols != cols || image.rows != rows)
     fail(file, 0, std::to_string(image.cols) + " x " + std::to_string(image.rows) + " pixels, but " +
-                      (session.video_mapping ? "the video mapping's frames are " : "the detector is ") +
+                      (session.video_mapping        ? "the video mapping's frames are "
+                       : !session.zoom_modes.empty() ? "the zoom modes' frames are "
+                                                     : "the detector is ") +
                       std::to_string(cols) + " x " + std::to_string(rows));
   return image;
 }
@@ -328,6 +336,7 @@ cv::Mat read_detector_frame(const Session& session, std::size_t index) {
   cv::Mat frame = read_session_frame(session, index);
   const CArmSample* c = session.zoom_modes.empty() ? nullptr : carm_at(session, session.frames[index].timestamp_ns);
   const geometry::ZoomMode* zoom = c ? zoom_mode_of(session, *c) : nullptr;
+  if (c && !zoom) throw base::InputError(session.directory.string() + ": " + unknown_zoom(session, index, *c));
   if (!zoom) {
     if (!session.video_mapping) return frame;
     return geometry::detector_image(frame, geometry::VideoToDetector(*session.video_mapping, session.detector.cols,
@@ -346,6 +355,10 @@ std::pair<int, int> frame_size_px(const Session& session) {
 
 const geometry::ZoomMode* zoom_mode_of(const Session& session, const CArmSample& sample) {
   return geometry::find_zoom_mode(session.zoom_modes, sample.zoom_mode);
+}
+
+bool zoom_known(const Session& session, const CArmSample& sample) {
+  return session.zoom_modes.empty() || zoom_mode_of(session, sample) != nullptr;
 }
 
 void write_session_frame(const std::filesystem::path& directory, const FrameRecord& f, const cv::Mat& image) {
@@ -472,6 +485,9 @@ void write_session(const std::filesystem::path& directory, const Session& sessio
 geometry::CArmView view_of(const Session& session, const CArmSample& c) {
   if (const geometry::ZoomMode* zoom = zoom_mode_of(session, c))
     return geometry::zoom_view(session.detector, *zoom, c.primary_deg, c.secondary_deg, c.sid_mm, c.sod_mm);
+  if (!session.zoom_modes.empty())
+    throw std::invalid_argument("view_of: zoom mode " + std::to_string(c.zoom_mode) +
+                                " is not one of the session's zoom_modes (check zoom_known first)");
   return geometry::view_of(session.detector, c.primary_deg, c.secondary_deg, c.sid_mm, c.sod_mm);
 }
 
@@ -504,10 +520,15 @@ ExportSummary export_plus_sequence(const Session& session, const std::filesystem
   // as a sequence has.
   geometry::DetectorSpec image = session.detector;
   const geometry::ZoomMode* first_zoom = nullptr;
-  for (const auto& f : session.frames) {
-    const CArmSample* c = session.zoom_modes.empty() ? nullptr : carm_at(session, f.timestamp_ns);
-    const geometry::ZoomMode* z = c ? zoom_mode_of(session, *c) : nullptr;
-    if (!z) continue;
+  for (std::size_t i = 0; i < session.frames.size(); ++i) {
+    const auto& f = session.frames[i];
+    if (session.zoom_modes.empty()) break;
+    const CArmSample* c = carm_at(session, f.timestamp_ns);
+    if (!c)
+      throw base::InputError(session.directory.string() + ": frame " + std::to_string(f.frame) +
+                             " has no C-arm sample, so no zoom mode: its pixels are unknown (carm.csv is empty)");
+    const geometry::ZoomMode* z = zoom_mode_of(session, *c);
+    if (!z) throw base::InputError(session.directory.string() + ": " + unknown_zoom(session, i, *c));
     if (!first_zoom) {
       first_zoom = z;
       image = geometry::image_detector(*z);
@@ -533,6 +554,8 @@ ExportSummary export_plus_sequence(const Session& session, const std::filesystem
     << "UltrasoundImageType = BRIGHTNESS\n";
   ExportSummary summary;
   summary.frames = session.frames.size();
+  summary.cols = W;
+  summary.rows = H;
   // Slicer's importer keys each frame by its Timestamp printed with 3 decimals, so frames
   // less than 1 ms apart would collapse into one: whole milliseconds, each at least 1 ms
   // after the one before (differences cannot overflow: timestamps are below 2^62).
@@ -569,6 +592,10 @@ ExportSummary export_plus_sequence(const Session& session, const std::filesystem
   std::vector<char> row(static_cast<std::size_t>(W) * 2);
   for (std::size_t i = 0; i < session.frames.size(); ++i) {
     const cv::Mat image = read_detector_frame(session, i);
+    if (image.cols != W || image.rows != H)  // checked above; the files may have changed since
+      throw base::InputError(session.directory.string() + ": frame " + std::to_string(session.frames[i].frame) + " is " +
+                             std::to_string(image.cols) + " x " + std::to_string(image.rows) + " detector pixels, the sequence " +
+                             std::to_string(W) + " x " + std::to_string(H));
     for (int r = 0; r < H; ++r) {
       const auto* px = image.ptr<std::uint16_t>(r);
       for (int c = 0; c < W; ++c) {  // little endian, whatever the host

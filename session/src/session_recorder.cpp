@@ -257,6 +257,7 @@ struct SessionRecorder::Impl {
       j["video_mapping"] = nlohmann::ordered_json::parse(geometry::video_mapping_json(*settings.video_mapping).dump());
     if (!settings.zoom_modes.empty())
       j["zoom_modes"] = nlohmann::ordered_json::parse(geometry::zoom_modes_json(settings.zoom_modes).dump());
+    if (settings.zoom_mode != 0) j["zoom_mode"] = settings.zoom_mode;
     if (settings.video_mapping || !settings.zoom_modes.empty())
       j["detector_px"] = {settings.detector_px.first, settings.detector_px.second};
     write_json_file(dir / "recording.json", j);
@@ -293,6 +294,8 @@ SessionRecorder::SessionRecorder(RecorderOptions options, acquisition::FrameSour
     probe.zoom_modes = impl_->options.zoom_modes;
     if (const auto problem = zoom_modes_problem(probe); !problem.empty())
       throw std::invalid_argument("record: " + problem + " (detector " + std::to_string(cols) + " x " + std::to_string(rows) + ")");
+    if (impl_->options.zoom_mode != 0 && !geometry::find_zoom_mode(impl_->options.zoom_modes, impl_->options.zoom_mode))
+      throw std::invalid_argument("record: zoom_mode " + std::to_string(impl_->options.zoom_mode) + " is not one of zoom_modes");
     const geometry::ZoomMode& first = impl_->options.zoom_modes.front();
     const auto shown = geometry::frame_mapping(impl_->options.video_mapping, first);
     impl_->frame_size = shown ? std::make_pair(shown->video_cols, shown->video_rows) : std::make_pair(first.cols, first.rows);
@@ -303,7 +306,7 @@ SessionRecorder::SessionRecorder(RecorderOptions options, acquisition::FrameSour
   }
   impl_->settings = {impl_->options.ct_to_carm, impl_->options.device_thickness_mm.value_or(impl_->scene.device_thickness_mm),
                      impl_->options.pixel_spacing_mm, impl_->options.video_mapping, impl_->options.detector_px,
-                     impl_->options.zoom_modes};
+                     impl_->options.zoom_modes, impl_->options.zoom_mode};
 }
 
 SessionRecorder::~SessionRecorder() {
@@ -374,7 +377,6 @@ Session SessionRecorder::finish() {
     d.stats.carm_samples -= dropped;
     d.stats.carm_refused += dropped;
     d.stats.carm_zoom_unlisted = zoom_unlisted;
-    if (!d.settings.zoom_modes.empty()) d.stats.carm_samples -= zoom_unlisted;
     stats = d.stats;
   }
   std::error_code ignored;

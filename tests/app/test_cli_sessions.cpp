@@ -585,6 +585,10 @@ TEST_F(Cli, AZoomChangeSessionEvaluatesAsOneWithoutAndTheNodeFollowsTheMode) {
   const auto cases = [&](const char* form) {
     return nlohmann::json::parse(std::ifstream(out / (std::string("e-") + form) / "eval.json"))["cases"][0];
   };
+  // Distances at the isocenter do not depend on the pixels they were measured in; the
+  // magnified frames are other noise draws segmented on finer pixels, which moves the
+  // reconstruction by hundredths of a millimetre (measured: the same figures to 0.01 mm), so
+  // the video-out test's 0.2 mm bound holds with room.
   const auto fixed = cases("fixed"), zoom = cases("zoom");
   EXPECT_EQ(zoom["frames_evaluated"], fixed["frames_evaluated"]) << "frames of the magnified mode were left out";
   ASSERT_EQ(zoom["landmarks"].size(), fixed["landmarks"].size());

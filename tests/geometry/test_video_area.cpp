@@ -3,6 +3,7 @@
 // tests/app's calibrate-video tests).
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <opencv2/imgproc.hpp>
 
 #include "evar/geometry/video_area.hpp"
@@ -62,6 +63,42 @@ TEST(VideoMappingMisfit, ImageContentPastTheMappedRectangleIsSaidWithTheSideAndH
 TEST(VideoMappingMisfit, ABlackFrameCannotTell) {
   EXPECT_EQ(video_mapping_misfit(cv::Mat(512, 640, CV_8U, cv::Scalar(0)), mapping({100, 8, 480, 480})), "");
   EXPECT_EQ(video_mapping_misfit(cv::Mat(512, 640, CV_16U, cv::Scalar(900)), mapping({100, 8, 480, 480})), "");
+}
+
+// Graphics burned into the image itself (a side marker, a scale bar) are found as text: the
+// image's content changes from frame to frame, they do not. Frames that do not change (one
+// frame given twice) cannot tell, and say they did not look.
+TEST(FindVideoArea, GraphicsBurnedIntoTheImageAreTheOnlyThingThatStaysStillAcrossFrames) {
+  cv::theRNG().state = 20261207;
+  std::vector<cv::Mat> frames;
+  for (int k = 0; k < 3; ++k) {
+    cv::Mat f = monitor_frame({100, 8, 480, 480});
+    cv::putText(f, "R", {520, 60}, cv::FONT_HERSHEY_SIMPLEX, 0.8, cv::Scalar(255), 2);
+    cv::line(f, {140, 440}, {240, 440}, cv::Scalar(255), 2);  // a 10 cm scale bar
+    frames.push_back(f);
+  }
+  const VideoArea area = find_video_area(frames);
+  EXPECT_TRUE(area.image_text_searched);
+  EXPECT_LT(area.still_share, 0.05);
+  EXPECT_EQ(area.image_rect.x, 100);
+  EXPECT_EQ(area.image_rect.width, 480);
+  const auto covers = [&](const cv::Rect& r) {
+    return std::any_of(area.text_regions.begin(), area.text_regions.end(), [&](const PixelRect& t) {
+      return t.x <= r.x && t.y <= r.y && t.x + t.width >= r.x + r.width && t.y + t.height >= r.y + r.height;
+    });
+  };
+  EXPECT_TRUE(covers({520, 44, 16, 16})) << "the side marker";
+  EXPECT_TRUE(covers({140, 439, 101, 3})) << "the scale bar";
+  // Outside the image: the three lines of text, as before; on it nothing but the two.
+  int on_image = 0;
+  for (const PixelRect& t : area.text_regions)
+    on_image += t.x >= 100 && t.x + t.width <= 580 && t.y >= 8 && t.y + t.height <= 488;
+  EXPECT_EQ(on_image, 2);
+  EXPECT_EQ(area.text_regions.size(), 5u);
+
+  const VideoArea frozen = find_video_area({frames[0], frames[0].clone()});
+  EXPECT_FALSE(frozen.image_text_searched);
+  EXPECT_EQ(frozen.text_regions.size(), 3u);
 }
 
 }  // namespace

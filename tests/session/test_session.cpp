@@ -658,13 +658,21 @@ TEST(Session, ZoomModesAndEachSamplesModeRoundTripAndWhatCannotBeIsNamed) {
         << e.what();
   }
 
-  // A mode the session does not list, in the file and in the writer.
+  // A mode the session does not list (the C-arm said it, the recording kept it): read, but
+  // its frames have no known field, and whatever needs one says so by frame.
   replace_in(dir.path / "carm.csv", ",1,2\n", ",1,3\n");
-  EXPECT_NE(error_reading(dir.path).find("carm.csv:5: zoom_mode: 3 is not one of session.json's zoom_modes"), std::string::npos)
-      << error_reading(dir.path);
-  auto unlisted = s;
-  unlisted.carm[3].zoom_mode = 3;
-  EXPECT_THROW(write_afresh(dir.path, unlisted, images), std::invalid_argument);
+  const auto unlisted = session::read_session(dir.path);
+  EXPECT_EQ(unlisted.carm[3].zoom_mode, 3);
+  EXPECT_FALSE(session::zoom_known(unlisted, unlisted.carm[3]));
+  EXPECT_TRUE(session::zoom_known(unlisted, unlisted.carm[2]));
+  EXPECT_THROW(session::view_of(unlisted, unlisted.carm[3]), std::invalid_argument);
+  try {
+    session::read_detector_frame(unlisted, 2);
+    ADD_FAILURE() << "a frame of an unlisted mode was read as some detector's";
+  } catch (const base::InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("frame 3 was taken in zoom mode 3, which session.json's zoom_modes do not list"),
+              std::string::npos) << e.what();
+  }
   // Zoom modes listed, but carm.csv without the column that says which.
   auto plain = s;
   plain.zoom_modes.clear();

@@ -459,7 +459,8 @@ TEST_F(Recording, EachCArmStatesZoomModeIsRecordedWithTheModesAndRecovered) {
   };
   Session zoomed = original_;
   zoomed.zoom_modes = {mode(1, "12 cm", 0.3), mode(2, "8 cm", 0.2)};
-  for (std::size_t k = 0; k < zoomed.carm.size(); ++k) zoomed.carm[k].zoom_mode = k < 2 ? 1 : 2;
+  // The last state in a mode the list lacks (3).
+  for (std::size_t k = 0; k < zoomed.carm.size(); ++k) zoomed.carm[k].zoom_mode = k < 2 ? 1 : k < 4 ? 2 : 3;
   write_session(root_ / "zoomed", zoomed, images_);
   zoomed = read_session(root_ / "zoomed");
   const auto modes_of = [](const Session& s) {
@@ -478,12 +479,27 @@ TEST_F(Recording, EachCArmStatesZoomModeIsRecordedWithTheModesAndRecovered) {
     recorder.start();
     ASSERT_TRUE(replay.wait(20s));
     recorder.finish();
-    EXPECT_EQ(recorder.statistics().carm_zoom_unlisted, 0u);
+    EXPECT_EQ(recorder.statistics().carm_zoom_unlisted, 1u);
   }
   const Session back = read_session(o.out);
   EXPECT_EQ(geometry::zoom_modes_json(back.zoom_modes), geometry::zoom_modes_json(zoomed.zoom_modes));
-  EXPECT_EQ(modes_of(back), modes_of(zoomed));
+  EXPECT_EQ(modes_of(back), modes_of(zoomed)) << "the unlisted mode is kept as said, not dropped";
+  EXPECT_FALSE(zoom_known(back, back.carm.back()));
   EXPECT_EQ(back.frames.size(), 12u);
+
+  // node.json's fixed mode wins over what the link says.
+  fs::remove_all(o.out);
+  {
+    RecorderOptions fixed = o;
+    fixed.zoom_mode = 2;
+    SessionReplay replay(zoomed, {0.0, 1});
+    SessionRecorder recorder(fixed, replay.frames(), replay.carm());
+    recorder.start();
+    ASSERT_TRUE(replay.wait(20s));
+    recorder.finish();
+    EXPECT_EQ(recorder.statistics().carm_zoom_unlisted, 0u);
+  }
+  EXPECT_EQ(modes_of(read_session(o.out)), std::vector<int>(zoomed.carm.size(), 2));
 
   // Killed midway: the journal keeps the modes.
   fs::remove_all(o.out);

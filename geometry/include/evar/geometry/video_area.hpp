@@ -6,7 +6,8 @@
 // The image area is what is not black in some frame, once thin strokes (text, rulers,
 // cross-hairs) are opened away: the largest such region, its holes filled. Its bounding box
 // is the image rectangle; a region filling less than 7/8 of it (π/4 for a circle) is round.
-// Text is what is not black outside it, letters merged into lines.
+// Text is what is not black outside it, letters merged into lines; on the image, what is
+// bright, thin and the same in every frame while the X-ray image's noise changes.
 #include <string>
 #include <vector>
 
@@ -21,7 +22,12 @@ struct VideoArea {
   PixelRect image_rect;                 ///< video pixels, as in VideoMapping
   FieldShape field_shape = FieldShape::Rectangle;
   double fill = 0.0;                    ///< the image region's share of its rectangle
-  std::vector<PixelRect> text_regions;  ///< burned-in text and graphics outside the image
+  std::vector<PixelRect> text_regions;  ///< burned-in text and graphics, outside the image and on it
+  /// Whether graphics burned into the image itself were looked for: they are what never
+  /// changes across the frames, so it takes two or more frames of live fluoroscopy that
+  /// differ over at least half the image (`still_share` of it did not change at all).
+  bool image_text_searched = false;
+  double still_share = 1.0;
   double black_level = 0.0, threshold = 0.0;  ///< grey levels: the darkest, and "not black" above
 };
 

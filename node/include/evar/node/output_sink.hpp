@@ -38,7 +38,7 @@ struct ComposedFrame {
   overlay::RoadmapShown roadmap = overlay::RoadmapShown::None;
   double mm_per_px = 0.0;                         ///< at the isocenter, with P_ct
   /// The frame's pixel at the detector (mm; the zoom mode's imager spacing over the video
-  /// scale), with P_ct; 0 without a view.
+  /// scale) when its field is known; 0 when not (a zoom mode not listed).
   double detector_mm_per_px = 0.0;
   /// The detector's view behind P_ct: its projection is P_ct itself, or under a video
   /// mapping (NodeOptions::video_mapping) the one P_ct carries onto the video frame.

@@ -108,7 +108,7 @@ class SnapshotSink final : public OutputSink {
 /// OpenIGTLink: frames as IMAGE "evarnode" (at most `max_fps`), each vessel's mesh as
 /// POLYDATA under its name (the adapted one once there is a model), the landmarks as POINT
 /// "landmarks". An image's spacing is the frame's at the detector (a zoom mode's own), or
-/// `mm_per_px` for frames without a view.
+/// `mm_per_px` for frames whose field is not known.
 class IgtlSink final : public OutputSink {
  public:
   IgtlSink(overlay::IgtlServerOptions options, const geometry::Scene& scene, double mm_per_px, double max_fps);

@@ -118,8 +118,14 @@ std::pair<int, int> frame_size_px(const Session& session);
 /// each mode's image, every mode's frames of one size), else what does not, naming the field.
 std::string zoom_modes_problem(const Session& session);
 
-/// The zoom mode a C-arm sample names, or null when the session has no zoom modes.
+/// The zoom mode a C-arm sample names, or null when the session has no zoom modes or does
+/// not list it (a recording keeps the mode the C-arm said, listed or not).
 const geometry::ZoomMode* zoom_mode_of(const Session& session, const CArmSample& sample);
+
+/// Whether a sample's frames have a known field: the session has no zoom modes, or lists the
+/// sample's. view_of throws std::invalid_argument, read_detector_frame and export an
+/// InputError naming the frame, for those that do not.
+bool zoom_known(const Session& session, const CArmSample& sample);
 
 /// Writes session.json, registration.json, frames/index.csv, carm.csv (and the ostia CSV of
 /// the ground truth, when present) into `directory` (created), and `images[i]` as
@@ -133,7 +139,7 @@ void write_session_frame(const std::filesystem::path& directory, const FrameReco
 void write_session_files(const std::filesystem::path& directory, const Session& session);
 
 /// The C-arm view of a sample on the session's detector (geometry::view_of), or on its
-/// zoom mode's image (geometry::zoom_view).
+/// zoom mode's image (geometry::zoom_view); std::invalid_argument when !zoom_known.
 geometry::CArmView view_of(const Session& session, const CArmSample& sample);
 
 /// CT → C-arm world at the sample's table position (geometry::patient_to_carm).
@@ -145,6 +151,7 @@ const CArmSample* carm_at(const Session& session, std::int64_t timestamp_ns);
 
 struct ExportSummary {
   std::size_t frames = 0;
+  int cols = 0, rows = 0;  ///< the sequence's image size (the detector's, or the zoom modes' images')
   /// Frames less than 1 ms after the one before, whose Timestamp was moved to 1 ms after it.
   std::size_t timestamps_nudged = 0;
 };

@@ -42,6 +42,9 @@ struct RecorderOptions {
   /// (states in a mode not listed are not), and frames have the modes' one frame size.
   /// Without them a mode the link says is not kept (RecorderStatistics::carm_zoom_unlisted).
   std::vector<geometry::ZoomMode> zoom_modes;
+  /// Not 0: every frame is in this mode of `zoom_modes`, whatever the link says (node.json's
+  /// "zoom_mode"); 0: the link's, or the only mode listed when the link says none.
+  int zoom_mode = 0;
   std::optional<double> device_thickness_mm;  ///< default: the scene's
   std::string source = "fluoro";              ///< frames/index.csv source column
   std::size_t max_queued_frames = 64;         ///< waiting for the disk; beyond, frames are not recorded
@@ -56,7 +59,8 @@ struct RecorderStatistics {
   std::uint64_t carm_samples = 0;         ///< recorded
   std::uint64_t carm_refused = 0;         ///< not recorded: values the format refuses (carm_sample_problem)
   /// C-arm states whose zoom mode the recording's zoom_modes do not list: without zoom modes
-  /// recorded as the detector's (the mode dropped), with them not recorded.
+  /// recorded as the detector's (the mode dropped), with them recorded as said (their frames
+  /// then have no known field: session::zoom_known).
   std::uint64_t carm_zoom_unlisted = 0;
   acquisition::StreamState video = acquisition::StreamState::Stopped, carm = acquisition::StreamState::Stopped;
   std::string video_reason, carm_reason;  ///< the sources' last words
