@@ -528,6 +528,26 @@ TEST_F(Recording, EachCArmStatesZoomModeIsRecordedWithTheModesAndRecovered) {
   const auto report = nlohmann::json::parse(std::ifstream(plain.out / "record_report.json"));
   EXPECT_EQ(report["carm"]["zoom_unlisted"], zoomed.carm.size()) << report.dump(2);
 
+  // The journal of a recorder from before the zoom mode's column is still recovered (mode 0).
+  fs::remove_all(plain.out);
+  {
+    const int status = evar::test::record_then_kill(plain, original_);
+    ASSERT_TRUE(WIFSIGNALED(status) && WTERMSIG(status) == SIGKILL) << "child status " << status;
+    const fs::path journal = plain.out / "journal" / "carm.csv";
+    std::ifstream in(journal);
+    std::string old_form, row;
+    while (std::getline(in, row)) old_form += row.substr(0, row.rfind(',')) + "\n";  // the last column off
+    in.close();
+    ASSERT_EQ(old_form.substr(0, old_form.find('\n')),
+              "device_time_ns,host_arrival_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,"
+              "fluoro_on,moving");
+    std::ofstream(journal, std::ios::trunc) << old_form;
+  }
+  recover_recording(plain.out);
+  const Session old_journal = read_session(plain.out);
+  EXPECT_EQ(old_journal.carm.size(), original_.carm.size());
+  EXPECT_EQ(modes_of(old_journal), std::vector<int>(original_.carm.size(), 0));
+
   // Modes whose frames could not share a session are refused before anything is recorded.
   fs::remove_all(o.out);
   o.zoom_modes[1].cols = 20;
