@@ -17,6 +17,7 @@
 #include "evar/node/live_node.hpp"
 #include "evar/session/session_replay.hpp"
 #include "evar/sim/session_generator.hpp"
+#include "support/simulated_session.hpp"
 
 namespace {
 
@@ -39,37 +40,28 @@ geometry::VideoMapping monitor() {
 class VideoOutReplay : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = fs::temp_directory_path() / ("evar-video-out-" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
     sim::SessionPlan plan;
     plan.seed = 1;
     plan.detector_px = 384;
     plan.pixel_spacing_mm = 0.8;
     plan.fluoro_seconds = 1.0;
     plan.video_out = monitor();
-    generated_ = new sim::GeneratedSession(sim::generate_session(plan, dir_ / "session"));
-    scene_ = new geometry::Scene(geometry::load_scene(dir_ / "session" / generated_->session.scene));
+    sim_ = new test::SimulatedSession(plan);
   }
-  static void TearDownTestSuite() {
-    delete scene_;
-    delete generated_;
-    fs::remove_all(dir_);
-  }
+  static void TearDownTestSuite() { delete sim_; }
   // With the session's video mapping, or (`mapped` false) as if the frames were the detector's.
   static node::NodeOptions options(bool mapped = true) {
     node::NodeOptions o;
-    o.detector = generated_->session.detector;
-    o.registration = generated_->session.ct_to_carm;
-    if (mapped) o.video_mapping = generated_->session.video_mapping;
+    o.detector = sim_->session().detector;
+    o.registration = sim_->session().ct_to_carm;
+    if (mapped) o.video_mapping = sim_->session().video_mapping;
     o.backpressure = true;
     o.frames_on_carm_clock = true;  // a replay: frames and C-arm samples on the session's clock
     o.compositor.layer_in_background = false;  // every frame with its roadmap drawn
     o.mode = overlay::RoadmapMode::Undeformed;
     return o;
   }
-  static inline fs::path dir_;
-  static inline sim::GeneratedSession* generated_ = nullptr;
-  static inline geometry::Scene* scene_ = nullptr;
+  static inline test::SimulatedSession* sim_ = nullptr;
 };
 
 // Each composed frame with a view: its size, its projection and where its roadmap is drawn.
@@ -117,18 +109,18 @@ class FrameChecker final : public node::OutputSink {
 };
 
 TEST_F(VideoOutReplay, TheNodeAdaptsTheModelAndDrawsTheRoadmapWhereTheMonitorShowsTheDetector) {
-  const geometry::VideoToDetector map(monitor(), generated_->session.detector.cols, generated_->session.detector.rows);
-  auto checker = std::make_unique<FrameChecker>(map, *scene_);
+  const geometry::VideoToDetector map(monitor(), sim_->session().detector.cols, sim_->session().detector.rows);
+  auto checker = std::make_unique<FrameChecker>(map, sim_->scene);
   FrameChecker& shown = *checker;
   std::vector<std::unique_ptr<node::OutputSink>> sinks;
   sinks.push_back(std::move(checker));
-  node::LiveNode node(*scene_, options(), std::move(sinks));
-  session::SessionReplay replay(generated_->session, {0.0, 1});
+  node::LiveNode node(sim_->scene, options(), std::move(sinks));
+  session::SessionReplay replay(sim_->session(), {0.0, 1});
   node.start(replay.frames(), replay.carm());
   ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
   node.stop();
   const node::NodeStatistics s = node.statistics();
-  EXPECT_EQ(s.frames_composited, generated_->session.frames.size());
+  EXPECT_EQ(s.frames_composited, sim_->session().frames.size());
   EXPECT_EQ(s.frames_wrong_size, 0u);
   EXPECT_GE(s.adaptations, 1u) << "the device was not found on the detector image read out of the video frames";
   EXPECT_EQ(s.models_device_outside, 0u);
@@ -192,8 +184,8 @@ TEST_F(VideoOutReplay, AMenuOverTheImageIsNotSearchedForADeviceAndIsSaidOnScreen
     AlertRecorder& shown = *recorder;
     std::vector<std::unique_ptr<node::OutputSink>> sinks;
     sinks.push_back(std::move(recorder));
-    node::LiveNode node(*scene_, options(), std::move(sinks));
-    session::SessionReplay replay(generated_->session, {0.0, 1});
+    node::LiveNode node(sim_->scene, options(), std::move(sinks));
+    session::SessionReplay replay(sim_->session(), {0.0, 1});
     MenuFrames frames(replay.frames(), menu ? 5 : 0, menu ? 15 : 0);
     node.start(frames, replay.carm());
     ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
@@ -213,13 +205,13 @@ TEST_F(VideoOutReplay, AMenuOverTheImageIsNotSearchedForADeviceAndIsSaidOnScreen
 }
 
 TEST_F(VideoOutReplay, WithoutTheMappingAVideoFrameIsTheWrongSizeAndGetsNoRoadmap) {
-  node::LiveNode node(*scene_, options(false), {});
-  session::SessionReplay replay(generated_->session, {0.0, 1});
+  node::LiveNode node(sim_->scene, options(false), {});
+  session::SessionReplay replay(sim_->session(), {0.0, 1});
   node.start(replay.frames(), replay.carm());
   ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
   node.stop();
   const node::NodeStatistics s = node.statistics();
-  EXPECT_EQ(s.frames_wrong_size, generated_->session.frames.size());
+  EXPECT_EQ(s.frames_wrong_size, sim_->session().frames.size());
   EXPECT_EQ(s.frames_with_roadmap, 0u);
   EXPECT_EQ(s.adaptations, 0u);
 }
@@ -263,8 +255,8 @@ TEST_F(VideoOutReplay, AMappingThatNoLongerFitsThePictureIsSaidOnScreen) {
     MisfitRecorder& shown = *recorder;
     std::vector<std::unique_ptr<node::OutputSink>> sinks;
     sinks.push_back(std::move(recorder));
-    node::LiveNode node(*scene_, o, std::move(sinks));
-    session::SessionReplay replay(generated_->session, {0.0, 1});
+    node::LiveNode node(sim_->scene, o, std::move(sinks));
+    session::SessionReplay replay(sim_->session(), {0.0, 1});
     node.start(replay.frames(), replay.carm());
     ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
     node.stop();

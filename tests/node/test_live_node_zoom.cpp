@@ -15,6 +15,7 @@
 #include "evar/node/live_node.hpp"
 #include "evar/session/session_replay.hpp"
 #include "evar/sim/session_generator.hpp"
+#include "support/simulated_session.hpp"
 #include "frame_field.hpp"
 #include "support/node_screen.hpp"
 
@@ -37,8 +38,6 @@ geometry::VideoMapping monitor() {
 class ZoomReplay : public ::testing::Test {
  protected:
   static void SetUpTestSuite() {
-    dir_ = fs::temp_directory_path() / ("evar-zoom-" + std::to_string(::getpid()));
-    fs::remove_all(dir_);
     sim::SessionPlan plan;
     plan.seed = 1;
     plan.detector_px = 384;
@@ -46,20 +45,15 @@ class ZoomReplay : public ::testing::Test {
     plan.fluoro_seconds = 1.0;
     plan.video_out = monitor();
     plan.zoom_change = true;
-    generated_ = new sim::GeneratedSession(sim::generate_session(plan, dir_ / "session"));
-    scene_ = new geometry::Scene(geometry::load_scene(dir_ / "session" / generated_->session.scene));
+    sim_ = new test::SimulatedSession(plan);
   }
-  static void TearDownTestSuite() {
-    delete scene_;
-    delete generated_;
-    fs::remove_all(dir_);
-  }
+  static void TearDownTestSuite() { delete sim_; }
   static node::NodeOptions options() {
     node::NodeOptions o;
-    o.detector = generated_->session.detector;
-    o.zoom_modes = generated_->session.zoom_modes;
-    o.registration = generated_->session.ct_to_carm;
-    o.video_mapping = generated_->session.video_mapping;
+    o.detector = sim_->session().detector;
+    o.zoom_modes = sim_->session().zoom_modes;
+    o.registration = sim_->session().ct_to_carm;
+    o.video_mapping = sim_->session().video_mapping;
     o.backpressure = true;
     o.frames_on_carm_clock = true;
     o.compositor.layer_in_background = false;
@@ -68,12 +62,10 @@ class ZoomReplay : public ::testing::Test {
   // The session's frames taken in zoom mode 2 (the C-arm sample in force says so).
   static std::size_t frames_in_mode_2() {
     std::size_t n = 0;
-    for (const auto& f : generated_->session.frames) n += session::carm_at(generated_->session, f.timestamp_ns)->zoom_mode == 2;
+    for (const auto& f : sim_->session().frames) n += session::carm_at(sim_->session(), f.timestamp_ns)->zoom_mode == 2;
     return n;
   }
-  static inline fs::path dir_;
-  static inline sim::GeneratedSession* generated_ = nullptr;
-  static inline geometry::Scene* scene_ = nullptr;
+  static inline test::SimulatedSession* sim_ = nullptr;
 };
 
 // Each composed live frame: its projection onto the video frame, its view and status.
@@ -96,14 +88,14 @@ class Projections final : public node::OutputSink {
 };
 
 TEST_F(ZoomReplay, AfterTheSwitchTheRoadmapIsMagnifiedAsTheFieldIsAndTheScreenNamesTheMode) {
-  ASSERT_EQ(generated_->session.zoom_modes.size(), 2u);
+  ASSERT_EQ(sim_->session().zoom_modes.size(), 2u);
   ASSERT_GT(frames_in_mode_2(), 5u);
   auto sink = std::make_unique<Projections>();
   Projections& p = *sink;
   std::vector<std::unique_ptr<node::OutputSink>> sinks;
   sinks.push_back(std::move(sink));
-  node::LiveNode node(*scene_, options(), std::move(sinks));
-  session::SessionReplay replay(generated_->session, {0.0, 1});
+  node::LiveNode node(sim_->scene, options(), std::move(sinks));
+  session::SessionReplay replay(sim_->session(), {0.0, 1});
   node.start(replay.frames(), replay.carm());
   ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
   node.stop();
@@ -117,7 +109,7 @@ TEST_F(ZoomReplay, AfterTheSwitchTheRoadmapIsMagnifiedAsTheFieldIsAndTheScreenNa
   // times as far from the picture's centre as in mode 1 (the central two thirds of the field
   // in as many pixels), in whatever direction the display turns it.
   const Eigen::Vector2d centre(100 + 240 - 0.5, 8 + 240 - 0.5);
-  const auto& session = generated_->session;
+  const auto& session = sim_->session();
   std::optional<geometry::ProjectionMatrix> P1, P2;
   std::size_t mode_2_with_roadmap = 0, mode_2_named = 0, mode_1_named = 0;
   for (const auto& [sequence, shown] : p.shown) {
@@ -142,7 +134,7 @@ TEST_F(ZoomReplay, AfterTheSwitchTheRoadmapIsMagnifiedAsTheFieldIsAndTheScreenNa
   EXPECT_GT(mode_2_named, 0u) << "the status line does not name the zoom mode";
   EXPECT_GT(mode_1_named, 0u);
   ASSERT_TRUE(P1 && P2) << "no frame with a view on either side of the switch";
-  for (const auto& lm : scene_->landmarks) {
+  for (const auto& lm : sim_->scene.landmarks) {
     const Eigen::Vector2d a = *geometry::project(*P1, lm.position_lps), b = *geometry::project(*P2, lm.position_lps);
     EXPECT_LT(((b - centre) - 1.5 * (a - centre)).norm(), 1e-6) << lm.label << ": mode 1 " << a.transpose() << ", mode 2 " << b.transpose();
   }
@@ -155,8 +147,8 @@ TEST_F(ZoomReplay, AModeNodeJsonDoesNotListLeavesItsFramesWithoutARoadmapAndTheS
   test::ScreenLog& shown = *screen;
   std::vector<std::unique_ptr<node::OutputSink>> sinks;
   sinks.push_back(std::move(screen));
-  node::LiveNode node(*scene_, o, std::move(sinks));
-  session::SessionReplay replay(generated_->session, {0.0, 1});
+  node::LiveNode node(sim_->scene, o, std::move(sinks));
+  session::SessionReplay replay(sim_->session(), {0.0, 1});
   node.start(replay.frames(), replay.carm());
   ASSERT_TRUE(replay.wait(std::chrono::seconds(120)));
   node.stop();
