@@ -5,6 +5,7 @@
 #include <cmath>
 #include <set>
 #include <stdexcept>
+#include <utility>
 
 #include "evar/geometry/image_header.hpp"
 #include "evar/geometry/json_fields.hpp"
@@ -23,6 +24,18 @@ std::string number_text(double v) {
 }
 
 }  // namespace
+
+ZoomMode centred_zoom_mode(int number, std::string name, int cols, int rows, double spacing_mm) {
+  ZoomMode z;
+  z.number = number;
+  z.name = std::move(name);
+  z.cols = cols;
+  z.rows = rows;
+  z.row_spacing_mm = z.col_spacing_mm = spacing_mm;
+  z.width_mm = cols * spacing_mm;
+  z.height_mm = rows * spacing_mm;
+  return z;
+}
 
 DetectorSpec image_detector(const ZoomMode& mode) {
   return {mode.cols, mode.rows, mode.row_spacing_mm, mode.col_spacing_mm};

@@ -54,20 +54,13 @@ GeneratedSession generate_session(const SessionPlan& plan, const std::filesystem
   s.video_mapping = plan.video_out;
   int zoom_now = 0;  // the mode the C-arm is in (0: it has none)
   if (plan.zoom_change) {
-    const auto make_mode = [&](int number, const std::string& name, double spacing_mm) {
-      geometry::ZoomMode z;
-      z.number = number;
-      z.name = name;
-      z.cols = z.rows = plan.detector_px;
-      z.row_spacing_mm = z.col_spacing_mm = spacing_mm;
-      z.width_mm = z.height_mm = plan.detector_px * spacing_mm;
-      return z;
-    };
     const double whole_cm = plan.detector_px * plan.pixel_spacing_mm / 10.0;
     char names[2][32];
     std::snprintf(names[0], sizeof names[0], "%.0f cm", whole_cm);
     std::snprintf(names[1], sizeof names[1], "%.0f cm", whole_cm * 2.0 / 3.0);
-    s.zoom_modes = {make_mode(1, names[0], plan.pixel_spacing_mm), make_mode(2, names[1], plan.pixel_spacing_mm * 2.0 / 3.0)};
+    const int n = plan.detector_px;
+    s.zoom_modes = {geometry::centred_zoom_mode(1, names[0], n, n, plan.pixel_spacing_mm),
+                    geometry::centred_zoom_mode(2, names[1], n, n, plan.pixel_spacing_mm * 2.0 / 3.0)};
     zoom_now = 1;
   }
   // Registration: CT point (0, 0, 50) (the aneurysm, renal ostia in the field) at the

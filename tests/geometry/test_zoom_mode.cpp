@@ -21,13 +21,7 @@ namespace {
 const geometry::DetectorSpec kDetector{1024, 1024, 0.390625, 0.390625};
 
 ZoomMode mode(int number, int px, double field_mm) {
-  ZoomMode m;
-  m.number = number;
-  m.name = std::to_string(static_cast<int>(field_mm / 10)) + " cm";
-  m.cols = m.rows = px;
-  m.width_mm = m.height_mm = field_mm;
-  m.row_spacing_mm = m.col_spacing_mm = field_mm / px;
-  return m;
+  return geometry::centred_zoom_mode(number, std::to_string(static_cast<int>(field_mm / 10)) + " cm", px, px, field_mm / px);
 }
 
 // Where a pixel of a view lies on the detector plane, from the central ray (mm).

@@ -18,6 +18,7 @@
 #include "evar/session/session_replay.hpp"
 #include "evar/sim/session_generator.hpp"
 #include "support/simulated_session.hpp"
+#include "support/video_out.hpp"
 
 namespace {
 
@@ -26,16 +27,7 @@ namespace fs = std::filesystem;
 
 // 384 px detector of 0.8 mm shown 1.25 times enlarged, turned 270° and mirrored, in a
 // 640 x 512 frame with text left and right of the picture.
-geometry::VideoMapping monitor() {
-  geometry::VideoMapping m;
-  m.video_cols = 640;
-  m.video_rows = 512;
-  m.image_rect = {100, 8, 480, 480};
-  m.rotation_deg = 270;
-  m.mirror = true;
-  m.text_regions = {{4, 4, 90, 20}, {4, 30, 90, 20}, {584, 4, 52, 20}, {584, 30, 52, 20}};
-  return m;
-}
+geometry::VideoMapping monitor() { return test::square_image_monitor(270, true); }
 
 class VideoOutReplay : public ::testing::Test {
  protected:

@@ -16,6 +16,7 @@
 #include "evar/session/session_replay.hpp"
 #include "evar/sim/session_generator.hpp"
 #include "support/simulated_session.hpp"
+#include "support/video_out.hpp"
 #include "frame_field.hpp"
 #include "support/node_screen.hpp"
 
@@ -25,15 +26,7 @@ using namespace evar;
 namespace fs = std::filesystem;
 
 // 384 px of 0.8 mm in mode 1, shown 1.25 times enlarged and turned in a 640 x 512 frame.
-geometry::VideoMapping monitor() {
-  geometry::VideoMapping m;
-  m.video_cols = 640;
-  m.video_rows = 512;
-  m.image_rect = {100, 8, 480, 480};
-  m.rotation_deg = 90;
-  m.text_regions = {{4, 4, 90, 20}, {584, 4, 52, 20}};
-  return m;
-}
+geometry::VideoMapping monitor() { return test::square_image_monitor(90, false); }
 
 class ZoomReplay : public ::testing::Test {
  protected:
@@ -168,13 +161,7 @@ TEST_F(ZoomReplay, AModeNodeJsonDoesNotListLeavesItsFramesWithoutARoadmapAndTheS
 }
 
 geometry::ZoomMode mode(int number, const std::string& name, double spacing_mm) {
-  geometry::ZoomMode z;
-  z.number = number;
-  z.name = name;
-  z.cols = z.rows = 256;
-  z.row_spacing_mm = z.col_spacing_mm = spacing_mm;
-  z.width_mm = z.height_mm = 256 * spacing_mm;
-  return z;
+  return geometry::centred_zoom_mode(number, name, 256, 256, spacing_mm);
 }
 
 TEST(FrameField, TheLinksModeOrNodeJsonsFixedOnePicksAFramesField) {

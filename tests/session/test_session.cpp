@@ -617,14 +617,7 @@ TEST(Session, ZoomModesAndEachSamplesModeRoundTripAndWhatCannotBeIsNamed) {
   auto s = small_session(images);  // 60 x 40 detector of 0.3 mm
   s.detector.col_spacing_mm = 0.3;
   const auto mode = [](int number, const std::string& name, double spacing_mm, int rotation_deg) {
-    geometry::ZoomMode z;
-    z.number = number;
-    z.name = name;
-    z.cols = 60;
-    z.rows = 40;
-    z.row_spacing_mm = z.col_spacing_mm = spacing_mm;
-    z.width_mm = 60 * spacing_mm;
-    z.height_mm = 40 * spacing_mm;
+    geometry::ZoomMode z = geometry::centred_zoom_mode(number, name, 60, 40, spacing_mm);
     z.rotation_deg = rotation_deg;
     return z;
   };

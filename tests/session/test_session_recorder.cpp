@@ -447,15 +447,7 @@ TEST_F(Recording, AVideoOutputIsRecordedWithItsMappingAndRecoveredWithIt) {
 // how many named a mode, and its session takes their frames as the detector's.
 TEST_F(Recording, EachCArmStatesZoomModeIsRecordedWithTheModesAndRecovered) {
   const auto mode = [](int number, const std::string& name, double spacing_mm) {
-    geometry::ZoomMode z;
-    z.number = number;
-    z.name = name;
-    z.cols = 40;
-    z.rows = 30;
-    z.row_spacing_mm = z.col_spacing_mm = spacing_mm;
-    z.width_mm = 40 * spacing_mm;
-    z.height_mm = 30 * spacing_mm;
-    return z;
+    return geometry::centred_zoom_mode(number, name, 40, 30, spacing_mm);
   };
   Session zoomed = original_;
   zoomed.zoom_modes = {mode(1, "12 cm", 0.3), mode(2, "8 cm", 0.2)};
@@ -469,18 +461,21 @@ TEST_F(Recording, EachCArmStatesZoomModeIsRecordedWithTheModesAndRecovered) {
     return m;
   };
 
+  // Records `zoomed` afresh; what the recorder counted.
+  const auto record = [&](const RecorderOptions& with) {
+    fs::remove_all(with.out);
+    SessionReplay replay(zoomed, {0.0, 1});
+    SessionRecorder recorder(with, replay.frames(), replay.carm());
+    recorder.start();
+    EXPECT_TRUE(replay.wait(20s));
+    recorder.finish();
+    return recorder.statistics();
+  };
   RecorderOptions o = options();
   o.pixel_spacing_mm = 0.3;
   o.detector_px = {40, 30};
   o.zoom_modes = zoomed.zoom_modes;
-  {
-    SessionReplay replay(zoomed, {0.0, 1});
-    SessionRecorder recorder(o, replay.frames(), replay.carm());
-    recorder.start();
-    ASSERT_TRUE(replay.wait(20s));
-    recorder.finish();
-    EXPECT_EQ(recorder.statistics().carm_zoom_unlisted, 1u);
-  }
+  EXPECT_EQ(record(o).carm_zoom_unlisted, 1u);
   const Session back = read_session(o.out);
   EXPECT_EQ(geometry::zoom_modes_json(back.zoom_modes), geometry::zoom_modes_json(zoomed.zoom_modes));
   EXPECT_EQ(modes_of(back), modes_of(zoomed)) << "the unlisted mode is kept as said, not dropped";
@@ -488,17 +483,9 @@ TEST_F(Recording, EachCArmStatesZoomModeIsRecordedWithTheModesAndRecovered) {
   EXPECT_EQ(back.frames.size(), 12u);
 
   // node.json's fixed mode wins over what the link says.
-  fs::remove_all(o.out);
-  {
-    RecorderOptions fixed = o;
-    fixed.zoom_mode = 2;
-    SessionReplay replay(zoomed, {0.0, 1});
-    SessionRecorder recorder(fixed, replay.frames(), replay.carm());
-    recorder.start();
-    ASSERT_TRUE(replay.wait(20s));
-    recorder.finish();
-    EXPECT_EQ(recorder.statistics().carm_zoom_unlisted, 0u);
-  }
+  RecorderOptions fixed = o;
+  fixed.zoom_mode = 2;
+  EXPECT_EQ(record(fixed).carm_zoom_unlisted, 0u);
   EXPECT_EQ(modes_of(read_session(o.out)), std::vector<int>(zoomed.carm.size(), 2));
 
   // Killed midway: the journal keeps the modes.
@@ -513,16 +500,9 @@ TEST_F(Recording, EachCArmStatesZoomModeIsRecordedWithTheModesAndRecovered) {
   // Without the modes: every state kept as the detector's, and counted.
   fs::remove_all(o.out);
   RecorderOptions plain = options();
-  {
-    SessionReplay replay(zoomed, {0.0, 1});
-    SessionRecorder recorder(plain, replay.frames(), replay.carm());
-    recorder.start();
-    ASSERT_TRUE(replay.wait(20s));
-    const Session s = recorder.finish();
-    EXPECT_EQ(recorder.statistics().carm_zoom_unlisted, zoomed.carm.size());
-    EXPECT_EQ(s.carm.size(), zoomed.carm.size());
-  }
+  EXPECT_EQ(record(plain).carm_zoom_unlisted, zoomed.carm.size());
   const Session without = read_session(plain.out);
+  EXPECT_EQ(without.carm.size(), zoomed.carm.size());
   EXPECT_TRUE(without.zoom_modes.empty());
   EXPECT_EQ(modes_of(without), std::vector<int>(zoomed.carm.size(), 0));
   const auto report = nlohmann::json::parse(std::ifstream(plain.out / "record_report.json"));

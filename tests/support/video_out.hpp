@@ -28,4 +28,17 @@ inline cv::Mat shown_on_monitor(const cv::Mat& detector, const geometry::VideoMa
   return frame;
 }
 
+/// A 640 x 512 monitor showing a square image in [100, 8, 480, 480] (a 384 px detector 1.25
+/// times enlarged), turned and mirrored as given, with four lines of text left and right of it.
+inline geometry::VideoMapping square_image_monitor(int rotation_deg, bool mirror) {
+  geometry::VideoMapping m;
+  m.video_cols = 640;
+  m.video_rows = 512;
+  m.image_rect = {100, 8, 480, 480};
+  m.rotation_deg = rotation_deg;
+  m.mirror = mirror;
+  m.text_regions = {{4, 4, 90, 20}, {4, 30, 90, 20}, {584, 4, 52, 20}, {584, 30, 52, 20}};
+  return m;
+}
+
 }  // namespace evar::test

@@ -45,6 +45,10 @@ struct ZoomMode {
   bool horizontal_flip = false;   ///< then mirrored left to right
 };
 
+/// A rectangular field centred on the detector, unturned: `cols` × `rows` square pixels of
+/// `spacing_mm`, its dimensions theirs (what most flat-detector C-arms' modes are).
+ZoomMode centred_zoom_mode(int number, std::string name, int cols, int rows, double spacing_mm);
+
 /// The mode's image as a detector of its own: its pixels and spacings.
 DetectorSpec image_detector(const ZoomMode& mode);
 
