@@ -433,7 +433,7 @@ TEST_F(Cli, AVideoOutSessionEvaluatesAsItsDetectorForm) {
   // of each view, and half a millimetre of pose apart the models bend differently.
   ASSERT_EQ(evarnode({"eval", (out / "detector").string(), "--out", (out / "e-plain").string(), "--no-progress", "--no-pelvis"}).code, 0);
   const auto plain = landmarks(out / "e-plain" / "eval.json");
-  const auto run = evarnode({"run", "--replay", (out / "video").string(), "--fast", "--no-video", "--out",
+  const auto run = evarnode({"run", "--replay", (out / "video").string(), "--fast", "--no-video", "--no-igtl", "--out",
                              (out / "run").string(), "--no-progress", "--no-pelvis"});
   ASSERT_EQ(run.code, 0) << run.err;
   const auto report = nlohmann::json::parse(std::ifstream(out / "run" / "run_report.json"));
@@ -604,7 +604,7 @@ TEST_F(Cli, AZoomChangeSessionEvaluatesAsOneWithoutAndTheNodeFollowsTheMode) {
   ASSERT_EQ(evarnode({"eval", (out / "zoom").string(), "--out", (out / "e-plain").string(), "--no-progress", "--no-pelvis"}).code, 0);
   const auto plain = nlohmann::json::parse(std::ifstream(out / "e-plain" / "eval.json"))["cases"][0]["landmarks"];
   // In real time: as fast as it goes, the short session is over before the first model.
-  const auto run = evarnode({"run", "--replay", (out / "zoom").string(), "--no-video", "--out",
+  const auto run = evarnode({"run", "--replay", (out / "zoom").string(), "--no-video", "--no-igtl", "--out",
                              (out / "run").string(), "--no-progress", "--no-pelvis"});
   ASSERT_EQ(run.code, 0) << run.err;
   const auto report = nlohmann::json::parse(std::ifstream(out / "run" / "run_report.json"));
