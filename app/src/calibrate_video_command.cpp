@@ -182,7 +182,7 @@ int run_calibrate_video(const CalibrateVideoCommand& cmd) {
     node_json = read_node_json(cmd.node);
     if (!detector && node_json->contains("zoom_modes")) {
       for (const geometry::ZoomMode& z : read_node_config(cmd.node).zoom_modes)
-        mode_images.push_back(z.rotation_deg % 180 != 0 ? std::make_pair(z.rows, z.cols) : std::make_pair(z.cols, z.rows));
+        mode_images.push_back(geometry::frame_size_px(std::nullopt, z));
       detector = mode_images.front();
     } else if (!detector && node_json->contains("detector") && (*node_json)["detector"].is_object()) {
       const auto& d = (*node_json)["detector"];

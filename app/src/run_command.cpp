@@ -3,6 +3,7 @@
 // with ground truth, the ostium distances of what it showed.
 
 #include <algorithm>
+#include <tuple>
 #include <cstdio>
 #include <filesystem>
 #include <map>
@@ -200,9 +201,7 @@ int run_node(const RunCommand& cmd) {
         // is not known before its link says it).
         const geometry::ZoomMode& z = options.zoom_mode != 0 ? *geometry::find_zoom_mode(options.zoom_modes, options.zoom_mode)
                                                              : options.zoom_modes.front();
-        const auto shown = geometry::frame_mapping(std::nullopt, z);
-        spec.width = shown ? shown->video_cols : z.cols;
-        spec.height = shown ? shown->video_rows : z.rows;
+        std::tie(spec.width, spec.height) = geometry::frame_size_px(std::nullopt, z);
       }
     }
     live_frames = make_frame_source(spec);

@@ -161,8 +161,9 @@ CaseEvaluation evaluate_session(const std::filesystem::path& directory, const Ev
     const session::FrameRecord& record = session.frames[i];
     const session::CArmSample* sample = session::carm_at(session, record.timestamp_ns);
     // A zoom mode the session does not list: the frame's pixels are unknown (counted, said below).
-    if (sample != nullptr && !session::zoom_known(session, *sample)) ++zoom_unknown;
-    if (sample == nullptr || sample->moving || !sample->fluoro_on || !session::zoom_known(session, *sample)) {
+    const bool field_known = sample != nullptr && session::zoom_known(session, *sample);
+    if (sample != nullptr && !field_known) ++zoom_unknown;
+    if (!field_known || sample->moving || !sample->fluoro_on) {
       if (progress) progress(i + 1, session.frames.size());
       continue;
     }

@@ -88,6 +88,11 @@ std::optional<VideoMapping> frame_mapping(const std::optional<VideoMapping>& dis
   return m;
 }
 
+std::pair<int, int> frame_size_px(const std::optional<VideoMapping>& display, const ZoomMode& mode) {
+  if (display) return {display->video_cols, display->video_rows};
+  return mode.rotation_deg % 180 != 0 ? std::pair{mode.rows, mode.cols} : std::pair{mode.cols, mode.rows};
+}
+
 std::string zoom_mode_problem(const ZoomMode& m, const DetectorSpec& detector) {
   if (m.number < 1 || m.number > 255) return "mode: must be 1-255 (the C-arm link's number for it), found " + std::to_string(m.number);
   if (m.name.empty()) return "name: empty; give the name the C-arm shows for the mode";

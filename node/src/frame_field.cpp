@@ -48,11 +48,11 @@ const FrameField* field_of(const std::vector<FrameField>& fields, const NodeOpti
           std::to_string(fields.size()) + "; fix one with node.json \"zoom_mode\"";
     return nullptr;
   }
-  std::string listed;
-  for (const FrameField& f : fields) {
+  for (const FrameField& f : fields)
     if (f.zoom->number == wanted) return &f;
+  std::string listed;  // only for the refusal: this runs for every frame
+  for (const FrameField& f : fields)
     listed += (listed.empty() ? "" : ", ") + std::to_string(f.zoom->number) + " \"" + f.zoom->name + "\"";
-  }
   why = "zoom mode " + std::to_string(wanted) + " from the C-arm link is not one of node.json's zoom_modes (" + listed +
         "); add it";
   return nullptr;

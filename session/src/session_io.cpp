@@ -47,11 +47,6 @@ constexpr const char* kCArmZoomHeader =
     "timestamp_ns,primary_deg,secondary_deg,sid_mm,sod_mm,table_x_mm,table_y_mm,table_z_mm,fluoro_on,moving,zoom_mode";
 constexpr int kMaxDetectorSidePx = 16384;
 
-std::pair<int, int> mode_frame_size(const std::optional<geometry::VideoMapping>& display, const geometry::ZoomMode& z) {
-  const auto m = geometry::frame_mapping(display, z);
-  return m ? std::pair{m->video_cols, m->video_rows} : std::pair{z.cols, z.rows};
-}
-
 }  // namespace
 
 std::string zoom_modes_problem(const Session& s) {
@@ -63,7 +58,7 @@ std::string zoom_modes_problem(const Session& s) {
     if (const auto m = geometry::frame_mapping(s.video_mapping, z))
       if (const auto p = geometry::video_mapping_fit_problem(*m, z.cols, z.rows); !p.empty())
         return "video_mapping: does not fit " + which + ": " + p;
-    const auto size = mode_frame_size(s.video_mapping, z), first = mode_frame_size(s.video_mapping, s.zoom_modes.front());
+    const auto size = geometry::frame_size_px(s.video_mapping, z), first = geometry::frame_size_px(s.video_mapping, s.zoom_modes.front());
     if (size != first)
       return "zoom_modes: " + which + "'s frames are " + std::to_string(size.first) + " x " + std::to_string(size.second) +
              ", zoom mode " + std::to_string(s.zoom_modes.front().number) + "'s " + std::to_string(first.first) + " x " +
@@ -349,7 +344,7 @@ cv::Mat read_detector_frame(const Session& session, std::size_t index) {
 
 std::pair<int, int> frame_size_px(const Session& session) {
   if (session.video_mapping) return {session.video_mapping->video_cols, session.video_mapping->video_rows};
-  if (!session.zoom_modes.empty()) return mode_frame_size(std::nullopt, session.zoom_modes.front());
+  if (!session.zoom_modes.empty()) return geometry::frame_size_px(std::nullopt, session.zoom_modes.front());
   return {session.detector.cols, session.detector.rows};
 }
 

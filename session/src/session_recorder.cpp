@@ -296,9 +296,7 @@ SessionRecorder::SessionRecorder(RecorderOptions options, acquisition::FrameSour
       throw std::invalid_argument("record: " + problem + " (detector " + std::to_string(cols) + " x " + std::to_string(rows) + ")");
     if (impl_->options.zoom_mode != 0 && !geometry::find_zoom_mode(impl_->options.zoom_modes, impl_->options.zoom_mode))
       throw std::invalid_argument("record: zoom_mode " + std::to_string(impl_->options.zoom_mode) + " is not one of zoom_modes");
-    const geometry::ZoomMode& first = impl_->options.zoom_modes.front();
-    const auto shown = geometry::frame_mapping(impl_->options.video_mapping, first);
-    impl_->frame_size = shown ? std::make_pair(shown->video_cols, shown->video_rows) : std::make_pair(first.cols, first.rows);
+    impl_->frame_size = geometry::frame_size_px(impl_->options.video_mapping, impl_->options.zoom_modes.front());
   } else if (impl_->options.video_mapping) {
     if (const auto problem = geometry::video_mapping_fit_problem(*impl_->options.video_mapping, cols, rows); !problem.empty())
       throw std::invalid_argument("record: " + problem + " (detector " + std::to_string(cols) + " x " + std::to_string(rows) + ")");

@@ -21,6 +21,7 @@
 #include <filesystem>
 #include <optional>
 #include <string>
+#include <utility>
 #include <vector>
 
 #include <nlohmann/json.hpp>
@@ -67,6 +68,10 @@ CArmView zoom_view(const DetectorSpec& detector, const ZoomMode& mode, double pr
 /// frame is then all image: the rectangle is the whole frame); nullopt when the frames are
 /// the field's pixels as they are.
 std::optional<VideoMapping> frame_mapping(const std::optional<VideoMapping>& display, const ZoomMode& mode);
+
+/// The size (cols, rows) of the frames that hold the mode's image: the display mapping's
+/// video size, else the image as delivered (turned as the mode turns it).
+std::pair<int, int> frame_size_px(const std::optional<VideoMapping>& display, const ZoomMode& mode);
 
 /// "" when the mode is usable on `detector`, else what is wrong, naming the field: number
 /// 1-255, a name, 1-16384 pixels each way, positive spacings, the dimensions those of the
