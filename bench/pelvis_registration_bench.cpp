@@ -1,13 +1,16 @@
 // The pelvis found in fluoroscopy (geometry/pelvis_registration.hpp): its bones' thickness
 // image for one view, and the whole registration from two views 35° apart (512 x 512
 // frames of the simulator's phantom, the pelvis 9 mm higher and 3° turned against the
-// registration). One core; docs/BENCHMARKS.md.
+// registration), and the check of one view's picture orientation by its bones
+// (node/picture_orientation.hpp: the match as taken and under the 7 other turns). One
+// core; docs/BENCHMARKS.md.
 #include <benchmark/benchmark.h>
 
 #include <Eigen/Geometry>
 #include <numbers>
 
 #include "evar/geometry/pelvis_registration.hpp"
+#include "evar/node/picture_orientation.hpp"
 #include "evar/sim/body_phantom.hpp"
 #include "evar/sim/xray_render.hpp"
 
@@ -67,5 +70,20 @@ void BM_PelvisRegistration(benchmark::State& state) {
   state.counters["found"] = r.found ? 1 : 0;
 }
 BENCHMARK(BM_PelvisRegistration)->Unit(benchmark::kMillisecond);
+
+// The oblique view mirrored: every turn is matched, and the mirror found.
+void BM_BoneOrientationCheck(benchmark::State& state) {
+  const Problem& p = problem();
+  const geometry::RayCaster caster(p.bones);
+  const geometry::PelvisView& oblique = p.views[1];
+  const geometry::PelvisView mirrored{oblique.P_ct, node::turned_image(oblique.frame, {0, true}), "LAO 35"};
+  node::BoneOrientationCheck c;
+  for (auto _ : state) {
+    c = node::check_bone_orientation(caster, mirrored, {});
+    benchmark::DoNotOptimize(c);
+  }
+  state.counters["found_mirror"] = c.better && c.better->first == node::PictureTurn{0, true} ? 1 : 0;
+}
+BENCHMARK(BM_BoneOrientationCheck)->Unit(benchmark::kMillisecond);
 
 }  // namespace

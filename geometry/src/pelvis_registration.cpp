@@ -186,6 +186,28 @@ void check_options(const PelvisRegistrationOptions& options) {
                                 "a settled step over 0, a truncation share from 0 to under 1)");
 }
 
+PelvisViewMatch match_pelvis_view(const RayCaster& bones, const PelvisView& view, const PelvisRegistrationOptions& options) {
+  check_options(options);
+  PelvisViewMatch report{view.name, false, 0.0, {0, 0}, ""};
+  if (view.frame.empty() || view.frame.channels() != 1) {
+    report.reason = "not a one-channel image";
+    return report;
+  }
+  const Eigen::Vector3d c = bones.mesh().V.colwise().mean().transpose();  // the bones' centroid
+  const double px_per_mm = projection_jacobian(view.P_ct, c).norm() / std::sqrt(2.0);
+  const int reach = std::max(2, static_cast<int>(std::ceil(options.max_shift_mm * px_per_mm / options.step_px)));
+  const cv::Mat bone = bone_thickness_image(bones, view.P_ct, view.frame.cols, view.frame.rows, options.step_px);
+  cv::Mat f[2], g[2];
+  smoothed_gradients(attenuation_image(view.frame, bone.size(), options.step_px), f);
+  smoothed_gradients(bone, g);
+  const ViewMatch m = match_bones(f, g, bone, reach, options);
+  report.used = m.ok;
+  report.correlation = m.correlation;
+  report.shift_px = m.shift_cells * options.step_px;
+  report.reason = m.reason;
+  return report;
+}
+
 PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vector<PelvisView>& views,
                                    const PelvisRegistrationOptions& options) {
   if (bones_ct.V.rows() == 0 || bones_ct.F.rows() == 0) throw std::invalid_argument("register_pelvis: no bones");

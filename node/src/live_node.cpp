@@ -2,6 +2,7 @@
 
 #include <algorithm>
 #include <atomic>
+#include <cctype>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -15,6 +16,8 @@
 #include "alert_board.hpp"
 #include "evar/geometry/video_area.hpp"
 #include "evar/geometry/video_frame.hpp"
+#include "evar/node/picture_orientation.hpp"
+#include "evar/node/picture_turn.hpp"
 #include "frame_field.hpp"
 #include "held_frame_policy.hpp"
 #include "evar/node/logging.hpp"
@@ -69,6 +72,13 @@ class LiveNode::Impl {
   void compose_loop();
   void analysis_loop();
   void adaptation_loop();
+  // The alert for a picture that reads right only turned: the turns as shown, and, with
+  // `name_fix` and a single turn, what the video mapping would need (appended to `why`).
+  std::string orientation_alert(const std::vector<PictureTurn>& turns, bool name_fix, std::string& why) const;
+  // The mapping the frames are shown through, for saying turns as the screen shows them.
+  const geometry::VideoMapping* shown_through() const;
+  // A picture orientation check counted: what it suspected ("" for nothing), what it said.
+  void count_orientation_check(const std::string& misfit, const std::string& alert);
   void pelvis_loop();
   void output_loop();
   void publish(std::shared_ptr<const AdaptedModel> adapted, std::shared_ptr<const geometry::PelvisRegistration> pelvis);
@@ -578,20 +588,122 @@ void LiveNode::Impl::analysis_loop() {
   }
 }
 
+namespace {
+
+// Two pairs of the same two views (either way round): the same evidence twice.
+bool same_views(const ViewPair& a, const ViewPair& b, const PelvisTrackingOptions& o) {
+  const auto same = [&](const ViewCandidate& x, const ViewCandidate& y) { return same_bone_view(x.geometry, y.geometry, o); };
+  return (same(a.earlier, b.earlier) && same(a.later, b.later)) || (same(a.earlier, b.later) && same(a.later, b.earlier));
+}
+
+}  // namespace
+
+void LiveNode::Impl::count_orientation_check(const std::string& misfit, const std::string& alert) {
+  std::lock_guard lock(stats_mutex_);
+  ++stats_.orientation_checks;
+  if (!misfit.empty()) {
+    ++stats_.orientation_misfits;
+    stats_.last_orientation_misfit = misfit;
+  }
+  if (!alert.empty()) {
+    ++stats_.orientation_alerts;
+    stats_.last_orientation_alert = alert;
+  }
+}
+
+const geometry::VideoMapping* LiveNode::Impl::shown_through() const {
+  // Under zoom modes each mode turns the picture its own way too: turns are said as the
+  // detector's.
+  return options_.video_mapping && options_.zoom_modes.empty() ? &*options_.video_mapping : nullptr;
+}
+
+std::string LiveNode::Impl::orientation_alert(const std::vector<PictureTurn>& turns, bool name_fix,
+                                              std::string& why) const {
+  const geometry::VideoMapping* through = shown_through();
+  std::string title = "turned or mirrored";
+  if (turns.size() > 1 || !name_fix) {
+    why += "; it reads right with the picture shown";
+    for (std::size_t k = 0; k < turns.size(); ++k)
+      why += (k == 0 ? " " : k + 1 == turns.size() ? " or " : ", ") + turn_text(shown_turn(turns[k], through));
+    why += ": check the display's turn and mirror";
+  } else {
+    title = turn_text(shown_turn(turns.front(), through));
+    // Under a display mapping alone, what to set.
+    if (through)
+      if (const auto fixed = mapping_with_turn(*through, turns.front(), options_.detector.cols, options_.detector.rows))
+        why += fmt::format("; node.json's video_mapping would need \"mirror\": {}, \"rotation_deg\": {} (it has {}, {})",
+                           fixed->mirror, fixed->rotation_deg, through->mirror, through->rotation_deg);
+  }
+  std::transform(title.begin(), title.end(), title.begin(), [](unsigned char ch) { return std::toupper(ch); });
+  return "PICTURE " + title + "? " + why + " (evarnode calibrate-video)";
+}
+
 void LiveNode::Impl::adaptation_loop() {
   // The models the model on screen was bent from (only this thread publishes): a later
   // adaptation warm-starts from it only when it bends the same ones.
   std::shared_ptr<const PelvisMovedModels> published_with;
+  // Is the picture the right way round? Where the bones are not looked at (the pelvis
+  // thread's check is the surer one), checked on each new pair once its model is shown (or
+  // refused); said at the first pair that lies far outside the vessels as taken and in
+  // them turned (check_picture_orientation: the device misses them by centimetres, which
+  // a device the right way round does not); cleared by a pair that lies in them only as
+  // taken. A device may read into symmetric vessels under more than one turn: the turns are
+  // named, no fix. (Only views of other angles can be more decisive: a streak of two would
+  // wait for a third view.)
+  TurnStreak streak(1);
+  std::vector<ViewPair> streak_pairs;  // the pairs that made the streak: the same views again add nothing
+  bool said_before = false;
+  const auto check_orientation = [&](const deform::SceneDeformer& deformer, const ViewPair& pair) {
+    OrientationCheck c = check_picture_orientation(deformer, pair, options_.adaptation,
+                                                   said_before || streak.length() > 0, shown_through());
+    const bool seen_before = std::any_of(streak_pairs.begin(), streak_pairs.end(), [&](const ViewPair& p) {
+      return same_views(p, pair, options_.pelvis);
+    });
+    std::vector<PictureTurn> said;
+    if (c.better && !seen_before) {
+      said = streak.suspect(c.candidates);
+      if (streak.length() == 1) streak_pairs.clear();
+      streak_pairs.push_back(pair);
+    }
+    const std::string alert = said.empty() ? std::string() : orientation_alert(said, false, c.problem);
+    count_orientation_check(c.better ? "frames " + std::to_string(pair.earlier.frame) + "+" +
+                                           std::to_string(pair.later.frame) + ": " + c.problem
+                                     : std::string(),
+                            alert);
+    if (log().should_log(spdlog::level::debug)) {
+      std::string tried;
+      for (const auto& t : c.tried) tried += fmt::format("; {} {:.1f} mm", turn_text(t.turn), t.outside_mm);
+      log().debug("picture orientation, frames {}+{}: device {:.1f} mm outside the vessels as taken{}",
+                  pair.earlier.frame, pair.later.frame, c.as_set.outside_mm, tried);
+    }
+    if (c.better) {
+      log().warn("frames {}+{}: {}", pair.earlier.frame, pair.later.frame, c.problem);
+      if (!said.empty()) {
+        alerts_.set("picture-orientation-device", alert, std::nullopt);
+        said_before = true;
+      }
+      return;
+    }
+    if (!c.confirmed) return;  // a device that bends its vessels far, or none: undecided
+    streak.confirm();
+    streak_pairs.clear();
+    said_before = false;
+    alerts_.clear("picture-orientation-device");
+  };
   while (std::optional<PairJob> job = pairs_.take()) {
     const ViewPair& pair = job->pair;
     const bool again = job->again;
     adapting_.store(true);
     struct Done {
       std::atomic<bool>& flag;
-      ~Done() {
+      bool released = false;
+      void release() {
+        if (released) return;
+        released = true;
         flag.store(false);
         flag.notify_all();
       }
+      ~Done() { release(); }
     } done{adapting_};
     // The models as registered or as the pelvis moved them.
     std::shared_ptr<const PelvisMovedModels> moved;
@@ -673,6 +785,15 @@ void LiveNode::Impl::adaptation_loop() {
                 options_.alert_hold);
       finished(false);
     }
+    // The frames go on being analysed while the picture's orientation is checked.
+    done.release();
+    if (!again && !pelvis_.active()) {
+      try {
+        check_orientation(moved ? *moved->deformer : *deformer_, pair);
+      } catch (const std::exception& e) {
+        log().error("picture orientation, frames {}+{}: {}", pair.earlier.frame, pair.later.frame, e.what());
+      }
+    }
   }
 }
 
@@ -695,21 +816,52 @@ void LiveNode::Impl::pelvis_loop() {
     return fmt::format("{:.1f} mm, {:.1f}° from the registration", r.shift_mm.norm(),
                        r.turn_deg());
   };
-  for (;;) {
-    std::optional<BoneView> b = bone_views_.pop(std::chrono::milliseconds(100));
-    if (stopping_.load()) break;  // what is left is not registered: the node stops
-    if (!b) {
-      if (bone_views_.closed()) break;
-      continue;
+  // Is the picture the right way round? Each view's bones, as taken and turned: said when
+  // two different views in a row match only turned alike, cleared by a view that matches
+  // only as taken.
+  std::optional<geometry::RayCaster> bones;
+  TurnStreak streak;
+  std::vector<FrameView> streak_views;  // the views that made the streak: the same view again adds nothing
+  const auto check_orientation = [&](const BoneView& b) {
+    if (!bones) bones.emplace(deformer_->scene().pelvis);
+    BoneOrientationCheck c = check_bone_orientation(*bones, {b.view.P_ct, b.detector, b.name},
+                                                    options_.pelvis.registration, 0.15, shown_through());
+    const bool seen_before = std::any_of(streak_views.begin(), streak_views.end(), [&](const FrameView& v) {
+      return same_bone_view(v, b.view, options_.pelvis);
+    });
+    std::vector<PictureTurn> said;
+    if (c.better && !seen_before) {
+      said = streak.suspect(c.candidates);
+      if (streak.length() == 1) streak_views.clear();
+      streak_views.push_back(b.view);
     }
+    const std::string alert = said.empty() ? std::string() : orientation_alert(said, true, c.problem);
+    count_orientation_check(c.better ? c.problem : std::string(), alert);
+    if (log().should_log(spdlog::level::debug)) {
+      std::string tried;
+      for (const auto& [t, m] : c.tried) tried += fmt::format("; {} {:.2f}", turn_text(t), m.correlation);
+      log().debug("picture orientation, {}: the bones match with a gradient correlation of {:.2f} as taken{}", b.name,
+                  c.as_set.correlation, tried);
+    }
+    if (c.better) {
+      log().warn("{}", c.problem);
+      if (!said.empty()) alerts_.set("picture-orientation-bones", alert, std::nullopt);
+    } else if (c.confirmed) {
+      streak.confirm();
+      streak_views.clear();
+      alerts_.clear("picture-orientation-bones");
+    }
+  };
+  // The pelvis registered in the views kept, and the models moved with it.
+  const auto track = [&](const BoneView& b) {
     std::string status;
     std::optional<geometry::PelvisRegistration> found;
     std::shared_ptr<const PelvisMovedModels> now_moved;
     try {
-      if (!pelvis_.offer(b->detector, b->view, b->name)) {
+      if (!pelvis_.offer(b.detector, b.view, b.name)) {
         std::lock_guard lock(stats_mutex_);
         stats_.pelvis_views = pelvis_.views();
-        continue;
+        return;
       }
       const auto t0 = Clock::now();
       found = pelvis_.register_views();
@@ -731,7 +883,7 @@ void LiveNode::Impl::pelvis_loop() {
       // Whatever the registration met (memory, an image it could not read): said, and the
       // node goes on with the models as they are.
       status = "not looked for in this view: it failed (see the log)";
-      log().error("pelvis: {}: {}; the models stay as they are", b->name, e.what());
+      log().error("pelvis: {}: {}; the models stay as they are", b.name, e.what());
     }
     const std::shared_ptr<const PelvisMovedModels> moved = now_moved ? now_moved : moved_models();
     if (status.empty() && found)
@@ -753,7 +905,7 @@ void LiveNode::Impl::pelvis_loop() {
         stats_.pelvis_turn_deg = moved->pose.turn_deg();
       }
     }
-    if (!now_moved) continue;
+    if (!now_moved) return;
     // The model on screen was bent from where the models were: its pair is adapted again from
     // where they are now, here when no adaptation runs, else by the adaptation thread when
     // it is done.
@@ -764,6 +916,20 @@ void LiveNode::Impl::pelvis_loop() {
       if (!adapting_pair_) once_more = shown_pair_;
     }
     if (once_more) adapt_again(std::move(*once_more));
+  };
+  for (;;) {
+    std::optional<BoneView> b = bone_views_.pop(std::chrono::milliseconds(100));
+    if (stopping_.load()) break;  // what is left is not registered: the node stops
+    if (!b) {
+      if (bone_views_.closed()) break;
+      continue;
+    }
+    track(*b);  // the pelvis first: the models wait for it
+    try {
+      check_orientation(*b);
+    } catch (const std::exception& e) {
+      log().error("picture orientation: {}: {}", b->name, e.what());
+    }
   }
 }
 

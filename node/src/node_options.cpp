@@ -73,6 +73,9 @@ void check_options(const NodeOptions& o) {
   if (!(o.adaptation.reading_margin_mm >= 0.0)) bad("adaptation.reading_margin_mm", "must be 0 mm or more");
   positive("adaptation.outside_limit_mm", o.adaptation.outside_limit_mm, "mm");
   share("adaptation.max_share_outside", o.adaptation.max_share_outside);
+  if (!(o.adaptation.orientation_outside_mm >= o.adaptation.reading_margin_mm) ||
+      !std::isfinite(o.adaptation.orientation_outside_mm))
+    bad("adaptation.orientation_outside_mm", "must be finite and no less than adaptation.reading_margin_mm");
 
   positive("timeline.window", o.timeline.window);
   positive("timeline.stale_after", o.timeline.stale_after);

@@ -50,6 +50,8 @@ TEST(NodeOptions, EachSettingNoNodeCouldRunWithIsRefusedByName) {
       {[](NodeOptions& o) { o.candidate.device_diameter_mm = 0; }, "node options: candidate.device_diameter_mm:"},
       {[](NodeOptions& o) { o.candidate.min_confidence = 1.5; }, "node options: candidate.min_confidence: 1.5"},
       {[](NodeOptions& o) { o.adaptation.max_share_outside = -0.1; }, "node options: adaptation.max_share_outside:"},
+      {[](NodeOptions& o) { o.adaptation.orientation_outside_mm = 2.0; },
+       "node options: adaptation.orientation_outside_mm: must be finite and no less than adaptation.reading_margin_mm"},
       {[](NodeOptions& o) { o.timeline.stale_after = 0ms; }, "node options: timeline.stale_after: 0 ms"},
       {[](NodeOptions& o) { o.compositor.supersample = 0; }, "node options: compositor.supersample: 0; must be 1 to 8"},
       {[](NodeOptions& o) { o.held_frame_interval = 0ms; }, "node options: held_frame_interval: 0 ms"},

@@ -86,6 +86,14 @@ struct PelvisRegistration {
   double turn_deg() const;
 };
 
+/// How well the pelvis's bones, where the view's projection puts them, match its frame
+/// alone: the gradient correlation at the best shift within max_shift_mm (register_pelvis's
+/// first round on this one view; `used` when it counts). What a frame turned or mirrored
+/// against its projection does not reach in an oblique view (node/picture_orientation.hpp).
+/// std::invalid_argument for implausible options.
+PelvisViewMatch match_pelvis_view(const RayCaster& bones, const PelvisView& view,
+                                  const PelvisRegistrationOptions& options = {});
+
 /// std::invalid_argument "register_pelvis: implausible options (...)" for options no
 /// registration runs with.
 void check_options(const PelvisRegistrationOptions& options);

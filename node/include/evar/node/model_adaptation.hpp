@@ -29,6 +29,11 @@ struct AdaptationOptions {
   /// wire) or a wrong registration. The device bends the iliacs by a few tens of mm at most.
   double outside_limit_mm = 50.0;
   double max_share_outside = 0.2;
+  /// A device farther than this outside the preoperative vessels on average is checked for
+  /// a picture turned or mirrored against its projection (node::check_picture_orientation);
+  /// nearer, it may be a device that bends the vessels that far (at the paper's difficulty
+  /// the right way round lay up to 12.6 mm outside, docs/FORMATS.md, "Video mapping").
+  double orientation_outside_mm = 15.0;
 };
 
 struct AdaptedModel {

@@ -29,6 +29,15 @@ struct NodeStatistics {
   /// the last misfit was (NodeOptions::video_mapping_check).
   std::uint64_t video_mapping_checks = 0, video_mapping_misfits = 0;
   std::string last_video_mapping_misfit;
+  /// Views (by their bones, node::check_bone_orientation) and view pairs (by their device,
+  /// node::check_picture_orientation) whose picture orientation was checked, those that
+  /// read right only with the picture turned or mirrored, and what the last of those said.
+  std::uint64_t orientation_checks = 0, orientation_misfits = 0;
+  std::string last_orientation_misfit;
+  /// Checks after which the screen said the picture is turned or mirrored (two in a row
+  /// agreeing), and the last thing it said.
+  std::uint64_t orientation_alerts = 0;
+  std::string last_orientation_alert;
   std::uint64_t frames_held = 0;     ///< the last frame shown again while there was no video (not in frames_composited)
   /// Frames and pairs handed on but never analysed or adapted: replaced by a newer one, or
   /// left when the node stopped (with readaptations below, they make the adaptations).
