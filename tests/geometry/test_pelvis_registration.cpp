@@ -12,6 +12,7 @@
 #include "evar/sim/session_generator.hpp"
 #include "evar/session/session.hpp"
 #include "evar/geometry/scene.hpp"
+#include "support/carm_view.hpp"
 #include <filesystem>
 #include <fstream>
 #include <unistd.h>
@@ -22,14 +23,7 @@ namespace evar::geometry {
 namespace {
 
 CArmView view(double primary_deg, double secondary_deg = 0.0, int px = 512) {
-  CArmView v;
-  v.primary_angle_deg = primary_deg;
-  v.secondary_angle_deg = secondary_deg;
-  v.source_to_detector_mm = 1200.0;
-  v.source_to_isocenter_mm = 800.0;
-  v.detector_cols = v.detector_rows = px;
-  v.row_spacing_mm = v.col_spacing_mm = 0.6;
-  return v;
+  return test::carm_view(primary_deg, secondary_deg, px, 0.6);
 }
 
 // CT → C-arm: the CT point `centre` at the isocenter, turned a little as a registration is.

@@ -14,6 +14,7 @@
 #include "evar/sim/body_phantom.hpp"
 #include "evar/sim/example_scene.hpp"
 #include "evar/sim/xray_render.hpp"
+#include "support/carm_view.hpp"
 
 namespace {
 
@@ -27,14 +28,7 @@ std::vector<PictureTurn> every_turn() {
 }
 
 geometry::CArmView view(double primary_deg, double secondary_deg, int px) {
-  geometry::CArmView v;
-  v.primary_angle_deg = primary_deg;
-  v.secondary_angle_deg = secondary_deg;
-  v.source_to_detector_mm = 1200.0;
-  v.source_to_isocenter_mm = 800.0;
-  v.detector_cols = v.detector_rows = px;
-  v.row_spacing_mm = v.col_spacing_mm = 0.6;
-  return v;
+  return test::carm_view(primary_deg, secondary_deg, px, 0.6);
 }
 
 TEST(PictureTurn, PointsAndImagesTurnAlikeAndQuarterTurnsNeedASquare) {

@@ -6,19 +6,13 @@
 #include "evar/sim/body_phantom.hpp"
 #include "evar/sim/tube_mesh.hpp"
 #include "evar/sim/xray_render.hpp"
+#include "support/carm_view.hpp"
 
 namespace evar::sim {
 namespace {
 
 geometry::CArmView view(double primary = 0.0, double secondary = 0.0, int size = 256) {
-  geometry::CArmView v;
-  v.primary_angle_deg = primary;
-  v.secondary_angle_deg = secondary;
-  v.source_to_detector_mm = 1200.0;
-  v.source_to_isocenter_mm = 800.0;
-  v.detector_cols = v.detector_rows = size;
-  v.row_spacing_mm = v.col_spacing_mm = 0.3 * 1024.0 / size;
-  return v;
+  return test::carm_view(primary, secondary, size, 0.3 * 1024.0 / size);  // 0.3 mm at 1024
 }
 
 TEST(EllipsoidChord, MatchesTheSphereFormula) {
