@@ -186,26 +186,43 @@ void check_options(const PelvisRegistrationOptions& options) {
                                 "a settled step over 0, a truncation share from 0 to under 1)");
 }
 
+namespace {
+
+// One view's frame against the bones seen through P_render: the images matched (the bones'
+// thickness, with its depth when asked, and both gradients) and the whole view's best
+// shift, searched over max_shift_mm at the bones around `at_mm` as P sees them there (J).
+struct ViewImages {
+  Eigen::Matrix<double, 2, 3> J = Eigen::Matrix<double, 2, 3>::Zero();
+  cv::Mat bone, depth, f[2], g[2];
+  ViewMatch match;
+};
+
+ViewImages match_view(const RayCaster& caster, const ProjectionMatrix& P, const ProjectionMatrix& P_render,
+                      const Eigen::Vector3d& at_mm, const cv::Mat& frame, const PelvisRegistrationOptions& options,
+                      bool with_depth) {
+  ViewImages v;
+  if (frame.empty() || frame.channels() != 1) {
+    v.match.reason = "not a one-channel image";
+    return v;
+  }
+  v.J = projection_jacobian(P, at_mm);
+  // How many matched pixels the searched distance is, at the bones.
+  const double px_per_mm = v.J.norm() / std::sqrt(2.0);
+  const int reach = std::max(2, static_cast<int>(std::ceil(options.max_shift_mm * px_per_mm / options.step_px)));
+  v.bone = bone_thickness_image(caster, P_render, frame.cols, frame.rows, options.step_px, with_depth ? &v.depth : nullptr);
+  smoothed_gradients(attenuation_image(frame, v.bone.size(), options.step_px), v.f);
+  smoothed_gradients(v.bone, v.g);
+  v.match = match_bones(v.f, v.g, v.bone, reach, options);
+  return v;
+}
+
+}  // namespace
+
 PelvisViewMatch match_pelvis_view(const RayCaster& bones, const PelvisView& view, const PelvisRegistrationOptions& options) {
   check_options(options);
-  PelvisViewMatch report{view.name, false, 0.0, {0, 0}, ""};
-  if (view.frame.empty() || view.frame.channels() != 1) {
-    report.reason = "not a one-channel image";
-    return report;
-  }
-  const Eigen::Vector3d c = bones.mesh().V.colwise().mean().transpose();  // the bones' centroid
-  const double px_per_mm = projection_jacobian(view.P_ct, c).norm() / std::sqrt(2.0);
-  const int reach = std::max(2, static_cast<int>(std::ceil(options.max_shift_mm * px_per_mm / options.step_px)));
-  const cv::Mat bone = bone_thickness_image(bones, view.P_ct, view.frame.cols, view.frame.rows, options.step_px);
-  cv::Mat f[2], g[2];
-  smoothed_gradients(attenuation_image(view.frame, bone.size(), options.step_px), f);
-  smoothed_gradients(bone, g);
-  const ViewMatch m = match_bones(f, g, bone, reach, options);
-  report.used = m.ok;
-  report.correlation = m.correlation;
-  report.shift_px = m.shift_cells * options.step_px;
-  report.reason = m.reason;
-  return report;
+  const Eigen::Vector3d centroid = bones.mesh().V.colwise().mean().transpose();
+  const ViewMatch m = match_view(bones, view.P_ct, view.P_ct, centroid, view.frame, options, false).match;
+  return {view.name, m.ok, m.correlation, m.shift_cells * options.step_px, m.reason};
 }
 
 PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vector<PelvisView>& views,
@@ -242,21 +259,9 @@ PelvisRegistration register_pelvis(const TriangleMesh& bones_ct, const std::vect
       const PelvisView& view = views[k];
       PelvisViewMatch& report = out.views[k];
       report = {view.name, false, 0.0, {0, 0}, ""};
-      if (view.frame.empty() || view.frame.channels() != 1) {
-        report.reason = "not a one-channel image";
-        continue;
-      }
       const ProjectionMatrix P_moved = view.P_ct * pose;
-      const Eigen::Matrix<double, 2, 3> J = projection_jacobian(view.P_ct, c);
-      // How many matched pixels the searched distance is, at the bones.
-      const double px_per_mm = J.norm() / std::sqrt(2.0);
-      const int reach = std::max(2, static_cast<int>(std::ceil(options.max_shift_mm * px_per_mm / options.step_px)));
-      cv::Mat depth;
-      const cv::Mat bone = bone_thickness_image(caster, P_moved, view.frame.cols, view.frame.rows, options.step_px, &depth);
-      cv::Mat f[2], g[2];
-      smoothed_gradients(attenuation_image(view.frame, bone.size(), options.step_px), f);
-      smoothed_gradients(bone, g);
-      const ViewMatch m = match_bones(f, g, bone, reach, options);
+      const ViewImages images = match_view(caster, view.P_ct, P_moved, c, view.frame, options, true);
+      const auto& [J, bone, depth, f, g, m] = images;
       report.correlation = m.correlation;
       report.shift_px = m.shift_cells * options.step_px;
       if (!m.ok) {

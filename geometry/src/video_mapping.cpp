@@ -61,6 +61,18 @@ std::string video_mapping_problem(const VideoMapping& m) {
   return "";
 }
 
+Eigen::Matrix2d turn_and_mirror(int rotation_deg, bool mirror) {
+  if (rotation_deg % 90 != 0 || rotation_deg < 0 || rotation_deg > 270)
+    throw std::invalid_argument("picture turn: rotation " + std::to_string(rotation_deg) +
+                                " degrees is not 0, 90, 180 or 270");
+  // A clockwise quarter turn as seen takes (x, y) to (−y, x); the mirror takes x to −x.
+  Eigen::Matrix2d Q = Eigen::Matrix2d::Identity();
+  const Eigen::Matrix2d quarter{{0.0, -1.0}, {1.0, 0.0}};
+  for (int k = 0; k < rotation_deg / 90; ++k) Q = quarter * Q;
+  if (mirror) Q.row(0) *= -1.0;
+  return Q;
+}
+
 VideoToDetector::VideoToDetector(const VideoMapping& mapping, int detector_cols, int detector_rows)
     : detector_cols_(detector_cols),
       detector_rows_(detector_rows),
@@ -80,21 +92,20 @@ VideoToDetector::VideoToDetector(const VideoMapping& mapping, int detector_cols,
         std::to_string(mapping.rotation_deg) + " degrees " + number_text(shown_w / shown_h) +
         " (display pixels are square): check rotation_deg and the rectangle");
 
-  // On pixel edges (centre + ½): turn, mirror, scale into the rectangle.
-  Eigen::Matrix2d R;
-  Eigen::Vector2d r;
+  // On pixel edges (centre + ½): turn, mirror, scale into the rectangle. The turned and
+  // mirrored picture's corner goes back to the origin by r (turned) and m (mirrored).
+  Eigen::Vector2d r = Eigen::Vector2d::Zero();
   switch (mapping.rotation_deg) {
-    case 90: R << 0, -1, 1, 0; r << H, 0; break;
-    case 180: R << -1, 0, 0, -1; r << W, H; break;
-    case 270: R << 0, 1, -1, 0; r << 0, W; break;
-    default: R.setIdentity(); r.setZero();
+    case 90: r << H, 0; break;
+    case 180: r << W, H; break;
+    case 270: r << 0, W; break;
+    default: break;
   }
-  Eigen::Matrix2d M = Eigen::Matrix2d::Identity();
-  Eigen::Vector2d m = Eigen::Vector2d::Zero();
-  if (mapping.mirror) M(0, 0) = -1.0, m.x() = shown_w;
+  const Eigen::Matrix2d M = turn_and_mirror(0, mapping.mirror);
+  const Eigen::Vector2d m(mapping.mirror ? shown_w : 0.0, 0.0);
   const Eigen::Matrix2d S = Eigen::Vector2d(sx, sy).asDiagonal();
   const Eigen::Vector2d origin(mapping.image_rect.x, mapping.image_rect.y), half(0.5, 0.5);
-  const Eigen::Matrix2d L = S * M * R;
+  const Eigen::Matrix2d L = S * turn_and_mirror(mapping.rotation_deg, mapping.mirror);
   const Eigen::Vector2d t = L * half + S * (M * r + m) + origin - half;
   forward_ << L, t;
   const Eigen::Matrix2d Li = L.inverse();

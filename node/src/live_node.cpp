@@ -3,6 +3,7 @@
 #include <algorithm>
 #include <atomic>
 #include <cctype>
+#include <functional>
 #include <limits>
 #include <mutex>
 #include <optional>
@@ -590,7 +591,34 @@ void LiveNode::Impl::analysis_loop() {
 
 namespace {
 
-// Two pairs of the same two views (either way round): the same evidence twice.
+// A TurnStreak over views (or view pairs): one the streak holds already, seen again, adds
+// nothing (the same evidence twice).
+template <class Evidence>
+class EvidenceStreak {
+ public:
+  using Same = std::function<bool(const Evidence&, const Evidence&)>;
+  EvidenceStreak(int needed, Same same) : streak_(needed), same_(std::move(same)) {}
+  // TurnStreak::suspect, for the evidence `e`.
+  std::vector<PictureTurn> suspect(const std::vector<PictureTurn>& candidates, const Evidence& e) {
+    if (std::any_of(held_.begin(), held_.end(), [&](const Evidence& h) { return same_(h, e); })) return {};
+    std::vector<PictureTurn> said = streak_.suspect(candidates);
+    if (streak_.length() == 1) held_.clear();
+    held_.push_back(e);
+    return said;
+  }
+  void confirm() {
+    streak_.confirm();
+    held_.clear();
+  }
+  bool suspecting() const { return streak_.length() > 0; }
+
+ private:
+  TurnStreak streak_;
+  Same same_;
+  std::vector<Evidence> held_;  // what made the streak
+};
+
+// Two pairs of the same two views (either way round).
 bool same_views(const ViewPair& a, const ViewPair& b, const PelvisTrackingOptions& o) {
   const auto same = [&](const ViewCandidate& x, const ViewCandidate& y) { return same_bone_view(x.geometry, y.geometry, o); };
   return (same(a.earlier, b.earlier) && same(a.later, b.later)) || (same(a.earlier, b.later) && same(a.later, b.earlier));
@@ -650,21 +678,11 @@ void LiveNode::Impl::adaptation_loop() {
   // taken. A device may read into symmetric vessels under more than one turn: the turns are
   // named, no fix. (Only views of other angles can be more decisive: a streak of two would
   // wait for a third view.)
-  TurnStreak streak(1);
-  std::vector<ViewPair> streak_pairs;  // the pairs that made the streak: the same views again add nothing
-  bool said_before = false;
+  EvidenceStreak<ViewPair> streak(1, [this](const ViewPair& a, const ViewPair& b) { return same_views(a, b, options_.pelvis); });
   const auto check_orientation = [&](const deform::SceneDeformer& deformer, const ViewPair& pair) {
-    OrientationCheck c = check_picture_orientation(deformer, pair, options_.adaptation,
-                                                   said_before || streak.length() > 0, shown_through());
-    const bool seen_before = std::any_of(streak_pairs.begin(), streak_pairs.end(), [&](const ViewPair& p) {
-      return same_views(p, pair, options_.pelvis);
-    });
-    std::vector<PictureTurn> said;
-    if (c.better && !seen_before) {
-      said = streak.suspect(c.candidates);
-      if (streak.length() == 1) streak_pairs.clear();
-      streak_pairs.push_back(pair);
-    }
+    OrientationCheck c =
+        check_picture_orientation(deformer, pair, options_.adaptation, streak.suspecting(), shown_through());
+    const std::vector<PictureTurn> said = c.better ? streak.suspect(c.candidates, pair) : std::vector<PictureTurn>{};
     const std::string alert = said.empty() ? std::string() : orientation_alert(said, false, c.problem);
     count_orientation_check(c.better ? "frames " + std::to_string(pair.earlier.frame) + "+" +
                                            std::to_string(pair.later.frame) + ": " + c.problem
@@ -678,16 +696,11 @@ void LiveNode::Impl::adaptation_loop() {
     }
     if (c.better) {
       log().warn("frames {}+{}: {}", pair.earlier.frame, pair.later.frame, c.problem);
-      if (!said.empty()) {
-        alerts_.set("picture-orientation-device", alert, std::nullopt);
-        said_before = true;
-      }
+      if (!said.empty()) alerts_.set("picture-orientation-device", alert, std::nullopt);
       return;
     }
     if (!c.confirmed) return;  // a device that bends its vessels far, or none: undecided
     streak.confirm();
-    streak_pairs.clear();
-    said_before = false;
     alerts_.clear("picture-orientation-device");
   };
   while (std::optional<PairJob> job = pairs_.take()) {
@@ -820,21 +833,13 @@ void LiveNode::Impl::pelvis_loop() {
   // two different views in a row match only turned alike, cleared by a view that matches
   // only as taken.
   std::optional<geometry::RayCaster> bones;
-  TurnStreak streak;
-  std::vector<FrameView> streak_views;  // the views that made the streak: the same view again adds nothing
+  EvidenceStreak<FrameView> streak(
+      2, [this](const FrameView& a, const FrameView& b) { return same_bone_view(a, b, options_.pelvis); });
   const auto check_orientation = [&](const BoneView& b) {
     if (!bones) bones.emplace(deformer_->scene().pelvis);
     BoneOrientationCheck c = check_bone_orientation(*bones, {b.view.P_ct, b.detector, b.name},
                                                     options_.pelvis.registration, 0.15, shown_through());
-    const bool seen_before = std::any_of(streak_views.begin(), streak_views.end(), [&](const FrameView& v) {
-      return same_bone_view(v, b.view, options_.pelvis);
-    });
-    std::vector<PictureTurn> said;
-    if (c.better && !seen_before) {
-      said = streak.suspect(c.candidates);
-      if (streak.length() == 1) streak_views.clear();
-      streak_views.push_back(b.view);
-    }
+    const std::vector<PictureTurn> said = c.better ? streak.suspect(c.candidates, b.view) : std::vector<PictureTurn>{};
     const std::string alert = said.empty() ? std::string() : orientation_alert(said, true, c.problem);
     count_orientation_check(c.better ? c.problem : std::string(), alert);
     if (log().should_log(spdlog::level::debug)) {
@@ -848,7 +853,6 @@ void LiveNode::Impl::pelvis_loop() {
       if (!said.empty()) alerts_.set("picture-orientation-bones", alert, std::nullopt);
     } else if (c.confirmed) {
       streak.confirm();
-      streak_views.clear();
       alerts_.clear("picture-orientation-bones");
     }
   };

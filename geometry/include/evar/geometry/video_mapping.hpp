@@ -34,6 +34,12 @@ struct VideoMapping {
   std::vector<PixelRect> text_regions;    ///< burned-in text and graphics (video pixels)
 };
 
+/// The picture turned `rotation_deg` clockwise as seen, then mirrored left to right when
+/// `mirror`, on offsets from its centre (x right, y down): a 2x2 matrix of 0 and ±1, the
+/// linear part of a mapping before its scale. std::invalid_argument for a rotation that is
+/// not 0, 90, 180 or 270.
+Eigen::Matrix2d turn_and_mirror(int rotation_deg, bool mirror);
+
 /// A mapping applied to a detector of `detector_cols` × `detector_rows` pixels: the
 /// affine map both ways, as 2×3 matrices on pixel centres.
 class VideoToDetector {

@@ -25,7 +25,8 @@ struct PictureTurn {
 std::string turn_text(const PictureTurn& turn);
 
 /// The turn on offsets from the picture's centre, x right and y down: a 2x2 matrix of 0
-/// and ±1. std::invalid_argument for a rotation that is not 0, 90, 180 or 270.
+/// and ±1 (geometry::turn_and_mirror). std::invalid_argument for a rotation that is not 0,
+/// 90, 180 or 270.
 Eigen::Matrix2d turn_matrix(const PictureTurn& turn);
 
 /// Where the points of a `cols` × `rows` picture lie when it is turned as said (pixel
